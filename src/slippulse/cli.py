@@ -1,0 +1,54 @@
+"""Command-line interface: ``slippulse steady ...``, ``slippulse figures ...``, ``slippulse dynamic ...``.
+
+Bad input is reported as one line ``slippulse: error: ...`` naming the parameter and its valid range,
+with exit code 2. A solver that does not converge exits with code 1.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .h5io import SchemaError
+from .params import ParameterError
+
+#: Modules that add sub-commands: each defines ``register(subparsers)``.
+_PLUGINS = ("slippulse.cli_steady", "slippulse.cli_figures", "slippulse.cli_dynamic")
+
+
+class UsageError(ValueError):
+    """Bad command-line input (reported without a traceback, exit code 2)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="slippulse",
+        description="Self-healing slip pulses on a rate-and-state frictional interface (mode III).")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in _PLUGINS:
+        try:
+            mod = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:
+                raise
+            continue
+        mod.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (ParameterError, SchemaError, UsageError) as exc:
+        print(f"slippulse: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("slippulse: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
