@@ -1,0 +1,199 @@
+"""Principal-value Hilbert operator on a non-uniform grid, as a dense matrix.
+
+    (H u)_i = PV ∫ u(z) / (z − ξ_i) dz
+
+for the piecewise-cubic (natural spline) or piecewise-linear interpolant of the nodal values u_j,
+integrated analytically segment by segment. Beyond the grid ends the field is continued by the
+algebraic far-field tails u(z) = u_end (ξ_end − c)/(z − c) (the 1/ξ decay of a slip-rate excess
+under a Hilbert-type stress), which keeps the PV finite at the end nodes and makes the far field
+consistent; ``tails=False`` drops them (field zero outside).
+
+Derivation (docs/steady.md §2): on segment j, s = (z − ξ_j)/h_j ∈ [0, 1], the Hermite cubic
+p(s) = u_j H00 + u_{j+1} H01 + h_j m_j H10 + h_j m_{j+1} H11 gives
+∫_seg p(z)/(z−ξ_i) dz = Σ_k c_k M_k(x0), x0 = (ξ_i − ξ_j)/h_j, with the moments
+M_0 = ln|ξ_{j+1}−ξ_i| − ln|ξ_j−ξ_i|, M_k = 1/k + x0 M_{k−1} for targets near the segment
+(−1 ≤ x0 ≤ 2; the logarithm of a zero distance is set to 0: those terms cancel between the two
+segments sharing the node, with equal coefficient u_i), and Gauss–Legendre quadrature (order chosen
+from the distance for 1e-16 accuracy) elsewhere. The spline slopes m = T⁻¹ R u (tridiagonal T, R),
+so H = A + B T⁻¹ R; B T⁻¹ is obtained with one banded solve, making the assembly O(N²).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from scipy.linalg import solve_banded
+
+_GL = {n: np.polynomial.legendre.leggauss(n) for n in (3, 4, 6, 8, 10, 12)}
+_GL_NODES = np.zeros((6, 12))
+_GL_WEIGHTS = np.zeros((6, 12))
+_GL_N = np.array([3, 4, 6, 8, 10, 12])
+for _k, _n in enumerate(_GL_N):
+    _GL_NODES[_k, :_n] = 0.5 * (_GL[_n][0] + 1.0)   # mapped to [0, 1]
+    _GL_WEIGHTS[_k, :_n] = 0.5 * _GL[_n][1]
+# Quadrature order by r = |2 x0 − 1| (pole distance in half-lengths): error ~ ρ^(−2n), ρ = r + √(r²−1)
+_GL_RMIN = np.array([400.0, 80.0, 20.0, 8.0, 4.0, 3.0])
+
+
+@njit(cache=True)
+def _log_abs(d):
+    return np.log(abs(d)) if d != 0.0 else 0.0
+
+
+@njit(cache=True)
+def _assemble(xi, cubic, A, B):
+    """Fill A (value weights) and B (slope weights, already × h_j) for all targets i."""
+    n = xi.size
+    for i in range(n):
+        xt = xi[i]
+        for j in range(n - 1):
+            h = xi[j + 1] - xi[j]
+            x0 = (xt - xi[j]) / h
+            r = abs(2.0 * x0 - 1.0)
+            if r <= 3.0:
+                m0 = _log_abs(xi[j + 1] - xt) - _log_abs(xi[j] - xt)
+                m1 = 1.0 + x0 * m0
+                m2 = 0.5 + x0 * m1
+                m3 = 1.0 / 3.0 + x0 * m2
+            else:
+                q = 0
+                for k in range(_GL_N.size):
+                    if r >= _GL_RMIN[k]:
+                        q = k
+                        break
+                m0 = 0.0
+                m1 = 0.0
+                m2 = 0.0
+                m3 = 0.0
+                for k in range(_GL_N[q]):
+                    s = _GL_NODES[q, k]
+                    wk = _GL_WEIGHTS[q, k] / (s - x0)
+                    m0 += wk
+                    m1 += wk * s
+                    m2 += wk * s * s
+                    m3 += wk * s * s * s
+            if cubic:
+                # H00 = 2s³−3s²+1, H01 = −2s³+3s², H10 = s³−2s²+s, H11 = s³−s²
+                A[i, j] += 2.0 * m3 - 3.0 * m2 + m0
+                A[i, j + 1] += -2.0 * m3 + 3.0 * m2
+                B[i, j] += h * (m3 - 2.0 * m2 + m1)
+                B[i, j + 1] += h * (m3 - m2)
+            else:
+                A[i, j] += m0 - m1
+                A[i, j + 1] += m1
+
+
+def _spline_system(xi):
+    """Natural cubic spline in slope form: T m = R u, T as banded (3, N), R as three diagonals."""
+    n = xi.size
+    h = np.diff(xi)
+    ih = 1.0 / h
+    T = np.zeros((3, n))
+    # T rows: upper diagonal T[0, 1:], main T[1, :], lower T[2, :-1]
+    T[1, 0] = 2.0 * ih[0]
+    T[0, 1] = ih[0]
+    T[1, -1] = 2.0 * ih[-1]
+    T[2, -2] = ih[-1]
+    T[1, 1:-1] = 2.0 * (ih[:-1] + ih[1:])
+    T[0, 2:] = ih[1:]
+    T[2, :-2] = ih[:-1]
+    # R u: row 0: 3(u1−u0)/h0², row n−1: 3(u_{n−1}−u_{n−2})/h²,
+    # interior: 3[(u_j − u_{j−1})/h_{j−1}² + (u_{j+1} − u_j)/h_j²]
+    lo = np.zeros(n)   # coefficient of u_{j−1} in row j
+    di = np.zeros(n)   # coefficient of u_j
+    up = np.zeros(n)   # coefficient of u_{j+1}
+    ih2 = 3.0 * ih * ih
+    di[0] = -ih2[0]
+    up[0] = ih2[0]
+    lo[-1] = -ih2[-1]
+    di[-1] = ih2[-1]
+    lo[1:-1] = -ih2[:-1]
+    di[1:-1] = ih2[:-1] - ih2[1:]
+    up[1:-1] = ih2[1:]
+    return T, (lo, di, up)
+
+
+def spline_slopes(xi, u):
+    """Slopes of the natural cubic spline through (ξ, u) (used by tests and interpolation)."""
+    T, (lo, di, up) = _spline_system(np.asarray(xi, float))
+    ru = di * u
+    ru[1:] += lo[1:] * u[:-1]
+    ru[:-1] += up[:-1] * u[1:]
+    return solve_banded((1, 1), T, ru)
+
+
+def _tail_columns(xi, center):
+    """Integrals of the far-field tails u_end (ξ_end − c)/(z − c) against 1/(z − ξ_i).
+
+    Ahead (z > ξ_N, c < ξ_N): ∫_{ξ_N}^∞ a/((z−c)(z−ξ_i)) dz = a ln(|ξ_N−ξ_i|/|ξ_N−c|)/(c−ξ_i) with
+    a = ξ_N − c; behind (z < ξ_1, c > ξ_1) symmetrically. At ξ_i = c the limits are a/(ξ_end − c).
+    The ln of a zero distance (target at the end node) is set to 0 as in the interior segments.
+    """
+    xN, x1 = xi[-1], xi[0]
+    aN, a1 = xN - center, center - x1
+    d = center - xi
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lnN = np.where(xi == xN, 0.0, np.log(np.abs(xN - np.where(xi == xN, 0.0, xi)))) \
+            - np.log(abs(aN))
+        ahead = aN * lnN / d
+        ln1 = np.where(xi == x1, 0.0, np.log(np.abs(np.where(xi == x1, 0.0, xi) - x1))) \
+            - np.log(abs(a1))
+        behind = a1 * ln1 / d
+    at_c = d == 0.0
+    ahead[at_c] = aN / (xN - center)
+    behind[at_c] = -a1 / (center - x1)
+    # a target at the end node with ln(0) → 0 keeps the term consistent with the adjacent segment
+    return behind, ahead
+
+
+def hilbert_matrix(xi, kind: str = "cubic", tails: bool = True, center: float | None = None):
+    """Dense matrix H with (H u)_i = PV∫ u(z)/(z − ξ_i) dz for the interpolant of u on the grid ξ.
+
+    Parameters
+    ----------
+    xi : (N,) array, strictly ascending, m.
+    kind : {"cubic", "linear"}
+        Natural cubic spline (default) or piecewise-linear interpolant.
+    tails : bool
+        Continue u beyond the ends with the algebraic far-field tails (see module notes).
+    center : float, optional
+        Centre c of the tails 1/(z − c); default: middle of the grid.
+
+    Returns
+    -------
+    H : (N, N) ndarray, 1 (dimensionless: the integral of u has the units of u).
+    """
+    xi = np.ascontiguousarray(xi, dtype=float)
+    n = xi.size
+    if n < 4 or np.any(np.diff(xi) <= 0):
+        raise ValueError("hilbert_matrix needs ≥ 4 strictly ascending points")
+    if kind not in HILBERT_KINDS:
+        raise ValueError(f"kind={kind!r}: must be one of {sorted(HILBERT_KINDS)}")
+    A = np.zeros((n, n))
+    B = np.zeros((n, n))
+    cubic = kind == "cubic"
+    _assemble(xi, cubic, A, B)
+    H = A
+    if cubic:
+        T, (lo, di, up) = _spline_system(xi)
+        # X = B T⁻¹  ⇔  Tᵀ Xᵀ = Bᵀ; Tᵀ in banded storage: swap the off-diagonals.
+        Tt = np.zeros_like(T)
+        Tt[1] = T[1]
+        Tt[0, 1:] = T[2, :-1]
+        Tt[2, :-1] = T[0, 1:]
+        X = solve_banded((1, 1), Tt, B.T, overwrite_b=True, check_finite=False).T
+        # H += X R, R tridiagonal with rows (lo, di, up): (X R)[:, k] = X[:, k] di_k
+        #   + X[:, k+1] lo_{k+1} + X[:, k−1] up_{k−1}
+        H += X * di
+        H[:, :-1] += X[:, 1:] * lo[1:]
+        H[:, 1:] += X[:, :-1] * up[:-1]
+    if tails:
+        c = 0.5 * (xi[0] + xi[-1]) if center is None else float(center)
+        if not (xi[0] < c < xi[-1]):
+            raise ValueError("tail centre must lie inside the grid")
+        behind, ahead = _tail_columns(xi, c)
+        H[:, 0] += behind
+        H[:, -1] += ahead
+    return H
+
+
+HILBERT_KINDS = {"cubic": "natural cubic spline", "linear": "piecewise linear"}

@@ -1,0 +1,124 @@
+"""Nonlinear solvers for the steady equations: damped Newton (dense LU) and scipy's Levenberg–Marquardt.
+
+Both drive the residual of a problem object (``residual(x)``, ``residual_and_jacobian(x)``) to
+max|r| ≤ tol. Selected by name from :data:`SOLVERS`.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+from scipy.optimize import least_squares
+
+
+@dataclass
+class SolveStats:
+    converged: bool
+    message: str
+    iterations: int
+    max_residual: float
+    history: list = field(default_factory=list)
+    t_jacobian: float = 0.0
+    t_linear: float = 0.0
+    t_residual: float = 0.0
+
+
+def _max_abs(r):
+    return float(np.max(np.abs(r))) if np.all(np.isfinite(r)) else np.inf
+
+
+def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None):
+    """Damped Newton: J δ = −r by LU, step limited to |δy| ≤ max_dy, 0 < β < 1, backtracking on ‖r‖₂.
+
+    Converges when max|r| ≤ tol. Stops (not converged) when the line search fails or after
+    `max_iter` iterations; near round-off a full step that does not reduce ‖r‖₂ but keeps
+    max|r| ≤ tol is accepted.
+    """
+    x = np.array(x0, dtype=float)
+    st = SolveStats(False, "", 0, np.inf)
+    t0 = time.perf_counter()
+    r, J = problem.residual_and_jacobian(x)
+    st.t_jacobian += time.perf_counter() - t0
+    norm = np.linalg.norm(r)
+    for it in range(1, max_iter + 1):
+        st.max_residual = _max_abs(r)
+        st.history.append(st.max_residual)
+        if callback is not None:
+            callback(it - 1, x, st.max_residual)
+        if st.max_residual <= tol:
+            st.converged, st.message, st.iterations = True, f"converged: max|r|={st.max_residual:.2e}", it - 1
+            return x, st
+        t0 = time.perf_counter()
+        try:
+            lu = sla.lu_factor(J, overwrite_a=True, check_finite=False)
+            dx = -sla.lu_solve(lu, r, check_finite=False)
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            st.message = f"linear solve failed: {exc}"
+            st.iterations = it
+            return x, st
+        st.t_linear += time.perf_counter() - t0
+        if not np.all(np.isfinite(dx)):
+            st.message, st.iterations = "singular Jacobian (non-finite Newton step)", it
+            return x, st
+        lam = 1.0
+        big = np.max(np.abs(dx[:-1]))
+        if big > max_dy:
+            lam = max_dy / big
+        beta = x[-1]
+        while not (0.0 < beta + lam * dx[-1] < 1.0):
+            lam *= 0.5
+        accepted = False
+        for _ in range(30):
+            xt = x + lam * dx
+            t0 = time.perf_counter()
+            rt = problem.residual(xt)
+            st.t_residual += time.perf_counter() - t0
+            nt = np.linalg.norm(rt) if np.all(np.isfinite(rt)) else np.inf
+            if nt < (1.0 - 1e-4 * lam) * norm or (lam == 1.0 and _max_abs(rt) <= tol):
+                accepted = True
+                break
+            lam *= 0.5
+        if not accepted:
+            st.message = (f"line search failed at iteration {it} (max|r|={st.max_residual:.2e}); "
+                          "the guess is outside Newton's basin or the grid cannot hold the pulse")
+            st.iterations = it
+            return x, st
+        x = xt
+        t0 = time.perf_counter()
+        r, J = problem.residual_and_jacobian(x)
+        st.t_jacobian += time.perf_counter() - t0
+        norm = np.linalg.norm(r)
+    st.max_residual = _max_abs(r)
+    st.converged = st.max_residual <= tol
+    st.iterations = max_iter
+    st.message = ("converged" if st.converged else "not converged") + \
+        f" after {max_iter} iterations: max|r|={st.max_residual:.2e}"
+    return x, st
+
+
+def levenberg_marquardt(problem, x0, tol=1e-13, max_iter=200, **_):
+    """scipy.optimize.least_squares (method 'lm', MINPACK) with the analytic Jacobian."""
+    cache = {}
+
+    def fun(x):
+        r, J = problem.residual_and_jacobian(x)
+        cache["x"], cache["J"] = x.copy(), J
+        return r
+
+    def jac(x):
+        if "x" in cache and np.array_equal(cache["x"], x):
+            return cache["J"]
+        return problem.residual_and_jacobian(x)[1]
+
+    res = least_squares(fun, np.array(x0, float), jac=jac, method="lm", xtol=1e-15, ftol=1e-15,
+                        gtol=1e-15, max_nfev=max_iter, x_scale="jac")
+    mr = _max_abs(problem.residual(res.x))
+    ok = mr <= tol
+    st = SolveStats(ok, ("converged" if ok else "not converged") + f": {res.message} max|r|={mr:.2e}",
+                    int(res.nfev), mr)
+    return res.x, st
+
+
+SOLVERS = {"newton": newton, "lm": levenberg_marquardt}

@@ -1,0 +1,237 @@
+"""Steady-pulse solver: built-in guess, solution-adapted grids, Newton/LM solves, the Pulse result.
+
+The physics lives in :mod:`slippulse.steady` (residual and Jacobian on a fixed grid); this module
+decides grids and drives the iteration:
+
+1. a guess on a guess-adapted grid (:func:`default_guess`),
+2. a solve on a coarse grid, then ``remesh`` passes: a grid adapted to the current solution
+   (:func:`adapted_grid`), the solution interpolated onto it (:func:`interpolate`), re-pinned
+   and re-solved, the last pass with the requested number of points.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from .grid import build_grid
+from .h5io import Pulse
+from .newton import SOLVERS, SolveStats
+from .params import ParameterError, Parameters
+from .steady import SteadyProblem
+
+MIN_POINTS = 64
+
+
+@dataclass(frozen=True)
+class GridSpec:
+    """How a solution-adapted grid is laid out (lengths in units of the pulse length L).
+
+    ahead : domain ahead of the leading edge, in L.
+    behind_tail : healing-tail length behind the pulse, in units of c_p · D/v_stick (the distance
+        the pulse travels during one healing time).
+    body : maximal spacing inside the pulse, in L.
+    gamma : geometric grading of the far field (ratio of neighbouring cells ≈ 1 + γ h/L-scaled).
+    """
+
+    ahead: float = 120.0
+    behind_tail: float = 40.0
+    body: float = 1.0 / 40.0
+    gamma: float = 0.06
+
+
+@dataclass
+class SteadySolution:
+    """A solved (or failed) pulse: unknowns, grid, problem and solver statistics."""
+
+    problem: SteadyProblem
+    x: np.ndarray
+    stats: SolveStats
+    wall_time: float
+    passes: int
+
+    @property
+    def xi(self):
+        return self.problem.xi
+
+    @property
+    def beta(self):
+        return float(self.x[-1])
+
+    def to_pulse(self) -> Pulse:
+        prob = self.problem
+        p = prob.params
+        v, phi, tau, _ = prob.fields(self.x)
+        res = prob.residual(self.x)[:-1]
+        L = fwhm(prob.xi, v, p.v_star)
+        return Pulse(
+            xi=prob.xi.copy(), v=v, phi=phi, tau=tau, residual=res,
+            tau_d_ratio=prob.tau_d_ratio, tau_d=prob.tau_d, tau_min=p.tau_min,
+            beta=self.beta, c_p=self.beta * p.c_s, L=L, L_tilde=L / p.L_Gc,
+            v_stick=prob.v_stick, v_max=float(v.max()),
+            max_residual=float(np.max(np.abs(res))), converged=bool(self.stats.converged),
+            n_points=int(prob.n), wall_time=float(self.wall_time), mode="III",
+            extra={"status": "converged" if self.stats.converged else "failed",
+                   "message": self.stats.message, "iterations": int(self.stats.iterations),
+                   "hilbert": prob.hilbert, "pin_index": int(prob.pin_index),
+                   "y_pin": float(prob.y_pin)})
+
+
+def fwhm(xi, v, v_star):
+    """Full width at half maximum of y = ln(v/v* + 1), crossings by linear interpolation."""
+    y = np.log1p(v / v_star)
+    half = 0.5 * y.max()
+    above = np.nonzero(y >= half)[0]
+    i0, i1 = above[0], above[-1]
+    if i0 == 0 or i1 == y.size - 1:
+        return float("nan")
+    xl = xi[i0 - 1] + (half - y[i0 - 1]) * (xi[i0] - xi[i0 - 1]) / (y[i0] - y[i0 - 1])
+    xr = xi[i1] + (half - y[i1]) * (xi[i1 + 1] - xi[i1]) / (y[i1 + 1] - y[i1])
+    return float(xr - xl)
+
+
+def front_pin(xi, y, y_stick):
+    """Index of the first node ahead of the maximum where y = ln v falls below mid-log level,
+    and the level: the phase condition sits on the steep leading edge."""
+    k = int(np.argmax(y))
+    ymid = 0.5 * (y[k] + y_stick)
+    ahead = np.nonzero((np.arange(y.size) > k) & (y < ymid))[0]
+    if ahead.size == 0:
+        raise RuntimeError("no leading edge found (slip rate does not fall ahead of its maximum)")
+    return int(ahead[0]), ymid
+
+
+def default_guess(params: Parameters, tau_d_ratio: float, n_points: int = 400, L: float = 0.7,
+                  beta: float = 0.01, lc: float = 5e-3):
+    """Built-in guess: a classical (Freund) pulse regularised over a cohesive length.
+
+    Notes
+    -----
+    v − v_stick = v0 √((ξ + L)/(ℓ_c − ξ)) on (−L, 0), decaying as e^{−ξ/ℓ_c} ahead, with the classical
+    relation v0 = 2 β c_s Δτ/μ (paper, text above Eq. 3) for a stress drop Δτ = τ_d − 1.05 τ_min;
+    L = 0.7 m, β = 0.01, ℓ_c = 5 mm (orders of magnitude from G_c ≈ 0.6 J/m²: π L ≈ μ G_c/Δτ²).
+    Returns (xi, y, beta).
+    """
+    tau_d = tau_d_ratio * params.tau_min
+    v_st = params.v_stick(tau_d)
+    dtau = max(tau_d - 1.05 * params.tau_min, 0.05 * params.tau_min)
+    v0 = 2.0 * beta * params.c_s * dtau / params.mu
+    hi, lo = 60.0 * L, -(L + 40.0 * beta * params.c_s * params.D / v_st)
+    xs = np.array([-1.2 * L, -L, -L / 2, -5 * lc, 0.0, 5 * lc, L])
+    hs = np.array([L / 50, L / 100, L / 100, lc / 8, lc / 8, lc / 8, L / 20])
+    xi = build_grid(xs, hs, n_points, gamma=0.1, lo=lo, hi=hi)
+    with np.errstate(invalid="ignore", over="ignore"):
+        body = v0 * np.sqrt(np.clip(xi + L, 0.0, None) / (lc - np.minimum(xi, 0.0)))
+        front = v0 * math.sqrt(L / lc) * np.exp(-np.maximum(xi, 0.0) / lc)
+    v = v_st + np.where(xi < 0.0, body, front)
+    return xi, np.log(v), beta
+
+
+def adapted_grid(xi, y, phi, beta, params, v_stick, n_points, spec: GridSpec = GridSpec()):
+    """Grid adapted to a solution: spacing ∝ min(1/|∂ξ ln v|, 1/|∂ξ ln φ|, body·L), graded far away."""
+    L = fwhm(xi, np.exp(y), params.v_star)
+    if not np.isfinite(L) or L <= 0:
+        raise RuntimeError("cannot measure the pulse length on this solution")
+    k, _ = front_pin(xi, y, math.log(v_stick))
+    x_front = xi[k]
+    hi = x_front + spec.ahead * L
+    lo = x_front - L - spec.behind_tail * beta * params.c_s * params.D / v_stick
+    mid = 0.5 * (xi[1:] + xi[:-1])
+    dy = np.abs(np.diff(y) / np.diff(xi))
+    dl = np.abs(np.diff(np.log(phi)) / np.diff(xi))
+    with np.errstate(divide="ignore"):
+        h = np.minimum(1.0 / dy, 1.0 / dl)
+    inside = (mid > x_front - 1.5 * L) & (mid < x_front + 0.2 * L)
+    h = np.where(inside, np.minimum(h, spec.body * L), h)
+    return build_grid(mid, h, n_points, gamma=spec.gamma, lo=lo, hi=hi)
+
+
+def interpolate(xi_old, y_old, xi_new, v_stick, center=0.0):
+    """ln v on a new grid: monotone cubic inside, far-field continuation u ∝ 1/(ξ − c) outside."""
+    out = PchipInterpolator(xi_old, y_old, extrapolate=False)(xi_new)
+    u_hi = math.exp(y_old[-1]) - v_stick
+    u_lo = math.exp(y_old[0]) - v_stick
+    ahead = xi_new > xi_old[-1]
+    behind = xi_new < xi_old[0]
+    out[ahead] = np.log(v_stick + u_hi * (xi_old[-1] - center) / (xi_new[ahead] - center))
+    out[behind] = np.log(v_stick + u_lo * (center - xi_old[0]) / (center - xi_new[behind]))
+    return out
+
+
+def check_points(n_points: int) -> None:
+    if not isinstance(n_points, (int, np.integer)) or n_points < MIN_POINTS:
+        raise ParameterError(f"points={n_points!r} is invalid: must be an integer >= {MIN_POINTS}")
+
+
+def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, hilbert="cubic",
+                  max_iter=60):
+    """One solve on a fixed grid from (y, β); the phase condition is placed on the guess's front."""
+    v_st = params.v_stick(tau_d_ratio * params.tau_min)
+    k, ymid = front_pin(xi, y, math.log(v_st))
+    # pin at the node with the value the guess has there (keeps the pulse where it is)
+    prob = SteadyProblem(params, tau_d_ratio, xi, k, float(y[k]), hilbert=hilbert)
+    x0 = np.concatenate([y, [beta]])
+    x, stats = SOLVERS[method](prob, x0, tol=tol, max_iter=max_iter)
+    return prob, x, stats
+
+
+def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, guess=None,
+                method: str = "newton", tol: float = 1e-13, hilbert: str = "cubic",
+                spec: GridSpec = GridSpec(), passes: int = 2, coarse_points: int = 500,
+                progress=None) -> SteadySolution:
+    """Solve the steady pulse at τ_d = tau_d_ratio τ_min.
+
+    Parameters
+    ----------
+    guess : (xi, y, beta), optional
+        Initial ln v on its grid and β (e.g. a neighbouring pulse); default: :func:`default_guess`.
+    passes : number of adapt-and-resolve passes after the first solve; the last one uses n_points.
+    coarse_points : points of the intermediate passes.
+    progress : callable(str), optional, told about each pass.
+    """
+    check_points(n_points)
+    params.check_tau_d(tau_d_ratio * params.tau_min)
+    if method not in SOLVERS:
+        raise ParameterError(f"method={method!r} is invalid: must be one of {sorted(SOLVERS)}")
+    t0 = time.perf_counter()
+    v_st = params.v_stick(tau_d_ratio * params.tau_min)
+    if guess is None:
+        xi, y, beta = default_guess(params, tau_d_ratio, min(coarse_points, n_points))
+    else:
+        xi, y, beta = guess
+        if passes > 0:
+            xi_new = adapted_grid(xi, y, _phi_of(params, tau_d_ratio, xi, y, beta), beta,
+                                  params, v_st, min(coarse_points, n_points), spec)
+            y = interpolate(xi, y, xi_new, v_st)
+            xi = xi_new
+    prob, x, stats = solve_on_grid(params, tau_d_ratio, xi, y, beta, method, tol, hilbert)
+    if progress:
+        progress(f"pass 0: N={xi.size} {stats.message}")
+    npass = 0
+    for k in range(passes):
+        if not stats.converged:
+            break
+        n_k = n_points if k == passes - 1 else min(coarse_points, n_points)
+        v, phi, _, _ = prob.fields(x)
+        xi_new = adapted_grid(prob.xi, x[:-1], phi, x[-1], params, v_st, n_k, spec)
+        y_new = interpolate(prob.xi, x[:-1], xi_new, v_st)
+        prob, x, stats = solve_on_grid(params, tau_d_ratio, xi_new, y_new, float(x[-1]), method,
+                                       tol, hilbert)
+        npass += 1
+        if progress:
+            progress(f"pass {npass}: N={xi_new.size} {stats.message}")
+    if passes > 0 and stats.converged and prob.n != n_points:
+        stats.converged = False
+        stats.message = f"internal error: final grid has {prob.n} points, not {n_points}"
+    return SteadySolution(prob, x, stats, time.perf_counter() - t0, npass)
+
+
+def _phi_of(params, tau_d_ratio, xi, y, beta):
+    prob = SteadyProblem.__new__(SteadyProblem)
+    prob.params = params
+    prob.xi = np.ascontiguousarray(xi, float)
+    prob.phi_end = params.phi_rest(tau_d_ratio * params.tau_min)
+    return prob.state(np.exp(y), beta)[0]

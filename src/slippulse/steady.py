@@ -1,0 +1,171 @@
+"""Steady-pulse residual and its analytic Jacobian (paper Eqs. S1–S5), on a fixed non-uniform grid.
+
+Unknowns x = (y_1..y_N, β) with y_i = ln v_i. Equations (N + 1):
+
+    Δ_i = [τ_d − σ f(v_i, φ_i) − μ F_III(β) (H (v − v_stick))_i] / τ_d = 0,   i = 1..N
+    y_p − y_pin = 0                                  (phase condition: pins the translation)
+
+The state φ_i(v, β) follows from −β c_s dφ/dξ = g(v, φ) = 1 − w(v) φ, w = √(v²+v*²)/D, integrated
+from the rest state φ_N = φ_ss(v_stick) at the front end (ξ_N, ahead of the pulse) backward. A
+material point crosses the cell [ξ_i, ξ_{i+1}] in the time h = (ξ_{i+1} − ξ_i)/(β c_s). The update
+is exact for w frozen at w_{i+1} over the first half of the crossing and at w_i over the second:
+
+    φ_i = φ_{i+1} e^{−x_a − x_b} + (h/2) [E(x_a) e^{−x_b} + E(x_b)],   x_a = w_{i+1} h/2,
+    x_b = w_i h/2,  E(x) = (1 − e^{−x})/x.
+
+It is second-order accurate, unconditionally stable and stiff-accurate (φ_i → 1/w_i when w_i h → ∞),
+so under-resolved Newton iterates do not heal spuriously. See docs/steady.md for the Jacobian.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from . import friction as fr
+from .hilbert import hilbert_matrix
+
+
+@njit(cache=True, inline="always")
+def _E(x):
+    """E(x) = (1 − e^{−x})/x and E'(x), series for small x."""
+    if x < 1e-2:
+        # E = Σ (−x)^n/(n+1)!,  E' = Σ_{n≥1} n (−x)^(n−1) (−1)/(n+1)!
+        e = 1.0 - x / 2.0 + x * x / 6.0 - x ** 3 / 24.0 + x ** 4 / 120.0 - x ** 5 / 720.0 \
+            + x ** 6 / 5040.0
+        de = -0.5 + x / 3.0 - x * x / 8.0 + x ** 3 / 30.0 - x ** 4 / 144.0 + x ** 5 / 840.0
+        return e, de
+    em = math.exp(-x)
+    e = -math.expm1(-x) / x
+    return e, (em - e) / x
+
+
+@njit(cache=True)
+def integrate_state(xi, v, beta_cs, phi_end, w, dw_dy):
+    """State φ_i, upper-triangular ∂φ_i/∂y_j (y = ln v) and ∂φ_i/∂(β c_s) by the exponential scheme.
+
+    Parameters
+    ----------
+    xi : grid (ascending), v : slip rates, beta_cs : β c_s (m/s), phi_end : φ at ξ_N,
+    w : healing rates √(v²+v*²)/D, dw_dy : v ∂w/∂v.
+    """
+    n = xi.size
+    phi = np.empty(n)
+    P = np.zeros((n, n))
+    dphi_dc = np.zeros(n)
+    phi[n - 1] = phi_end
+    for i in range(n - 2, -1, -1):
+        h2 = 0.5 * (xi[i + 1] - xi[i]) / beta_cs      # half crossing time
+        xa = w[i + 1] * h2
+        xb = w[i] * h2
+        ea, dea = _E(xa)
+        eb, deb = _E(xb)
+        exa = math.exp(-xa)
+        exb = math.exp(-xb)
+        phi_mid = phi[i + 1] * exa + h2 * ea
+        phi[i] = phi_mid * exb + h2 * eb
+        a = exa * exb                                   # ∂φ_i/∂φ_{i+1}
+        dpa = (-phi[i + 1] * exa + h2 * dea) * exb      # ∂φ_i/∂x_a
+        dpb = -phi_mid * exb + h2 * deb                 # ∂φ_i/∂x_b
+        # row i of P: a · row i+1 plus the local dependence on y_{i+1} (via x_a) and y_i (via x_b)
+        for j in range(i + 1, n):
+            P[i, j] = a * P[i + 1, j]
+        P[i, i + 1] += dpa * h2 * dw_dy[i + 1]
+        P[i, i] += dpb * h2 * dw_dy[i]
+        # ∂/∂c (c = β c_s): h2 ∝ 1/c, x_a, x_b ∝ 1/c ⇒ direct part = −(x_a dpa + x_b dpb + h2 ∂φ/∂h2)/c
+        dphi_dh2 = ea * exb + eb
+        direct = -(xa * dpa + xb * dpb + h2 * dphi_dh2) / beta_cs
+        dphi_dc[i] = a * dphi_dc[i + 1] + direct
+    return phi, P, dphi_dc
+
+
+class SteadyProblem:
+    """The discrete steady-pulse equations on a fixed grid (problem apart from solver).
+
+    Parameters
+    ----------
+    params : Parameters
+    tau_d_ratio : float
+        Driving stress τ_d/τ_min (> 1, < τ_peak/τ_min).
+    xi : (N,) array
+        Grid, m, ascending; the pulse travels toward +ξ; ξ_N is ahead (rest state).
+    pin_index : int
+        Node p of the phase condition y_p = y_pin.
+    y_pin : float
+        ln v imposed at the pin node.
+    hilbert : str
+        Interpolant of the Hilbert operator ("cubic" or "linear").
+    """
+
+    def __init__(self, params, tau_d_ratio, xi, pin_index, y_pin, hilbert="cubic", H=None):
+        self.params = params
+        self.tau_d_ratio = float(tau_d_ratio)
+        self.tau_d = self.tau_d_ratio * params.tau_min
+        params.check_tau_d(self.tau_d)
+        self.v_stick = params.v_stick(self.tau_d)
+        self.phi_end = params.phi_rest(self.tau_d)
+        self.xi = np.ascontiguousarray(xi, dtype=float)
+        self.n = self.xi.size
+        self.pin_index = int(pin_index)
+        self.y_pin = float(y_pin)
+        self.hilbert = hilbert
+        center = 0.0 if self.xi[0] < 0.0 < self.xi[-1] else None
+        self.H = hilbert_matrix(self.xi, kind=hilbert, center=center) if H is None else H
+
+    # ------------------------------------------------------------------ pieces
+    def split(self, x):
+        return np.exp(x[:-1]), float(x[-1])
+
+    def state(self, v, beta):
+        p = self.params
+        w = fr.heal_rate(v, p.v_star, p.D)
+        dw_dy = v * v / (p.D * p.D * w)
+        return integrate_state(self.xi, v, beta * p.c_s, self.phi_end, w, dw_dy)
+
+    def fields(self, x):
+        """(v, φ, τ, Hu) for unknowns x: slip rate, state, friction stress and Hilbert integral."""
+        v, beta = self.split(x)
+        phi, _, _ = self.state(v, beta)
+        tau = self.params.sigma * fr.f(v, phi, *self.params.law_args)
+        return v, phi, tau, self.H @ (v - self.v_stick)
+
+    def residual(self, x):
+        """Δ (N values) followed by the phase condition."""
+        p = self.params
+        v, beta = self.split(x)
+        if not (0.0 < beta < 1.0):
+            return np.full(self.n + 1, np.inf)
+        phi, _, _ = self.state(v, beta)
+        hu = self.H @ (v - self.v_stick)
+        r = np.empty(self.n + 1)
+        r[:-1] = (self.tau_d - p.sigma * fr.f(v, phi, *p.law_args) - p.mu * p.F3(beta) * hu) / self.tau_d
+        r[-1] = x[self.pin_index] - self.y_pin
+        return r
+
+    def residual_and_jacobian(self, x):
+        """Residual and its exact Jacobian ∂(Δ, pin)/∂(y, β), (N+1)×(N+1)."""
+        p = self.params
+        v, beta = self.split(x)
+        n = self.n
+        phi, P, dphi_dc = self.state(v, beta)
+        u = v - self.v_stick
+        hu = self.H @ u
+        F = float(p.F3(beta))
+        s = 1.0 / self.tau_d
+        la = p.law_args
+        r = np.empty(n + 1)
+        r[:-1] = (self.tau_d - p.sigma * fr.f(v, phi, *la) - p.mu * F * hu) * s
+        r[-1] = x[self.pin_index] - self.y_pin
+        J = np.empty((n + 1, n + 1))
+        fphi = p.sigma * s * fr.df_dphi(v, phi, *la)
+        # dΔ_i/dy_j = −(σ/τ_d)[f_v v_i δ_ij + f_φ,i P_ij] − (μF/τ_d) H_ij v_j
+        Jy = J[:-1, :-1]
+        np.multiply(self.H, (-p.mu * F * s) * v, out=Jy)
+        Jy -= fphi[:, None] * P
+        Jy[np.diag_indices(n)] -= p.sigma * s * fr.df_dv(v, phi, *la) * v
+        # dΔ_i/dβ = −(σ/τ_d) f_φ,i c_s ∂φ_i/∂c − (μ F'(β)/τ_d) (H u)_i
+        J[:-1, -1] = -fphi * dphi_dc * p.c_s - p.mu * float(p.dF3_dbeta(beta)) * s * hu
+        J[-1, :] = 0.0
+        J[-1, self.pin_index] = 1.0
+        return r, J
