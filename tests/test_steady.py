@@ -1,0 +1,159 @@
+"""State integration, Jacobian and full solves of the steady pulse problem."""
+import math
+import os
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+from slippulse import friction as fr
+from slippulse.h5io import SchemaError, read_pulse, write_pulse
+from slippulse.hilbert import hilbert_matrix
+from slippulse.params import ParameterError
+from slippulse.solver import default_guess, solve_pulse
+from slippulse.steady import SteadyProblem, integrate_state
+
+
+def manufactured_state(params, n, beta_cs=20.0):
+    """Prescribe φ(t) = φ_r e^{−κt} + φ_∞ and derive v from g: w = (1 − φ')/φ, v = √((wD)² − v*²).
+
+    A material point at ξ has been travelling for t = (ξ_N − ξ)/(β c_s) since ξ_N."""
+    phi_r, phi_inf, kappa = 2.5, 1e-3, 2e3
+    xi = np.concatenate([np.linspace(-0.2, 0.0, n // 2, endpoint=False), np.linspace(0.0, 0.05, n - n // 2)])
+    t = (xi[-1] - xi) / beta_cs
+    phi = phi_r * np.exp(-kappa * t) + phi_inf
+    w = (1.0 + kappa * phi_r * np.exp(-kappa * t)) / phi
+    v = np.sqrt((w * params.D) ** 2 - params.v_star ** 2)
+    return xi, v, phi, w, beta_cs
+
+
+def test_state_integration_second_order_against_exact_solution(params):
+    errs = []
+    for n in (200, 400, 800):
+        xi, v, phi_ex, w, c = manufactured_state(params, n)
+        dw = v * v / (params.D ** 2 * w)
+        phi, _, _ = integrate_state(xi, v, c, phi_ex[-1], w, dw)
+        errs.append(np.max(np.abs(phi / phi_ex - 1.0)))
+    assert errs[-1] < 1e-3
+    assert np.log2(errs[1] / errs[2]) > 1.9, errs
+
+
+def test_state_integration_is_stiff_accurate(params):
+    # v jumps by 6 orders of magnitude across one long cell: φ must land on φ_ss(v), not overshoot
+    xi = np.array([0.0, 1.0, 2.0])
+    v = np.array([1e-1, 1e-1, 1e-7])
+    w = fr.heal_rate(v, params.v_star, params.D)
+    phi, _, _ = integrate_state(xi, v, 1e-3, 3.0, w, v * v / (params.D ** 2 * w))
+    assert phi[0] == pytest.approx(fr.phi_ss(1e-1, params.v_star, params.D), rel=1e-12)
+
+
+def test_jacobian_matches_finite_differences(params):
+    xi, y, beta = default_guess(params, 1.2, 120)
+    k = int(np.argmin(np.abs(xi)))
+    prob = SteadyProblem(params, 1.2, xi, k, float(y[k]))
+    x = np.concatenate([y, [beta]])
+    r, J = prob.residual_and_jacobian(x)
+    assert np.allclose(r, prob.residual(x), rtol=0, atol=1e-15)
+    Jfd = np.empty_like(J)
+    for j in range(x.size):
+        h = 1e-6 * max(1.0, abs(x[j]))
+        e = np.zeros_like(x)
+        e[j] = h
+        Jfd[:, j] = (prob.residual(x + e) - prob.residual(x - e)) / (2 * h)
+    scale = np.abs(J).max()
+    assert np.max(np.abs(J - Jfd)) / scale < 1e-7
+    assert np.max(np.abs(J[:, -1] - Jfd[:, -1])) / np.abs(J[:, -1]).max() < 1e-7
+
+
+def test_coarse_solve_at_1p2(params, pulse12):
+    s = pulse12
+    pu = s.to_pulse()
+    assert pu.converged and pu.max_residual <= 1e-13
+    # β and L of the N = 3200 solution (BENCHMARKS.md): 0.0072419, 1.07397 m; coarse grid is 2nd order
+    assert pu.beta == pytest.approx(0.0072419, rel=3e-4)
+    assert pu.L == pytest.approx(1.07397, rel=2e-3)
+    # self-healing boundary conditions: v → v_stick at both ends, τ → τ_d
+    assert abs(pu.v[0] / pu.v_stick - 1) < 1e-3 and abs(pu.v[-1] / pu.v_stick - 1) < 1e-3
+    # τ → τ_d: behind within 1e-4; ahead the Hilbert far field decays like 1/ξ (≈2e-4 at 120 L)
+    assert abs(pu.tau[0] / pu.tau_d - 1) < 1e-4 and abs(pu.tau[-1] / pu.tau_d - 1) < 1e-3
+    ahead = pu.xi > pu.xi[np.argmax(pu.tau)] + 10 * pu.L
+    assert np.all(np.diff(pu.tau[ahead]) < 0)
+    # stress peak above τ_d ahead of the slip-rate peak; minimum below τ_d behind it
+    k = int(np.argmax(pu.v))
+    assert np.argmax(pu.tau) > k and pu.tau.max() > 1.3 * pu.tau_min
+    assert pu.tau.min() < pu.tau_d
+
+
+def test_solution_satisfies_equation_with_independent_hilbert(params, pulse12):
+    # re-evaluate the elastic stress with the linear-interpolant operator on a 3× refined grid
+    pu = pulse12.to_pulse()
+    xi = pu.xi
+    fine = np.unique(np.concatenate([xi, *(xi[:-1] + f * np.diff(xi) for f in (1 / 3, 2 / 3))]))
+    y = np.interp(fine, xi, np.log(pu.v))
+    from scipy.interpolate import CubicSpline
+    y = CubicSpline(xi, np.log(pu.v))(fine)
+    u = np.exp(y) - pu.v_stick
+    tau_el = pu.tau_d - params.mu * params.F3(pu.beta) * (hilbert_matrix(fine, "linear", center=0.0) @ u)
+    near = (fine > xi[np.argmax(pu.v)] - 2 * pu.L) & (fine < xi[np.argmax(pu.v)] + pu.L)
+    tau_fr = np.interp(fine, xi, pu.tau)
+    assert np.max(np.abs(tau_el - tau_fr)[near]) / pu.tau_d < 2e-3
+
+
+@pytest.mark.parametrize("L,beta,lc", [(0.35, 0.003, 5e-3), (2.0, 0.03, 15e-3), (0.7, 0.03, 1.5e-3)])
+def test_guess_basin_is_not_a_knife_edge(params, L, beta, lc):
+    g = default_guess(params, 1.2, 400, L=L, beta=beta, lc=lc)
+    pu = solve_pulse(params, 1.2, n_points=500, guess=g, passes=1).to_pulse()
+    assert pu.converged and pu.beta == pytest.approx(0.00724, rel=5e-3)
+
+
+def test_hdf5_roundtrip_and_schema(params, pulse12, tmp_path):
+    pu = pulse12.to_pulse()
+    path = tmp_path / "p.h5"
+    write_pulse(str(path), pu, params)
+    back, p2 = read_pulse(str(path), "td1.2000")
+    assert p2 == params
+    assert np.array_equal(back.v, pu.v) and back.beta == pu.beta and back.converged
+    with h5py.File(path, "r") as h5:
+        for k in ("slippulse_version", "created"):
+            assert k in h5.attrs
+        assert h5["parameters"].attrs["mu_units"] == "Pa"
+        assert h5["pulses/td1.2000/xi"].attrs["units"] == "m"
+    with h5py.File(path, "r+") as h5:
+        del h5["pulses/td1.2000"].attrs["beta"]
+    with pytest.raises(SchemaError, match="beta"):
+        read_pulse(str(path))
+
+
+def test_nonconvergence_is_reported_not_hidden(params):
+    s = solve_pulse(params, 1.2, n_points=300, tol=1e-30, passes=0)
+    pu = s.to_pulse()
+    assert not pu.converged and pu.extra["status"] == "failed"
+
+
+def run_cli(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "slippulse.cli", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.parametrize("args,name", [
+    (["--tau-d", "1.0"], "tau_d/tau_min"), (["--tau-d", "0.8"], "tau_d/tau_min"),
+    (["--tau-d", "1.35"], "tau_d/tau_min"), (["--tau-d", "inf"], "tau-d"),
+    (["--points", "10"], "points")])
+def test_cli_bad_input_one_line_exit_2_no_file(tmp_path, args, name):
+    out = tmp_path / "x.h5"
+    r = run_cli("steady", "solve", *args, "--out", str(out), "-q", cwd=tmp_path)
+    assert r.returncode == 2
+    assert name in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_cli_nonconvergence_exits_nonzero_and_marks_file(tmp_path):
+    out = tmp_path / "x.h5"
+    r = run_cli("steady", "solve", "--tol", "1e-30", "--points", "300", "--out", str(out), "-q",
+                "--no-figure", cwd=tmp_path)
+    assert r.returncode == 1 and "did not converge" in r.stderr
+    pu, _ = read_pulse(str(out))
+    assert pu.converged is False
