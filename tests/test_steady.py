@@ -84,6 +84,7 @@ def test_coarse_solve_at_1p2(params, pulse12):
     k = int(np.argmax(pu.v))
     assert np.argmax(pu.tau) > k and pu.tau.max() > 1.3 * pu.tau_min
     assert pu.tau.min() < pu.tau_d
+    assert pu.extra["n_humps"] == 1          # the fundamental pulse, not a two-hump bound state
 
 
 def test_solution_satisfies_equation_with_independent_hilbert(params, pulse12):
@@ -106,6 +107,14 @@ def test_guess_basin_is_not_a_knife_edge(params, L, beta, lc):
     g = default_guess(params, 1.2, 400, L=L, beta=beta, lc=lc)
     pu = solve_pulse(params, 1.2, n_points=500, guess=g, passes=1).to_pulse()
     assert pu.converged and pu.beta == pytest.approx(0.00724, rel=5e-3)
+
+
+def test_hump_counter():
+    from slippulse.solver import count_humps
+    x = np.linspace(-10, 10, 2001)
+    one = 1e-7 + 1e-3 * np.exp(-x ** 2)
+    two = one + 1e-4 * np.exp(-(x + 4) ** 2)
+    assert count_humps(one) == 1 and count_humps(two) == 2
 
 
 def test_hdf5_roundtrip_and_schema(params, pulse12, tmp_path):

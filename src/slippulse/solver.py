@@ -77,6 +77,7 @@ class SteadySolution:
             extra={"status": "converged" if self.stats.converged else "failed",
                    "message": self.stats.message, "iterations": int(self.stats.iterations),
                    "hilbert": prob.hilbert, "pin_index": int(prob.pin_index),
+                   "n_humps": int(count_humps(v)),
                    "y_pin": float(prob.y_pin)})
 
 
@@ -91,6 +92,29 @@ def fwhm(xi, v, v_star):
     xl = xi[i0 - 1] + (half - y[i0 - 1]) * (xi[i0] - xi[i0 - 1]) / (y[i0] - y[i0 - 1])
     xr = xi[i1] + (half - y[i1]) * (xi[i1 + 1] - xi[i1]) / (y[i1 + 1] - y[i1])
     return float(xr - xl)
+
+
+def count_humps(v, rel=1e-2):
+    """Number of local maxima of ln v that rise more than `rel` (in ln v) above the minima beside
+    them: 1 for the fundamental pulse, 2 for a two-hump bound state."""
+    y = np.log(v)
+    humps, lo, hi = 0, y[0], -np.inf
+    rising = True
+    for val in y[1:]:
+        if rising:
+            if val > hi:
+                hi = val
+            elif val < hi - rel and hi > lo + rel:
+                humps += 1
+                rising, lo = False, val
+        else:
+            if val < lo:
+                lo = val
+            elif val > lo + rel:
+                rising, hi = True, val
+    if rising and hi > lo + rel and hi > y[-1] + rel:
+        humps += 1
+    return humps
 
 
 def front_pin(xi, y, y_stick):
