@@ -66,6 +66,38 @@ def cmd_solve(args) -> int:
     return 0
 
 
+def cmd_family(args) -> int:
+    from .continuation import run_family
+    params = DEFAULT
+    start, stop = _ratio(args.from_), _ratio(args.to)
+    if not (math.isfinite(args.step) and args.step > 0):
+        raise ParameterError(f"step={args.step} is invalid: must be a number > 0")
+    if args.points < MIN_POINTS:
+        raise ParameterError(f"points={args.points} is invalid: must be an integer >= {MIN_POINTS}")
+    out = args.out or os.path.join("runs", "steady", "family.h5")
+    n_total = int(round((start - stop) / args.step)) + 1
+    bar = tqdm(total=n_total, desc="family", unit="pulse", disable=args.quiet, file=sys.stderr)
+    targets = {round(start - k * args.step, 10) for k in range(n_total)}
+
+    def progress(ratio, pulse, msg):
+        state = (f"{ratio:.4f} beta={pulse.beta:.4f} L={pulse.L:.3g}m" if pulse is not None
+                 else f"{ratio:.5f} failed, halving step")
+        bar.set_postfix_str(state)
+        if pulse is not None and round(ratio, 10) in targets:
+            bar.update(1)
+
+    rep = run_family(params, out, start=start, stop=stop, step=args.step, n_points=args.points,
+                     progress=progress)
+    bar.close()
+    if rep.resumed_from:
+        print(f"resumed from {rep.resumed_from} in {out}", file=sys.stderr)
+    ok = abs(rep.reached - stop) < 1e-9
+    print(f"family {start:.4f} -> {stop:.4f}: {len(rep.written)} pulses written to {out}, reached "
+          f"tau_d/tau_min={rep.reached:.5f}, {len(rep.failures)} failed attempts, "
+          f"wall={rep.wall_time:.1f} s" + ("" if ok else " (STOPPED EARLY: step below minimum)"))
+    return 0 if ok else 1
+
+
 def register(sub) -> None:
     p_steady = sub.add_parser("steady", help="steady pulse solutions",
                               description="Steady self-healing pulses (mode III).")
@@ -83,3 +115,24 @@ def register(sub) -> None:
     p.add_argument("--no-figure", action="store_true", help="do not write the PNG")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_solve)
+
+    p = ss.add_parser("family", help="continue the pulse family in tau_d",
+                      description="Solve pulses from --from down to --to (tau_d/tau_min), each seeded "
+                                  "by the previous one, halving the step on failure; all pulses go "
+                                  "into one HDF5 file. Rerunning with the same --out resumes.")
+    p.add_argument("--from", dest="from_", default="1.2", help="first tau_d/tau_min (default 1.2)")
+    p.add_argument("--to", default="1.015", help="last tau_d/tau_min (default 1.015)")
+    p.add_argument("--step", type=float, default=0.005, help="step in tau_d/tau_min (default 0.005)")
+    p.add_argument("--points", type=int, default=2000, help="grid points per pulse (default 2000)")
+    p.add_argument("--out", default=None, help="output HDF5 (default runs/steady/family.h5)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_family)
+
+    from .analysis import cmd_analyse
+    p = ss.add_parser("analyse", help="analyse a pulse family file",
+                      description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "
+                                  "singularity; family scaling fit, G_c, delta_c, mode II. Results "
+                                  "are written into FILE (attributes + a 'family' group) and printed.")
+    p.add_argument("file", metavar="FILE", help="HDF5 family file")
+    p.add_argument("--no-write", action="store_true", help="print only; leave FILE unchanged")
+    p.set_defaults(func=cmd_analyse)

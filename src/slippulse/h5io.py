@@ -73,7 +73,7 @@ class Pulse:
         return pulse_label(self.tau_d_ratio)
 
 
-def _atomic_update(path: str, fill) -> None:
+def atomic_update(path: str, fill) -> None:
     """Copy `path` (if it exists) to a temporary file, apply `fill(h5file)`, then replace `path`."""
     path = os.path.abspath(path)
     d = os.path.dirname(path)
@@ -143,7 +143,7 @@ def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = T
         for key, val in pulse.extra.items():
             grp.attrs[key] = val
 
-    _atomic_update(path, fill)
+    atomic_update(path, fill)
 
 
 def _group_to_pulse(grp) -> Pulse:

@@ -82,16 +82,12 @@ class SteadySolution:
 
 
 def fwhm(xi, v, v_star):
-    """Full width at half maximum of y = ln(v/v* + 1), crossings by linear interpolation."""
-    y = np.log1p(v / v_star)
-    half = 0.5 * y.max()
-    above = np.nonzero(y >= half)[0]
-    i0, i1 = above[0], above[-1]
-    if i0 == 0 or i1 == y.size - 1:
+    """Pulse length L (FWHM of ln(v/v*+1)); the one definition is :func:`analysis.pulse_length`."""
+    from .analysis import pulse_length
+    try:
+        return float(pulse_length(xi, v, v_star)[0])
+    except ValueError:
         return float("nan")
-    xl = xi[i0 - 1] + (half - y[i0 - 1]) * (xi[i0] - xi[i0 - 1]) / (y[i0] - y[i0 - 1])
-    xr = xi[i1] + (half - y[i1]) * (xi[i1 + 1] - xi[i1]) / (y[i1 + 1] - y[i1])
-    return float(xr - xl)
 
 
 def count_humps(v, rel=1e-2):
@@ -205,7 +201,7 @@ def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, 
 def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, guess=None,
                 method: str = "newton", tol: float = 1e-13, hilbert: str = "cubic",
                 spec: GridSpec = GridSpec(), passes: int = 2, coarse_points: int = 500,
-                progress=None) -> SteadySolution:
+                progress=None, max_iter: int = 60) -> SteadySolution:
     """Solve the steady pulse at τ_d = tau_d_ratio τ_min.
 
     Parameters
@@ -231,7 +227,7 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
                                   params, v_st, min(coarse_points, n_points), spec)
             y = interpolate(xi, y, xi_new, v_st)
             xi = xi_new
-    prob, x, stats = solve_on_grid(params, tau_d_ratio, xi, y, beta, method, tol, hilbert)
+    prob, x, stats = solve_on_grid(params, tau_d_ratio, xi, y, beta, method, tol, hilbert, max_iter)
     if progress:
         progress(f"pass 0: N={xi.size} {stats.message}")
     npass = 0
@@ -243,7 +239,7 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
         xi_new = adapted_grid(prob.xi, x[:-1], phi, x[-1], params, v_st, n_k, spec)
         y_new = interpolate(prob.xi, x[:-1], xi_new, v_st)
         prob, x, stats = solve_on_grid(params, tau_d_ratio, xi_new, y_new, float(x[-1]), method,
-                                       tol, hilbert)
+                                       tol, hilbert, max_iter)
         npass += 1
         if progress:
             progress(f"pass {npass}: N={xi_new.size} {stats.message}")

@@ -1,0 +1,37 @@
+"""``slippulse figures FILE [--outdir runs/figures]``: the paper's figures from a family file."""
+from __future__ import annotations
+
+import os
+
+from .cli import UsageError
+
+
+def register(subparsers):
+    p = subparsers.add_parser(
+        "figures", help="regenerate Figs. 1-4 and S1-S4 of the paper from a family file",
+        description="Regenerate Figs. 1, 2, 3, 4 and S1-S4 (PNG and PDF) from a family HDF5 file "
+                    "(pulses/tdX.XXXX groups). Prints the analysis table.")
+    p.add_argument("file", metavar="FILE", help="family HDF5 file")
+    p.add_argument("--outdir", default=os.path.join("runs", "figures"),
+                   help="output directory (default: runs/figures)")
+    p.add_argument("--compare", metavar="FILE2", default=None,
+                   help="second family file (another domain size) for Fig. S1(b)")
+    p.add_argument("--formats", default="png,pdf", help="comma-separated formats (default png,pdf)")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    from . import analysis, plotting
+
+    for f in [args.file] + ([args.compare] if args.compare else []):
+        if not os.path.isfile(f):
+            raise UsageError(f"FILE={f!r} does not exist")
+    formats = tuple(s.strip() for s in args.formats.split(",") if s.strip())
+    bad = [f for f in formats if f not in ("png", "pdf", "svg")]
+    if bad or not formats:
+        raise UsageError(f"--formats={args.formats!r}: choose from png, pdf, svg")
+    data = plotting.load_family(args.file, compare_path=args.compare)
+    written = plotting.save_all(data, args.outdir, formats=formats)
+    print(analysis.format_table(data.rows))
+    print(f"wrote {len(written)} files to {args.outdir}")
+    return 0

@@ -1,0 +1,413 @@
+"""Analysis layer on analytic inputs with known answers (non-uniform grids throughout)."""
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+from slippulse import analysis as an
+from slippulse import h5io, modeii
+from slippulse.friction import RateStateFriction
+from slippulse.params import DEFAULT, G_C_STAR
+
+P = DEFAULT
+V_STAR = P.v_star
+
+
+def graded_grid(x0, x1, centre, h0, ratio=1.05, jitter=0.0, seed=0):
+    """Non-uniform grid: spacing h0 at `centre`, growing geometrically by `ratio` away from it."""
+    right, left = [centre], [centre]
+    h = h0
+    while right[-1] < x1:
+        right.append(right[-1] + h)
+        h *= ratio
+    h = h0
+    while left[-1] > x0:
+        left.append(left[-1] - h)
+        h *= ratio
+    x = np.array(left[::-1] + right[1:])
+    if jitter:
+        rng = np.random.default_rng(seed)
+        dx = np.diff(x)
+        x[1:-1] += jitter * rng.uniform(-0.5, 0.5, x.size - 2) * np.minimum(dx[:-1], dx[1:])
+    return x
+
+
+# --------------------------------------------------------------------------- pulse length
+def _two_sided_lorentzian(xi, Y0, xc, wl, wr):
+    w = np.where(xi < xc, wl, wr)
+    return Y0 / (1.0 + ((xi - xc) / w) ** 2)
+
+
+@pytest.mark.parametrize("wl,wr", [(1.0, 1.0), (3.0, 0.4)])
+def test_pulse_length_fwhm_of_known_profile(wl, wr):
+    # y = ln(v/v*+1) is a two-sided Lorentzian: FWHM = wl + wr exactly
+    xi = graded_grid(-60, 40, 0.05, 0.02, ratio=1.08, jitter=0.6)
+    y = _two_sided_lorentzian(xi, 12.0, 0.05, wl, wr)
+    v = V_STAR * np.expm1(y)
+    L, xl, xr = an.pulse_length(xi, v, V_STAR)
+    cell_l = np.diff(xi)[np.searchsorted(xi, xl) - 1]
+    cell_r = np.diff(xi)[np.searchsorted(xi, xr) - 1]
+    # sub-cell accuracy: well below 1e-2 of the local cell
+    assert abs(xl - (0.05 - wl)) < 1e-2 * cell_l
+    assert abs(xr - (0.05 + wr)) < 1e-2 * cell_r
+    assert L == pytest.approx(wl + wr, abs=1e-2 * max(cell_l, cell_r))
+
+
+def test_pulse_length_cubic_beats_linear_and_converges():
+    errs = []
+    for h0 in (0.1, 0.05):
+        xi = graded_grid(-50, 50, 0.0, h0, ratio=1.02)
+        y = _two_sided_lorentzian(xi, 10.0, 0.0, 2.0, 1.0)
+        L, *_ = an.pulse_length(xi, V_STAR * np.expm1(y), V_STAR)
+        errs.append(abs(L - 3.0))
+        # linear-interpolation crossing for comparison
+        h = 5.0
+        i = np.nonzero((y[:-1] - h) * (y[1:] - h) <= 0)[0]
+        lin = [xi[k] + (h - y[k]) / (y[k + 1] - y[k]) * (xi[k + 1] - xi[k]) for k in i]
+        assert errs[-1] < 0.1 * abs((lin[-1] - lin[0]) - 3.0)
+    assert errs[1] < errs[0] / 8          # ≥ third order under halving (cubic: ~16)
+
+
+def test_pulse_length_rejects_short_domain():
+    xi = np.linspace(-1, 1, 50)
+    with pytest.raises(ValueError):
+        an.pulse_length(xi, V_STAR * np.expm1(_two_sided_lorentzian(xi, 10, 0, 5, 5)), V_STAR)
+
+
+# --------------------------------------------------------------------------- slip profile
+def _slip_exact(xi, A, w, xmax, beta, c_s):
+    return A * w * (np.arctan(xmax / w) - np.arctan(xi / w)) / (beta * c_s)
+
+
+def test_slip_profile_lorentzian_second_order():
+    beta, A, w, vs = 0.3, 2.0, 0.5, 1.6e-7
+    errs = []
+    xi = graded_grid(-40, 30, 0.0, 0.02, ratio=1.03)
+    for refine in (False, True):
+        if refine:    # halve every cell
+            xi = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
+        v = vs + A / (1 + (xi / w) ** 2)
+        d = an.slip_profile(xi, v, vs, beta, P.c_s)
+        ex = _slip_exact(xi, A, w, xi[-1], beta, P.c_s)
+        assert d[-1] == 0.0
+        assert np.all(np.diff(d) <= 0)                      # grows backwards
+        errs.append(np.max(np.abs(d - ex)) / ex[0])
+    assert errs[0] < 1e-3
+    assert 3.0 < errs[0] / errs[1] < 5.0                   # trapezoid: order 2
+
+
+# --------------------------------------------------------------------------- breakdown energy
+TAU_M = 0.99 * P.tau_min
+
+
+def _sw_tau(delta, tau0, tauc, dc, tau_after):
+    """Linear slip weakening τ0 → τc over δc, then the constant `tau_after`."""
+    return np.where(delta < dc, tau0 - (tau0 - tauc) * delta / dc, tau_after)
+
+
+def _sw_pulse(xi, beta, A, w, dc, tau0, tauc, tau_after, vs=1.6e-7):
+    """Lorentzian slip rate; τ = linear slip weakening of the numerical δ.
+
+    τ jumps at δ_c, which no nodal quadrature integrates exactly: the cells around the kink are
+    split 400-fold so the synthetic data's own kink error (≈ Δτ Δδ_cell/2) stays ~1e-6 G_c.
+    Returns (xi, v, tau, v_stick).
+    """
+    def fields(x):
+        v = vs + A / (1 + (x / w) ** 2)
+        return v, an.slip_profile(x, v, vs, beta, P.c_s)
+
+    v, d = fields(xi)
+    k = int(np.nonzero(d >= dc)[0][-1])           # d[k] >= dc > d[k+1]
+    fine = np.linspace(xi[max(k - 1, 0)], xi[min(k + 2, xi.size - 1)], 1201)[1:-1]
+    xi = np.union1d(xi, fine)
+    v, d = fields(xi)
+    return xi, v, _sw_tau(d, tau0, tauc, dc, tau_after), vs
+
+
+def test_breakdown_energy_linear_slip_weakening_exact():
+    beta, A, w = 0.5, 1.0, 0.2
+    tau0, tauc, dc = 1.3 * P.tau_min, 1.05 * P.tau_min, 2e-5
+    xi = graded_grid(-30, 30, 0.0, 0.002, ratio=1.03)
+    xi, v, tau, vs = _sw_pulse(xi, beta, A, w, dc, tau0, tauc, TAU_M)
+    d, G = an.breakdown_energy(xi, v, tau, vs, beta, P.c_s, TAU_M)
+    Gc = ((tau0 + tauc) / 2 - TAU_M) * dc
+    inside = d < dc
+    exact = (tau0 - TAU_M) * d - (tau0 - tauc) * d ** 2 / (2 * dc)
+    # Stieltjes trapezoid in δ is exact for τ linear in δ
+    assert np.allclose(G[inside], exact[inside], rtol=1e-12, atol=1e-12 * Gc)
+    # beyond δ_c, τ = τ_m: Ḡ = G_c up to the single kink cell
+    kink = np.argmin(np.abs(d - dc))
+    cell = abs(d[kink - 1] - d[kink + 1])
+    assert np.allclose(G[~inside], Gc, rtol=0, atol=(tau0 - TAU_M) * cell)
+    assert G[0] == pytest.approx(Gc, rel=1e-5)
+
+
+def test_breakdown_energy_origin_peak():
+    xi = graded_grid(-20, 20, 0.0, 0.01)
+    v = 1e-7 + 1.0 / (1 + (xi / 0.3) ** 2)
+    tau = TAU_M + 1e5 / (1 + ((xi - 0.5) / 0.2) ** 2)         # peak at ξ = 0.5
+    d_f, G_f = an.breakdown_energy(xi, v, tau, 1e-7, 0.4, P.c_s, TAU_M)
+    d_p, G_p = an.breakdown_energy(xi, v, tau, 1e-7, 0.4, P.c_s, TAU_M, origin="peak")
+    k = np.argmax(tau)
+    assert d_p[k] == 0 and G_p[k] == 0
+    assert np.all(np.isnan(d_p[k + 1:]))
+    assert np.allclose(d_p[:k + 1], d_f[:k + 1] - d_f[k], rtol=1e-14, atol=0)
+    assert np.allclose(G_p[:k + 1], G_f[:k + 1] - G_f[k], rtol=1e-12, atol=1e-18)
+    with pytest.raises(ValueError):
+        an.breakdown_energy(xi, v, tau, 1e-7, 0.4, P.c_s, TAU_M, origin="middle")
+
+
+def test_fracture_energy_recovers_Gc_and_delta_c():
+    """Curves share a linear slip-weakening head, then τ = τ_m + a_k: known G_c, δ_c."""
+    tau0, tauc, dc = 1.3 * P.tau_min, 1.08 * P.tau_min, 1e-4
+    Gc = ((tau0 + tauc) / 2 - TAU_M) * dc
+    curves = []
+    for k, (beta, A, w, a) in enumerate([(0.3, 1.0, 0.2, 0.0), (0.5, 1.7, 0.25, 2e3),
+                                         (0.7, 2.3, 0.2, 5e3), (0.9, 3.0, 0.22, 1e4)]):
+        xi = graded_grid(-40, 30, 0.0, 0.001, ratio=1.02, jitter=0.3, seed=k)
+        xi, v, tau, vs = _sw_pulse(xi, beta, A, w, dc, tau0, tauc, TAU_M + a)
+        curves.append(an.breakdown_energy(xi, v, tau, vs, beta, P.c_s, TAU_M))
+    res = an.fracture_energy(curves)
+    # residual errors: the synthetic data's own kink error (~1e-5) and the common-grid interpolation
+    assert res["G_c"] == pytest.approx(Gc, rel=2e-4)
+    assert res["delta_c"] == pytest.approx(dc, rel=2e-4)
+    assert res["delta_fan"] == pytest.approx(dc, rel=2e-4)
+    assert res["n_curves"] == 4
+    # a bare threshold (no back-extrapolation) would sit measurably above G_c
+    s = res["spread"]
+    i0 = int(np.argmin(s))
+    i1 = i0 + np.nonzero(s[i0:] > res["spread_min"] + res["tol"])[0][0]
+    assert res["G_median"][i1] > Gc * (1 + 1e-3)
+
+
+def test_fracture_energy_with_different_head_slopes():
+    """Heads differ by constant factors (different peak stresses): the excess spread still
+    locates the fan-out exactly; G_c is that of the median curve."""
+    dc, k0, kc = 2e-6, 2.3e5, 0.3e5                 # slopes τ0 − τm and τc − τm
+    d = np.geomspace(1e-10, 1e-4, 3001)
+    head = np.where(d < dc, k0 * d - (k0 - kc) * d ** 2 / (2 * dc), (k0 + kc) / 2 * dc)
+    eps = [-0.03, -0.01, 0.0, 0.02, 0.04]
+    a = [0.0, 1e3, 3e3, 6e3, 1e4]
+    curves = [(d, (1 + e) * head + ak * np.clip(d - dc, 0, None)) for e, ak in zip(eps, a)]
+    res = an.fracture_energy(curves)
+    assert res["spread_min"] == pytest.approx(0.07, rel=1e-6)
+    assert res["delta_fan"] == pytest.approx(dc, rel=1e-4)
+    assert res["delta_c"] == pytest.approx(dc, rel=1e-4)
+    assert res["G_c"] == pytest.approx((k0 + kc) / 2 * dc, rel=5e-4)   # kink interpolation
+    assert res["G_c_err"] < 1e-3 * res["G_c"]
+    # the bare threshold would be tol-biased upward
+    assert res["G_c_threshold"] > res["G_c"] * (1 + 1e-3)
+
+
+def test_fracture_energy_needs_two_curves():
+    with pytest.raises(ValueError):
+        an.fracture_energy([(np.array([1e-6, 2e-6]), np.array([1.0, 2.0]))])
+
+
+# --------------------------------------------------------------------------- edge singularity
+def _edge_fields(xi, zeta, xp, a, Av=3e-6, At=0.04, tau_m=TAU_M):
+    """Exact power laws v/c_s = Av r^ζ behind, (τ−τ_m)/σ = At r^ζ ahead, cut off within ~a."""
+    rb = np.clip(xp - xi, 1e-300, None)
+    ra = np.clip(xi - xp, 1e-300, None)
+    cut_b = -np.expm1(-(rb / a) ** 2)
+    cut_a = -np.expm1(-(ra / a) ** 2)
+    v = np.where(xi < xp, P.c_s * Av * rb ** zeta * cut_b, 0.0) + 1e-7
+    tau = tau_m + P.sigma * np.where(xi > xp, At * ra ** zeta * cut_a, 0.0) + 1.0
+    return v, tau
+
+
+@pytest.mark.parametrize("zeta", [-0.5, -0.45, -0.38])
+def test_edge_singularity_recovers_power_law(zeta):
+    xp, a = 0.3, 1e-3
+    xi = graded_grid(-5, 5, xp, 2e-5, ratio=1.02, jitter=0.5)
+    v, tau = _edge_fields(xi, zeta, xp, a)
+    res = an.edge_singularity(xi, v, tau, TAU_M, P.c_s, P.sigma)
+    assert res["zeta"] == pytest.approx(zeta, abs=2e-3)
+    assert abs(res["xi_p"] - xp) < 0.05 * res["ell"]
+    assert res["zeta_err"] < 5e-3
+    assert res["x_v"] < res["xi_p"] < res["x_tau"]
+    assert res["window"][0] == pytest.approx(2 * res["ell"])
+
+
+def test_edge_singularity_with_noise_error_bar_covers_truth():
+    zeta, xp, a = -0.45, 0.0, 1e-3
+    xi = graded_grid(-5, 5, xp, 2e-5, ratio=1.02)
+    v, tau = _edge_fields(xi, zeta, xp, a)
+    rng = np.random.default_rng(3)
+    v = v * np.exp(0.02 * rng.standard_normal(v.size))
+    tau = TAU_M + (tau - TAU_M) * np.exp(0.02 * rng.standard_normal(v.size))
+    res = an.edge_singularity(xi, v, tau, TAU_M, P.c_s, P.sigma, window=(4e-3, 0.1))
+    assert abs(res["zeta"] - zeta) < 3 * res["zeta_err"]
+    assert res["zeta_err"] < 0.03
+    assert res["zeta_err_stat"] > 0 and res["zeta_err_window"] > 0
+
+
+def test_edge_singularity_rejects_wrong_order_of_maxima():
+    xi = np.linspace(-1, 1, 400)
+    v = 1e-7 + np.exp(-((xi - 0.2) / 0.05) ** 2)
+    tau = TAU_M + 1e4 * np.exp(-((xi + 0.2) / 0.05) ** 2)
+    with pytest.raises(ValueError):
+        an.edge_singularity(xi, v, tau, TAU_M, P.c_s, P.sigma)
+
+
+# --------------------------------------------------------------------------- ln(1 − g)
+def test_ln_one_minus_g_matches_friction_law():
+    fr = RateStateFriction(P)
+    v = np.geomspace(1e-9, 10, 40)
+    phi_ss = fr.phi_ss(v)
+    assert np.allclose(an.ln_one_minus_g(v, phi_ss, P), 0.0, atol=1e-14)
+    phi = phi_ss * np.geomspace(1e-3, 1e3, 40)
+    ref = np.log(1.0 - fr.g(v, phi))
+    assert np.allclose(an.ln_one_minus_g(v, phi, P), ref, rtol=0, atol=1e-12)
+    assert np.allclose(an.ln_one_minus_g(v, phi, P), np.log(np.geomspace(1e-3, 1e3, 40)), atol=1e-12)
+
+
+# --------------------------------------------------------------------------- scaling fit
+TRUE = dict(tau_star=1.0087, a_v=1.15, a_G=0.69)
+
+
+def test_scaling_law_satisfies_implicit_eq3():
+    x = np.linspace(1.012, 1.2, 30)
+    b, Lt = an.scaling_law(x, **TRUE, params=P)
+    C = P.v_min * P.mu / (2 * P.tau_min * P.c_s)
+    assert np.allclose(b, TRUE["a_v"] * C * np.sqrt(1 - b ** 2) / (x - TRUE["tau_star"]), rtol=1e-14)
+    assert np.allclose(Lt, TRUE["a_G"] * np.sqrt(1 - b ** 2) / (math.pi * (x - TRUE["tau_star"]) ** 2),
+                       rtol=1e-14)
+
+
+def test_scaling_fit_recovers_constants_exact_data_and_respects_window():
+    x = np.round(np.arange(1.015, 1.05001, 0.005), 4)
+    b, Lt = an.scaling_law(x, **TRUE, params=P)
+    # points outside the window that would wreck the fit if used
+    x_all = np.concatenate([x, [1.1, 1.2]])
+    b_all = np.concatenate([b, [0.01, 0.01]])
+    Lt_all = np.concatenate([Lt, [5.0, 5.0]])
+    res = an.scaling_fit(x_all, b_all, Lt_all, P, window=(1.0, 1.05))
+    assert res["n"] == x.size
+    for k, val in TRUE.items():
+        assert res[k] == pytest.approx(val, rel=1e-8)
+        assert res[k + "_err"] < 1e-8
+    with pytest.raises(ValueError):
+        an.scaling_fit(x_all, b_all, Lt_all, P, window=(1.3, 1.4))
+
+
+@pytest.mark.parametrize("eq,keys", [("beta", ("tau_star", "a_v")), ("L", ("tau_star", "a_G"))])
+def test_scaling_fit_single_equation_diagnostics(eq, keys):
+    x = np.round(np.arange(1.015, 1.05001, 0.005), 4)
+    b, Lt = an.scaling_law(x, **TRUE, params=P)
+    res = an.scaling_fit(x, b, Lt, P, equations=eq)
+    for k in keys:
+        assert res[k] == pytest.approx(TRUE[k], rel=1e-8)
+    other = ({"a_v", "a_G"} - set(keys)).pop()
+    assert math.isnan(res[other]) and math.isnan(res[other + "_err"])
+    with pytest.raises(ValueError):
+        an.scaling_fit(x, b, Lt, P, equations="gamma")
+
+
+def test_scaling_fit_noisy_data_within_error_bars():
+    x = np.round(np.arange(1.015, 1.05001, 0.0025), 4)
+    b, Lt = an.scaling_law(x, **TRUE, params=P)
+    rng = np.random.default_rng(7)
+    b_n = b * np.exp(0.005 * rng.standard_normal(x.size))
+    Lt_n = Lt * np.exp(0.02 * rng.standard_normal(x.size))
+    res = an.scaling_fit(x, b_n, Lt_n, P)
+    for k, val in TRUE.items():
+        assert res[k + "_err"] > 0
+        assert abs(res[k] - val) < 4 * res[k + "_err"], k
+    assert res["tau_star_err"] < 2e-3
+
+
+# --------------------------------------------------------------------------- family driver
+def _synthetic_pulse(ratio, beta, width):
+    xi = graded_grid(-40 * width, 20 * width, 0.0, width / 200, ratio=1.04)
+    y = _two_sided_lorentzian(xi, 14.0, 0.0, 2 * width / 3, width / 3)   # FWHM = width
+    v = V_STAR * np.expm1(y)
+    vs = P.v_stick(ratio * P.tau_min)
+    v = np.maximum(v, vs)
+    tau_d = ratio * P.tau_min
+    tau = tau_d + 0.2 * P.tau_min * np.exp(-((xi - 0.3 * width) / (0.1 * width)) ** 2) \
+        - (tau_d - (1 - 0.01 / ratio) * P.tau_min) * np.exp(-((xi + width) / width) ** 2)
+    phi = RateStateFriction(P).phi_ss(v)
+    return h5io.Pulse(xi=xi, v=v, phi=phi, tau=tau, residual=np.full(xi.size, 1e-15),
+                      tau_d_ratio=ratio, tau_d=tau_d, tau_min=P.tau_min, beta=beta,
+                      c_p=beta * P.c_s, L=width, L_tilde=width / P.L_Gc, v_stick=vs,
+                      v_max=float(v.max()), max_residual=1e-15, converged=True,
+                      n_points=xi.size, wall_time=0.1)
+
+
+def test_analyse_family_writes_results(tmp_path):
+    path = str(tmp_path / "fam.h5")
+    specs = [(1.2, 0.02, 0.05), (1.05, 0.3, 0.2), (1.03, 0.6, 0.4), (1.02, 0.8, 0.8)]
+    for r, b, w in specs:
+        h5io.write_pulse(path, _synthetic_pulse(r, b, w), P)
+    rows = an.analyse_family(path, write=True)
+    assert [r["label"] for r in rows] == [h5io.pulse_label(s[0]) for s in specs]
+    for row, (r, b, w) in zip(rows, specs):
+        assert row["L"] == pytest.approx(w, rel=1e-4)
+        assert row["L_tilde"] == pytest.approx(w / P.L_Gc, rel=1e-4)
+        assert row["c_p"] == pytest.approx(b * P.c_s, rel=1e-14)
+    fam = rows[0]["family"]
+    tau_m = np.min(h5io.read_pulse(path, rows[-1]["label"])[0].tau)     # smallest τ_d
+    assert fam["tau_m"] == tau_m
+    with h5py.File(path, "r") as h5:
+        g = h5["family"]
+        assert np.allclose(g["L"][...], [r["L"] for r in rows], rtol=1e-15)
+        assert np.allclose(g["tau_d_ratio"][...], [s[0] for s in specs])
+        assert g.attrs["tau_m"] == tau_m
+        assert "tau_star" in g.attrs and "a_v_err" in g.attrs
+        assert g["L"].attrs["units"] == "m"
+        k = sorted(g["mode_ii"].keys())[1]
+        sub = g["mode_ii"][k]
+        kap = sub.attrs["cd_over_cs"]
+        b2 = [modeii.beta_mode_ii(s[1], kap) for s in specs]
+        assert np.allclose(sub["beta"][...], b2, rtol=1e-15)
+        assert h5["pulses/td1.0500"].attrs["L_fwhm"] == pytest.approx(0.2, rel=1e-4)
+    # the file still reads as a pulse file, extra attributes come back in `extra`
+    p, _ = h5io.read_pulse(path, "td1.0300")
+    assert p.extra["L_fwhm"] == pytest.approx(0.4, rel=1e-4)
+    # re-analysis replaces the family group
+    rows2 = an.analyse_family(path, write=True)
+    assert rows2[0]["L"] == rows[0]["L"]
+    table = an.format_table(rows2)
+    assert len([ln for ln in table.splitlines() if ln.lstrip().startswith("td")]) == len(specs)
+    # no temporary file left behind
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fam.h5"]
+
+
+def test_analyse_family_read_only_does_not_touch_file(tmp_path):
+    path = str(tmp_path / "fam.h5")
+    h5io.write_pulse(path, _synthetic_pulse(1.1, 0.1, 0.1), P)
+    before = open(path, "rb").read()
+    rows = an.analyse_family(path, write=False)
+    assert open(path, "rb").read() == before
+    assert "scaling_error" in rows[0]["family"] and "fracture_error" in rows[0]["family"]
+    assert G_C_STAR == 0.65
+
+
+def test_cmd_analyse_prints_table_and_writes(tmp_path, capsys):
+    import argparse
+    path = str(tmp_path / "fam.h5")
+    for r, b, w in [(1.05, 0.3, 0.2), (1.03, 0.6, 0.4)]:
+        h5io.write_pulse(path, _synthetic_pulse(r, b, w), P)
+    assert an.cmd_analyse(argparse.Namespace(file=path, no_write=False)) == 0
+    out = capsys.readouterr().out
+    assert "td1.0500" in out and "td1.0300" in out
+    with h5py.File(path, "r") as h5:
+        assert "family" in h5
+    with pytest.raises(h5io.SchemaError):
+        an.cmd_analyse(argparse.Namespace(file=str(tmp_path / "nope.h5")))
+
+
+
+def test_analyse_family_fits_skip_unconverged_pulses(tmp_path):
+    path = str(tmp_path / "fam.h5")
+    for r, b, w in [(1.05, 0.3, 0.2), (1.03, 0.6, 0.4), (1.02, 0.8, 0.8)]:
+        h5io.write_pulse(path, _synthetic_pulse(r, b, w), P)
+    bad = _synthetic_pulse(1.04, 0.01, 5.0)
+    bad.converged = False
+    h5io.write_pulse(path, bad, P)
+    rows = an.analyse_family(path, write=False)
+    assert len(rows) == 4
+    assert rows[0]["family"]["scaling"]["n"] == 3
+    assert rows[0]["family"]["fracture"]["n_curves"] == 3
