@@ -34,7 +34,7 @@ def test_state_integration_second_order_against_exact_solution(params):
     for n in (200, 400, 800):
         xi, v, phi_ex, w, c = manufactured_state(params, n)
         dw = v * v / (params.D ** 2 * w)
-        phi, _, _ = integrate_state(xi, v, c, phi_ex[-1], w, dw)
+        phi = integrate_state(xi, v, c, phi_ex[-1], w, dw)[0]
         errs.append(np.max(np.abs(phi / phi_ex - 1.0)))
     assert errs[-1] < 1e-3
     assert np.log2(errs[1] / errs[2]) > 1.9, errs
@@ -45,17 +45,18 @@ def test_state_integration_is_stiff_accurate(params):
     xi = np.array([0.0, 1.0, 2.0])
     v = np.array([1e-1, 1e-1, 1e-7])
     w = fr.heal_rate(v, params.v_star, params.D)
-    phi, _, _ = integrate_state(xi, v, 1e-3, 3.0, w, v * v / (params.D ** 2 * w))
+    phi = integrate_state(xi, v, 1e-3, 3.0, w, v * v / (params.D ** 2 * w))[0]
     assert phi[0] == pytest.approx(fr.phi_ss(1e-1, params.v_star, params.D), rel=1e-12)
 
 
-def test_jacobian_matches_finite_differences(params):
+@pytest.mark.parametrize("free", ["beta", "tau_d"])
+def test_jacobian_matches_finite_differences(params, free):
     xi, y, beta = default_guess(params, 1.2, 120)
     k = int(np.argmin(np.abs(xi)))
-    prob = SteadyProblem(params, 1.2, xi, k, float(y[k]))
-    x = np.concatenate([y, [beta]])
+    prob = SteadyProblem(params, 1.2, xi, k, float(y[k]), free=free, beta=beta)
+    x = np.concatenate([y, [beta if free == "beta" else 1.2]])
     r, J = prob.residual_and_jacobian(x)
-    assert np.allclose(r, prob.residual(x), rtol=0, atol=1e-15)
+    assert np.allclose(r, prob.residual(x), rtol=0, atol=1e-14)
     Jfd = np.empty_like(J)
     for j in range(x.size):
         h = 1e-6 * max(1.0, abs(x[j]))

@@ -17,7 +17,9 @@ import numpy as np
 
 from .h5io import list_pulses, read_pulse, write_pulse
 from .params import ParameterError, Parameters
-from .solver import GridSpec, solve_pulse
+from .newton import newton
+from .solver import GridSpec, SteadySolution, adapted_grid, front_pin, interpolate, solve_pulse
+from .steady import SteadyProblem
 
 
 @dataclass
@@ -49,6 +51,54 @@ def _predict(guess, prev, current, trial):
     b_new = beta + s * (beta - beta_p)
     b_new = min(b_new, 1.0 - 0.5 * (1.0 - beta))     # stay below c_s
     return xi, y_new, b_new
+
+
+def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_iter=40):
+    """Solve with β fixed and τ_d/τ_min unknown, on a grid adapted to the guess (xi, y)."""
+    xi, y = guess
+    t0 = time.perf_counter()
+    v_st = params.v_stick(q_guess * params.tau_min)
+    tmp = SteadyProblem(params, q_guess, xi, 0, 0.0, H=np.zeros((1, 1)))
+    phi = tmp.state(np.exp(y), beta)[0]
+    xn = adapted_grid(xi, y, phi, beta, params, v_st, n_points, spec)
+    yn = interpolate(xi, y, xn, v_st)
+    k, _ = front_pin(xn, yn, np.log(v_st))
+    prob = SteadyProblem(params, q_guess, xn, k, float(yn[k]), free="tau_d", beta=beta)
+    x, st = newton(prob, np.concatenate([yn, [q_guess]]), tol=1e-13, max_iter=max_iter)
+    return SteadySolution(prob, x, st, time.perf_counter() - t0, 1)
+
+
+def march_in_beta(params, start, prev, target, n_points, spec=GridSpec(), shrink=0.85,
+                  min_shrink=0.97, progress=None):
+    """From solution `start` = (xi, y, beta, q), step β toward 1 (1−β ← shrink·(1−β)) with τ_d free,
+    until τ_d/τ_min ≤ target. Yields converged SteadySolutions; stops when a step below
+    `min_shrink` fails. Predictor: secant in ln(1−β) on (ln v, q)."""
+    xi, y, beta, q = start
+    hist = prev
+    f = shrink
+    while q > target:
+        bnew = 1.0 - (1.0 - beta) * f
+        yg, qg = y, q
+        if hist is not None:
+            s_prev, xi_p, y_p, q_p = hist
+            ds = (np.log(1 - bnew) - np.log(1 - beta)) / (np.log(1 - beta) - s_prev)
+            yg = y + ds * (y - np.interp(xi, xi_p, y_p))
+            qg = q + ds * (q - q_p)
+        qg = max(qg, 1.0 + 1e-6)
+        sol = solve_at_beta(params, (xi, yg), qg, bnew, n_points, spec)
+        ok = sol.stats.converged
+        if progress:
+            progress(float(sol.x[-1]), sol.to_pulse() if ok else None,
+                     f"beta-step to {bnew:.6f}: {sol.stats.message}")
+        if not ok:
+            f = 1.0 - 0.5 * (1.0 - f)
+            if f > min_shrink:
+                return
+            continue
+        hist = (np.log(1 - beta), xi, y, q)
+        xi, y, beta, q = sol.xi, sol.x[:-1].copy(), bnew, float(sol.x[-1])
+        f = shrink
+        yield sol
 
 
 def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1.015,
@@ -130,8 +180,53 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
             rep.failures.append((trial, msg))
             h *= 0.5
             if h < min_step - 1e-15:
-                rep.stopped_early = True
-                break
+                # natural continuation stalls near τ_min: step in β with τ_d free past the target,
+                # then solve at the exact target from the bracketing β-solutions
+                bracket = None
+                start = (guess[0], guess[1], guess[2], current)
+                prev_b = None if prev is None else (np.log(1 - prev[3]), prev[1], prev[2], prev[0])
+                last = None
+                for bsol in march_in_beta(params, start, prev_b, target, n_points, spec,
+                                          progress=progress):
+                    q = float(bsol.x[-1])
+                    if q > target:
+                        bp = bsol.to_pulse()
+                        write_pulse(out, bp, params)
+                        rep.written.append(bp.label)
+                        rep.reached = q
+                    last_prev, last = last, bsol
+                    if q <= target:
+                        bracket = (last_prev, bsol)
+                if bracket is None:
+                    rep.stopped_early = True
+                    break
+                lo, hi = bracket[1], bracket[0]
+                if hi is None:
+                    hi_xi, hi_y, hi_q, hi_b = guess[0], guess[1], current, guess[2]
+                else:
+                    hi_xi, hi_y, hi_q, hi_b = hi.xi, hi.x[:-1], float(hi.x[-1]), hi.beta
+                w = (hi_q - target) / (hi_q - float(lo.x[-1]))
+                y_t = (1 - w) * np.interp(lo.xi, hi_xi, hi_y) + w * lo.x[:-1]
+                b_t = (1 - w) * hi_b + w * lo.beta
+                sol = solve_pulse(params, target, n_points=n_points, guess=(lo.xi, y_t, b_t),
+                                  spec=spec, passes=1, coarse_points=n_points, max_iter=max_iter)
+                pulse = sol.to_pulse()
+                ok = pulse.converged and pulse.extra["n_humps"] == 1
+                if progress:
+                    progress(target, pulse if ok else None, sol.stats.message)
+                if not ok:
+                    rep.failures.append((target, sol.stats.message))
+                    rep.stopped_early = True
+                    break
+                trial = target
+                prev = (float(hi_q), hi_xi, hi_y, hi_b)
+                guess = (sol.xi, sol.x[:-1].copy(), sol.beta)
+                write_pulse(out, pulse, params)
+                rep.written.append(pulse.label)
+                current, rep.reached = trial, trial
+                targets.pop(0)
+                h = step
+                continue
             continue
         write_pulse(out, pulse, params)
         rep.written.append(pulse.label)

@@ -30,7 +30,7 @@ def _max_abs(r):
 
 
 def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None):
-    """Damped Newton: J δ = −r by LU, step limited to |δy| ≤ max_dy, 0 < β < 1, backtracking on ‖r‖₂.
+    """Damped Newton: J δ = −r by LU, step limited to |δy| ≤ max_dy, kept valid, backtracking on ‖r‖₂.
 
     Converges when max|r| ≤ tol. Stops (not converged) when the line search fails or after
     `max_iter` iterations; near round-off a full step that does not reduce ‖r‖₂ but keeps
@@ -66,8 +66,8 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None):
         big = np.max(np.abs(dx[:-1]))
         if big > max_dy:
             lam = max_dy / big
-        beta = x[-1]
-        while not (0.0 < beta + lam * dx[-1] < 1.0):
+        valid = getattr(problem, "valid", lambda z: 0.0 < z[-1] < 1.0)
+        while not valid(x + lam * dx) and lam > 1e-12:
             lam *= 0.5
         accepted = False
         for _ in range(30):

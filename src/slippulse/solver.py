@@ -59,7 +59,7 @@ class SteadySolution:
 
     @property
     def beta(self):
-        return float(self.x[-1])
+        return float(self.problem.split(self.x)[1])
 
     def to_pulse(self) -> Pulse:
         prob = self.problem

@@ -43,7 +43,7 @@ def _E(x):
 
 @njit(cache=True)
 def integrate_state(xi, v, beta_cs, phi_end, w, dw_dy):
-    """State φ_i, upper-triangular ∂φ_i/∂y_j (y = ln v) and ∂φ_i/∂(β c_s) by the exponential scheme.
+    """State φ_i, upper-triangular ∂φ_i/∂y_j (y = ln v), ∂φ_i/∂(β c_s) and ∂φ_i/∂φ_N.
 
     Parameters
     ----------
@@ -54,6 +54,8 @@ def integrate_state(xi, v, beta_cs, phi_end, w, dw_dy):
     phi = np.empty(n)
     P = np.zeros((n, n))
     dphi_dc = np.zeros(n)
+    G = np.empty(n)                                     # ∂φ_i/∂φ_N
+    G[n - 1] = 1.0
     phi[n - 1] = phi_end
     for i in range(n - 2, -1, -1):
         h2 = 0.5 * (xi[i + 1] - xi[i]) / beta_cs      # half crossing time
@@ -77,7 +79,8 @@ def integrate_state(xi, v, beta_cs, phi_end, w, dw_dy):
         dphi_dh2 = ea * exb + eb
         direct = -(xa * dpa + xb * dpb + h2 * dphi_dh2) / beta_cs
         dphi_dc[i] = a * dphi_dc[i + 1] + direct
-    return phi, P, dphi_dc
+        G[i] = a * G[i + 1]
+    return phi, P, dphi_dc, G
 
 
 class SteadyProblem:
@@ -87,7 +90,7 @@ class SteadyProblem:
     ----------
     params : Parameters
     tau_d_ratio : float
-        Driving stress τ_d/τ_min (> 1, < τ_peak/τ_min).
+        Driving stress τ_d/τ_min (> 1, < τ_peak/τ_min); with ``free="tau_d"`` only the start value.
     xi : (N,) array
         Grid, m, ascending; the pulse travels toward +ξ; ξ_N is ahead (rest state).
     pin_index : int
@@ -96,15 +99,23 @@ class SteadyProblem:
         ln v imposed at the pin node.
     hilbert : str
         Interpolant of the Hilbert operator ("cubic" or "linear").
+    free : {"beta", "tau_d"}
+        The scalar unknown appended to y: the speed β at fixed τ_d (default), or q = τ_d/τ_min at
+        fixed β = `beta` (continuation in β near τ_min, where τ_d(β) flattens).
+    beta : float
+        The fixed speed when ``free="tau_d"``.
     """
 
-    def __init__(self, params, tau_d_ratio, xi, pin_index, y_pin, hilbert="cubic", H=None):
+    def __init__(self, params, tau_d_ratio, xi, pin_index, y_pin, hilbert="cubic", H=None,
+                 free="beta", beta=None):
+        if free not in ("beta", "tau_d"):
+            raise ValueError(f"free={free!r}: must be 'beta' or 'tau_d'")
+        if free == "tau_d" and not (beta is not None and 0.0 < beta < 1.0):
+            raise ValueError("free='tau_d' needs a fixed 0 < beta < 1")
         self.params = params
-        self.tau_d_ratio = float(tau_d_ratio)
-        self.tau_d = self.tau_d_ratio * params.tau_min
-        params.check_tau_d(self.tau_d)
-        self.v_stick = params.v_stick(self.tau_d)
-        self.phi_end = params.phi_rest(self.tau_d)
+        self.free = free
+        self.beta_fixed = beta
+        self._set_tau_d(float(tau_d_ratio))
         self.xi = np.ascontiguousarray(xi, dtype=float)
         self.n = self.xi.size
         self.pin_index = int(pin_index)
@@ -112,10 +123,30 @@ class SteadyProblem:
         self.hilbert = hilbert
         center = 0.0 if self.xi[0] < 0.0 < self.xi[-1] else None
         self.H = hilbert_matrix(self.xi, kind=hilbert, center=center) if H is None else H
+        self._H1 = None
+
+    def _set_tau_d(self, ratio):
+        p = self.params
+        self.tau_d_ratio = ratio
+        self.tau_d = ratio * p.tau_min
+        p.check_tau_d(self.tau_d)
+        self.v_stick = p.v_stick(self.tau_d)
+        self.phi_end = float(fr.phi_ss(self.v_stick, p.v_star, p.D))
 
     # ------------------------------------------------------------------ pieces
     def split(self, x):
-        return np.exp(x[:-1]), float(x[-1])
+        """(v, β) of the unknowns; in τ_d mode also moves τ_d, v_stick, φ_N to x[-1]."""
+        if self.free == "beta":
+            return np.exp(x[:-1]), float(x[-1])
+        if float(x[-1]) != self.tau_d_ratio:
+            self._set_tau_d(float(x[-1]))
+        return np.exp(x[:-1]), float(self.beta_fixed)
+
+    def valid(self, x):
+        if self.free == "beta":
+            return 0.0 < x[-1] < 1.0
+        p = self.params
+        return p.tau_min < x[-1] * p.tau_min < p.tau_peak
 
     def state(self, v, beta):
         p = self.params
@@ -126,17 +157,17 @@ class SteadyProblem:
     def fields(self, x):
         """(v, φ, τ, Hu) for unknowns x: slip rate, state, friction stress and Hilbert integral."""
         v, beta = self.split(x)
-        phi, _, _ = self.state(v, beta)
+        phi = self.state(v, beta)[0]
         tau = self.params.sigma * fr.f(v, phi, *self.params.law_args)
         return v, phi, tau, self.H @ (v - self.v_stick)
 
     def residual(self, x):
         """Δ (N values) followed by the phase condition."""
+        if not self.valid(x):
+            return np.full(self.n + 1, np.inf)
         p = self.params
         v, beta = self.split(x)
-        if not (0.0 < beta < 1.0):
-            return np.full(self.n + 1, np.inf)
-        phi, _, _ = self.state(v, beta)
+        phi = self.state(v, beta)[0]
         hu = self.H @ (v - self.v_stick)
         r = np.empty(self.n + 1)
         r[:-1] = (self.tau_d - p.sigma * fr.f(v, phi, *p.law_args) - p.mu * p.F3(beta) * hu) / self.tau_d
@@ -144,11 +175,11 @@ class SteadyProblem:
         return r
 
     def residual_and_jacobian(self, x):
-        """Residual and its exact Jacobian ∂(Δ, pin)/∂(y, β), (N+1)×(N+1)."""
+        """Residual and its exact Jacobian ∂(Δ, pin)/∂(y, β or q), (N+1)×(N+1)."""
         p = self.params
         v, beta = self.split(x)
         n = self.n
-        phi, P, dphi_dc = self.state(v, beta)
+        phi, P, dphi_dc, G = self.state(v, beta)
         u = v - self.v_stick
         hu = self.H @ u
         F = float(p.F3(beta))
@@ -164,8 +195,18 @@ class SteadyProblem:
         np.multiply(self.H, (-p.mu * F * s) * v, out=Jy)
         Jy -= fphi[:, None] * P
         Jy[np.diag_indices(n)] -= p.sigma * s * fr.df_dv(v, phi, *la) * v
-        # dΔ_i/dβ = −(σ/τ_d) f_φ,i c_s ∂φ_i/∂c − (μ F'(β)/τ_d) (H u)_i
-        J[:-1, -1] = -fphi * dphi_dc * p.c_s - p.mu * float(p.dF3_dbeta(beta)) * s * hu
+        if self.free == "beta":
+            # dΔ_i/dβ = −(σ/τ_d) f_φ,i c_s ∂φ_i/∂c − (μ F'(β)/τ_d) (H u)_i
+            J[:-1, -1] = -fphi * dphi_dc * p.c_s - p.mu * float(p.dF3_dbeta(beta)) * s * hu
+        else:
+            # Δ_i = N_i/τ_d: dΔ_i/dτ_d = [1 − σ f_φ,i G_i dφ_N/dτ_d + μF (H·1)_i dv_st/dτ_d]/τ_d − Δ_i/τ_d
+            vs = self.v_stick
+            dvs = vs / (p.sigma * float(fr.df_ss_dlnv(vs, *la)))           # 1/τ_ss'(v_stick)
+            dphiN = -p.D * vs / (vs * vs + p.v_star ** 2) ** 1.5 * dvs
+            if self._H1 is None:
+                self._H1 = self.H.sum(axis=1)
+            dN = 1.0 - fphi * self.tau_d * G * dphiN + p.mu * F * self._H1 * dvs
+            J[:-1, -1] = (dN * s - r[:-1] * s) * p.tau_min
         J[-1, :] = 0.0
         J[-1, self.pin_index] = 1.0
         return r, J
