@@ -1,0 +1,159 @@
+"""Configuration of dynamic (SBI) runs: defaults → TOML file → ``--set section.key=value``.
+
+Every key has a default below; a key that is not listed (a typo) is an error, and so is a value of
+the wrong type. The resolved configuration is a plain nested dict, stored in the output file.
+
+Sections and keys (units SI):
+
+``[grid]``      n (points, even), length (periodic domain λ, m)
+``[params]``    the Table-I parameters (see slippulse.params.Parameters)
+``[load]``      tau_d_ratio (τ_d/τ_min; τ_load = τ_d + η v_stick so that creep has τ = τ_d)
+``[initial]``   kind ("creep" | "gaussian"), amplitude (m/s), width (m), position (m)
+``[time]``      stepping ("fixed" | "adaptive"), beta_cfl, xi, xi_stab, growth, ladder,
+                dt_max (s; 0 = no cap), t_end (s), max_steps (0 = no limit)
+``[history]``   policy ("full" | "window" | "soe"), window_periods, window_max_steps,
+                soe_x_min, soe_x_max, soe_h
+``[stepper]``   name ("pc2")
+``[fft]``       threads, planner ("estimate" | "measure" | "patient")
+``[output]``    file, snapshot_every (steps), checkpoint_every (steps)
+"""
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+from dataclasses import fields
+
+from .cli import UsageError
+from .params import Parameters
+
+DEFAULTS: dict = {
+    "grid": {"n": 1024, "length": 1.0},
+    "params": {f.name: float(f.default) for f in fields(Parameters)},
+    "load": {"tau_d_ratio": 1.2},
+    "initial": {"kind": "creep", "amplitude": 0.0, "width": 0.01, "position": 0.5},
+    "time": {"stepping": "fixed", "beta_cfl": 0.5, "xi": 0.1, "xi_stab": 0.5, "growth": 1.2, "ladder": 1.189207115002721,
+             "dt_max": 0.0, "t_end": 1e-3, "max_steps": 0},
+    "history": {"policy": "soe", "window_periods": 4.0, "window_max_steps": 2000,
+                "soe_x_min": 1e-8, "soe_x_max": 1e8, "soe_h": 0.5},
+    "stepper": {"name": "pc2"},
+    "fft": {"threads": 1, "planner": "estimate"},
+    "output": {"file": "dynamic_run.h5", "snapshot_every": 100, "checkpoint_every": 1000},
+}
+
+#: Keys a resumed run may change (to extend it or move its output).
+RESUME_MUTABLE = {"time.t_end", "time.max_steps", "output.file", "fft.threads"}
+
+
+def _coerce(key: str, value, default):
+    """Check ``value`` against the type of ``default`` (ints are accepted for floats)."""
+    if isinstance(default, bool):
+        ok = isinstance(value, bool)
+    elif isinstance(default, int):
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif isinstance(default, float):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if ok:
+            value = float(value)
+            if not math.isfinite(value):
+                raise UsageError(f"config key {key}={value!r} must be finite")
+    else:
+        ok = isinstance(value, str)
+    if not ok:
+        raise UsageError(f"config key {key}={value!r} has the wrong type: expected "
+                         f"{type(default).__name__} (default {default!r})")
+    return value
+
+
+def merge(base: dict, update: dict, origin: str) -> dict:
+    """Return ``base`` updated by ``update``; unknown sections or keys raise UsageError."""
+    out = copy.deepcopy(base)
+    for section, table in update.items():
+        if section not in out:
+            raise UsageError(f"{origin}: unknown config section [{section}]; known: "
+                             f"{', '.join(sorted(out))}")
+        if not isinstance(table, dict):
+            raise UsageError(f"{origin}: [{section}] must be a table")
+        for key, value in table.items():
+            if key not in out[section]:
+                raise UsageError(f"{origin}: unknown config key {section}.{key}; known in "
+                                 f"[{section}]: {', '.join(sorted(out[section]))}")
+            out[section][key] = _coerce(f"{section}.{key}", value, out[section][key])
+    return out
+
+
+def parse_set(item: str) -> dict:
+    """``section.key=value`` → {section: {key: value}}; the value is read as TOML, else as a string."""
+    if "=" not in item or "." not in item.split("=", 1)[0]:
+        raise UsageError(f"--set {item!r}: expected section.key=value")
+    path, raw = item.split("=", 1)
+    section, key = path.strip().split(".", 1)
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return {section: {key: value}}
+
+
+def load_config(path: str | None = None, sets: list[str] | tuple = ()) -> dict:
+    """Defaults, then the TOML file at ``path`` (if any), then each ``--set`` override."""
+    cfg = copy.deepcopy(DEFAULTS)
+    if path is not None:
+        try:
+            with open(path, "rb") as fh:
+                data = tomllib.load(fh)
+        except OSError as exc:
+            raise UsageError(f"cannot read config {path}: {exc.strerror}")
+        except tomllib.TOMLDecodeError as exc:
+            raise UsageError(f"config {path} is not valid TOML: {exc}")
+        cfg = merge(cfg, data, path)
+    for item in sets:
+        cfg = merge(cfg, parse_set(item), "--set")
+    return cfg
+
+
+def flatten(cfg: dict) -> dict:
+    """{"section.key": value} view of a config."""
+    return {f"{s}.{k}": v for s, table in cfg.items() for k, v in table.items()}
+
+
+def diff_keys(a: dict, b: dict) -> list[str]:
+    """Keys whose values differ between two configs."""
+    fa, fb = flatten(a), flatten(b)
+    return sorted(k for k in set(fa) | set(fb) if fa.get(k) != fb.get(k))
+
+
+def build_stepper(cfg: dict):
+    """Problem and solver from a resolved config: the stepper with its initial state set."""
+    from .params import ParameterError
+    from .stepper import RateStateInterface, TimeStepRule, make_stepper
+
+    params = Parameters(**cfg["params"])
+    tau_d = cfg["load"]["tau_d_ratio"] * params.tau_min
+    law = RateStateInterface(params, tau_d)
+    tm = cfg["time"]
+    rule = TimeStepRule(kind=tm["stepping"], beta_cfl=tm["beta_cfl"], xi=tm["xi"],
+                        xi_stab=tm["xi_stab"], growth=tm["growth"], ladder=tm["ladder"],
+                        dt_max=tm["dt_max"] if tm["dt_max"] > 0 else math.inf)
+    h = cfg["history"]
+    options = {"full": {},
+               "window": {"periods": h["window_periods"], "max_steps": h["window_max_steps"]},
+               "soe": {"x_min": h["soe_x_min"], "x_max": h["soe_x_max"], "h": h["soe_h"]}}
+    if h["policy"] not in options:
+        raise ParameterError(f"history.policy={h['policy']!r} must be one of {sorted(options)}")
+    st = make_stepper(cfg["stepper"]["name"], params, cfg["grid"]["n"], cfg["grid"]["length"], law,
+                      rule=rule, history=h["policy"], history_options=options[h["policy"]],
+                      threads=cfg["fft"]["threads"], planner=cfg["fft"]["planner"])
+    ini = cfg["initial"]
+    if ini["kind"] == "creep":
+        st.set_creep()
+    elif ini["kind"] == "gaussian":
+        st.set_gaussian(ini["amplitude"], ini["width"], ini["position"])
+    else:
+        raise ParameterError(f"initial.kind={ini['kind']!r} must be 'creep' or 'gaussian'")
+    for key in ("snapshot_every", "checkpoint_every"):
+        if cfg["output"][key] < 1:
+            raise ParameterError(f"output.{key}={cfg['output'][key]!r} must be >= 1 (steps)")
+    if cfg["time"]["max_steps"] < 0 or not cfg["time"]["t_end"] > 0:
+        raise ParameterError("time.t_end must be > 0 (s) and time.max_steps >= 0 (0 = no limit)")
+    return st

@@ -1,0 +1,428 @@
+"""Time stepping of the mode-III SBI interface: predictor–corrector, friction solve, state update.
+
+A step from t_n to t_{n+1} = t_n + Δt (``PredictorCorrector._step_impl``; docs/dynamic.md §4):
+
+    predict:  V̄ = V^n,  δ* = δ^n + Δt V̄,  φ* = S(φ^n, w(V^n), Δt)
+              τ_el* = τ_load + f[δ*, V̄];  solve σ f(V*, φ*) + η V* = τ_el*
+    correct:  V̄ = (V^n + V*)/2,  δ^{n+1} = δ^n + Δt V̄,  φ^{n+1} = S(φ^n, (w(V^n) + w(V*))/2, Δt)
+              τ_el = τ_load + f[δ^{n+1}, V̄];  solve σ f(V^{n+1}, φ^{n+1}) + η V^{n+1} = τ_el
+    commit:   history ← V̄
+
+with η = μ/(2 c_s), S the exact state update at frozen healing rate (friction.state_step) and
+f[δ, V̄]_k = −(μ|k|/2)(δ_k − H_k) the elastodynamic functional (sbi.py). Interface laws:
+rate-and-state (the project's friction law), a prescribed rupture front with imposed stress drop
+(Kostrov test) and prescribed kinematics (impose V(x, t), return τ).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from . import friction as fr
+from .fft import RealFFT
+from .params import ParameterError, Parameters
+from .sbi import elastic_functional, make_history, wavenumbers
+
+# ----------------------------------------------------------------------------- friction solve
+
+
+@numba.njit(cache=True)
+def _solve_point(tau_el, phi, v_guess, eta, sigma, f0, b, alpha, v_star, phi_star, D):
+    """Root V ≥ 0 of F(V) = σ f(V, φ) + η V − τ_el by safeguarded Newton in x = ln V.
+
+    Bracket: F(V_hi) ≥ 0 at V_hi = τ_el/η (σ f ≥ 0); F(V_lo) ≤ 0 at
+    V_lo = τ_el/(σ A(φ)(f0 + α)/v* + η), because f ≤ A(φ)(f0 + α) V/v*. F is increasing in V.
+    Newton steps leaving the bracket are replaced by bisection in ln V. Stops when |F| is at the
+    rounding level of τ_el or after a Newton step |Δ ln V| < 1e-9 (the error is then O(Δ²)).
+    Returns (V, iterations).
+    """
+    if not tau_el > 0.0:
+        return 0.0, 0
+    A = 1.0 + b * math.log1p(phi / phi_star)
+    x_hi = math.log(tau_el / eta)
+    x_lo = math.log(tau_el / (sigma * A * (f0 + alpha) / v_star + eta))
+    if v_guess > 0.0:
+        x = math.log(v_guess)
+        if not (x_lo < x < x_hi):
+            x = 0.5 * (x_lo + x_hi)
+    else:
+        x = 0.5 * (x_lo + x_hi)
+    it = 0
+    for it in range(1, 200):
+        v = math.exp(x)
+        F = sigma * fr.f(v, phi, f0, b, alpha, v_star, phi_star, D) + eta * v - tau_el
+        if abs(F) <= 2.2e-16 * tau_el:
+            return v, it                       # residual at the rounding level of τ_el
+        if F > 0.0:
+            x_hi = x
+        else:
+            x_lo = x
+        dF = v * (sigma * fr.df_dv(v, phi, f0, b, alpha, v_star, phi_star, D) + eta)
+        xn = x - F / dF
+        # quadratic convergence: after a Newton step |dx| < 1e-9 the error is O(dx²) < 1e-17
+        if abs(xn - x) < 1e-9:
+            return math.exp(min(max(xn, x_lo), x_hi)), it
+        if not (x_lo < xn < x_hi):
+            xn = 0.5 * (x_lo + x_hi)         # safeguard: bisection in ln V
+            if x_hi - x_lo < 1e-15 * max(1.0, abs(x)):
+                return math.exp(xn), it
+        x = xn
+    return math.exp(x), it
+
+
+@numba.njit(cache=True)
+def solve_friction(tau_el, phi, v_guess, eta, sigma, f0, b, alpha, v_star, phi_star, D, v_out):
+    """Solve σ f(V_i, φ_i) + η V_i = τ_el,i at every point; returns the largest iteration count."""
+    itmax = 0
+    for i in range(tau_el.size):
+        v, it = _solve_point(tau_el[i], phi[i], v_guess[i], eta, sigma,
+                             f0, b, alpha, v_star, phi_star, D)
+        v_out[i] = v
+        if it > itmax:
+            itmax = it
+    return itmax
+
+
+# ----------------------------------------------------------------------------- interface laws
+
+
+class RateStateInterface:
+    """The project's rate-and-state law on the interface, loaded so that creep at v_stick has τ = τ_d.
+
+    τ_load = τ_d + η v_stick: uniform creep (f ≡ 0 for uniform slip) is then an exact steady
+    state of the discrete system.
+    """
+
+    has_state = True
+
+    def __init__(self, params: Parameters, tau_d: float):
+        params.check_tau_d(tau_d)
+        self.params = params
+        self.tau_d = float(tau_d)
+        self.eta = params.mu / (2.0 * params.c_s)
+        self.v_stick = params.v_stick(tau_d)
+        self.phi_rest = params.phi_rest(tau_d)
+        self.tau_load = self.tau_d + self.eta * self.v_stick
+
+    def heal_rate(self, v):
+        return fr.heal_rate(v, self.params.v_star, self.params.D)
+
+    def solve(self, tau_el, phi, t, x, v_guess):
+        """V from σ f(V, φ) + ηV = τ_el; τ = τ_el − ηV. Returns (V, τ, iterations)."""
+        v = np.empty_like(tau_el)
+        p = self.params
+        it = solve_friction(tau_el, phi, v_guess, self.eta, p.sigma, *p.law_args, v)
+        return v, tau_el - self.eta * v, it
+
+    def stability_dt(self, v, phi, kmax):
+        """Largest Δt for which the explicit elastic coupling stays stable (docs §5):
+        Δt ≤ 2 (σ ∂f/∂V + η)/k_s, k_s = μ k_max/2, the stiffest mode."""
+        p = self.params
+        stiff = p.sigma * fr.df_dv(v, phi, *p.law_args) + self.eta
+        return float(2.0 * np.min(stiff) / (0.5 * p.mu * kmax))
+
+
+class KostrovInterface:
+    """Prescribed rupture front |x − x0| ≤ v_r t with imposed stress drop Δτ (Kostrov test).
+
+    Inside the front τ = τ_load − Δτ, so V = (τ_el − τ_load + Δτ)/η; outside V = 0 and τ = τ_el.
+    """
+
+    has_state = False
+
+    def __init__(self, params: Parameters, v_r: float, dtau: float, x0: float, tau_load: float = 0.0):
+        self.params = params
+        self.eta = params.mu / (2.0 * params.c_s)
+        self.v_r, self.dtau, self.x0, self.tau_load = v_r, dtau, x0, tau_load
+
+    def solve(self, tau_el, phi, t, x, v_guess):
+        inside = np.abs(x - self.x0) <= self.v_r * t
+        v = np.where(inside, (tau_el - self.tau_load + self.dtau) / self.eta, 0.0)
+        return v, tau_el - self.eta * v, 0
+
+
+class PrescribedInterface:
+    """Prescribed kinematics: V(x, t) imposed by ``vfun(x, t)``; returns τ = τ_el − ηV."""
+
+    has_state = False
+
+    def __init__(self, params: Parameters, vfun, tau_load: float = 0.0):
+        self.params = params
+        self.eta = params.mu / (2.0 * params.c_s)
+        self.vfun = vfun
+        self.tau_load = tau_load
+
+    def solve(self, tau_el, phi, t, x, v_guess):
+        v = np.asarray(self.vfun(x, t), dtype=float)
+        return v, tau_el - self.eta * v, 0
+
+
+# ----------------------------------------------------------------------------- time-step rules
+
+
+@dataclass(frozen=True)
+class TimeStepRule:
+    """How Δt is chosen (docs/dynamic.md §5).
+
+    ``fixed``:     Δt = β_cfl Δx/c_s.
+    ``adaptive``:  Δt* = min(Δt_max, ξ D/V_max, ξ_s Δt_stab, growth·Δt_prev), with Δt_stab the
+                   explicit-elasticity stability bound of the interface law, rounded *down* to the
+                   ladder Δt_cfl·ladder^j (j ≥ 0 integer), and never below Δt_cfl = β_cfl Δx/c_s,
+                   the wave-resolving step. The ladder keeps the number of distinct Δt small,
+                   so the history's per-Δt coefficients are reused (sbi.SOEHistory cache).
+    """
+
+    kind: str = "fixed"
+    beta_cfl: float = 0.5
+    xi: float = 0.1
+    xi_stab: float = 0.5
+    dt_max: float = math.inf
+    growth: float = 1.2
+    ladder: float = 2.0 ** 0.25
+
+    def __post_init__(self):
+        if self.kind not in ("fixed", "adaptive"):
+            raise ParameterError(f"time.stepping={self.kind!r} must be 'fixed' or 'adaptive'")
+        for name, lo, hi in (("beta_cfl", 0.0, 2.0), ("xi", 0.0, math.inf),
+                             ("xi_stab", 0.0, math.inf), ("dt_max", 0.0, math.inf)):
+            val = getattr(self, name)
+            if not (lo < val <= hi):
+                raise ParameterError(f"time.{name}={val!r} must be in ({lo}, {hi}]")
+        if not self.growth > 1.0:
+            raise ParameterError(f"time.growth={self.growth!r} must be > 1")
+        if not self.ladder > 1.0:
+            raise ParameterError(f"time.ladder={self.ladder!r} must be > 1")
+
+
+# ----------------------------------------------------------------------------- steppers
+
+
+class PredictorCorrector:
+    """Second-order predictor–corrector SBI stepper (see module docstring).
+
+    Parameters
+    ----------
+    params : Parameters
+    n : int
+        Number of grid points (even).
+    length : float
+        Periodic domain length λ, m.
+    interface : RateStateInterface | KostrovInterface | PrescribedInterface
+    rule : TimeStepRule
+    history : str
+        History policy name (sbi.HISTORY_POLICIES).
+    history_options : dict
+        Options of the policy (window periods/max_steps, SOE x_min/x_max/h).
+    threads : int
+        FFTW and numba threads.
+    """
+
+    name = "pc2"
+
+    def __init__(self, params, n, length, interface, rule=TimeStepRule(), history="soe",
+                 history_options=None, threads=1, planner="estimate"):
+        if n < 4 or n % 2:
+            raise ParameterError(f"grid.n={n!r} must be an even integer >= 4")
+        if not length > 0:
+            raise ParameterError(f"grid.length={length!r} must be > 0 (m)")
+        self.params = params
+        self.n = int(n)
+        self.length = float(length)
+        self.dx = self.length / self.n
+        self.x = np.arange(self.n) * self.dx
+        self.law = interface
+        self.rule = rule
+        self.eta = params.mu / (2.0 * params.c_s)
+        self.kabs = wavenumbers(self.n, self.length)
+        self.omega = self.kabs * params.c_s
+        self.dt_cfl = rule.beta_cfl * self.dx / params.c_s
+        self.threads = int(threads)
+        numba.set_num_threads(min(self.threads, numba.config.NUMBA_NUM_THREADS))
+        self.fft = RealFFT(self.n, threads=self.threads, planner=planner)
+        opts = dict(history_options or {})
+        self.history_name = history
+        self.history = make_history(history, self.omega,
+                                    self.dt_cfl if rule.kind == "fixed" else None, **opts)
+        if rule.kind == "adaptive" and not self.history.variable_dt:
+            raise ParameterError(f"history.policy={history!r} needs time.stepping='fixed'; "
+                                 "use 'soe' for adaptive steps")
+        # state
+        self.t = 0.0
+        self.nstep = 0
+        self.dt_prev = self.dt_cfl
+        self.delta = np.zeros(self.n)
+        self.V = np.zeros(self.n)
+        self.phi = np.zeros(self.n)
+        self.tau = np.zeros(self.n)
+        self.delta_k = np.zeros(self.n // 2 + 1, dtype=complex)
+        self.V_k = np.zeros(self.n // 2 + 1, dtype=complex)
+        self.iters = 0
+        self.status = "initialised"
+        self.message = ""
+
+    # ------------------------------------------------------------------ initial conditions
+    def set_state(self, V, phi=None, delta=None, tau=None):
+        """Set V (m/s), φ (s), δ (m) at t = 0; τ defaults to τ_load − ηV + f[δ]."""
+        self.V = np.array(np.broadcast_to(V, (self.n,)), dtype=float)
+        self.phi = (np.zeros(self.n) if phi is None
+                    else np.array(np.broadcast_to(phi, (self.n,)), dtype=float))
+        self.delta = (np.zeros(self.n) if delta is None
+                      else np.array(np.broadcast_to(delta, (self.n,)), dtype=float))
+        self.delta_k = self.fft.forward(self.delta).copy()
+        self.V_k = self.fft.forward(self.V).copy()
+        if tau is None:
+            f = self.fft.inverse(elastic_functional(self.params.mu, self.kabs, self.delta_k,
+                                                    np.zeros_like(self.delta_k)))
+            tau = self.law.tau_load - self.eta * self.V + f
+        self.tau = np.array(tau, dtype=float)
+        self.status = "ready"
+
+    def set_creep(self):
+        """Uniform creep at v_stick with φ = φ_ss(v_stick) and τ = τ_d (rate-and-state law)."""
+        law = self.law
+        self.set_state(np.full(self.n, law.v_stick), np.full(self.n, law.phi_rest))
+
+    def set_gaussian(self, amplitude, width, position):
+        """Creep plus a bump V = v_stick + A exp(−(x − x0)²/(2w²)) (periodic distance), with φ
+        chosen so that friction balances the t = 0 stress τ = τ_d − η(V − v_stick) exactly:
+        A(φ) = τ/(σ B(V)), φ = φ*(exp((A − 1)/b) − 1) where f = A(φ) B(V)."""
+        p, law = self.params, self.law
+        if not amplitude >= 0 or not width > 0:
+            raise ParameterError("initial.amplitude must be >= 0 (m/s) and initial.width > 0 (m)")
+        dxp = (self.x - position + 0.5 * self.length) % self.length - 0.5 * self.length
+        V = law.v_stick + amplitude * np.exp(-0.5 * (dxp / width) ** 2)
+        tau = law.tau_d - self.eta * (V - law.v_stick)
+        B = fr.f(V, 0.0, *p.law_args)
+        A = tau / (p.sigma * B)
+        phi = p.phi_star * np.expm1((A - 1.0) / p.b)
+        if not np.all(np.isfinite(phi)) or np.any(phi < 0) or np.any(tau <= 0):
+            vmax = float(V.max())
+            raise ParameterError(
+                f"initial.amplitude={amplitude:g} m/s is too large: no state phi >= 0 balances "
+                f"tau = tau_d - eta (V - v_stick) at V = {vmax:g} m/s; reduce the amplitude")
+        self.set_state(V, phi, tau=tau)
+
+    # ------------------------------------------------------------------ time step choice
+    def next_dt(self) -> float:
+        r = self.rule
+        if r.kind == "fixed":
+            return self.dt_cfl
+        vmax = float(np.max(np.abs(self.V)))
+        dt = min(r.dt_max, r.growth * self.dt_prev)
+        if vmax > 0:
+            dt = min(dt, r.xi * self.params.D / vmax)
+        if isinstance(self.law, RateStateInterface):
+            dt = min(dt, r.xi_stab * self.law.stability_dt(self.V, self.phi, self.kabs[-1]))
+        if dt <= self.dt_cfl:
+            return self.dt_cfl
+        j = math.floor(math.log(dt / self.dt_cfl) / math.log(r.ladder) + 1e-12)
+        return self.dt_cfl * r.ladder ** j
+
+    # ------------------------------------------------------------------ public step
+    def step(self, dt: float | None = None) -> float:
+        """Advance one step (Δt from the rule unless given); owns t, counters and status."""
+        if dt is None:
+            dt = self.next_dt()
+        self._step_impl(dt)
+        self.t += dt
+        self.nstep += 1
+        self.dt_prev = dt
+        if not (np.all(np.isfinite(self.V)) and np.all(np.isfinite(self.tau))):
+            self.status = "failed"
+            self.message = f"non-finite V or tau at step {self.nstep}, t={self.t:.6g} s"
+            raise FloatingPointError(self.message)
+        self.status = "running"
+        return dt
+
+    def run(self, t_end=None, max_steps=None, callback=None):
+        """Step until t ≥ t_end or max_steps steps (whichever first); callback(self) after each."""
+        if t_end is None and max_steps is None:
+            raise ValueError("run() needs t_end or max_steps")
+        while True:
+            if max_steps is not None and self.nstep >= max_steps:
+                break
+            if t_end is not None and self.t >= t_end * (1 - 1e-14):
+                break
+            self.step()
+            if callback is not None:
+                callback(self)
+        self.status = "finished"
+        return self
+
+    # ------------------------------------------------------------------ physics
+    def _functional(self, delta_k, vbar_k):
+        """f = F⁻¹[−(μ|k|/2)(δ_k − H_k[V̄])], Pa."""
+        H = self.history.current(vbar_k)
+        return self.fft.inverse(elastic_functional(self.params.mu, self.kabs, delta_k, H)).copy()
+
+    def _step_impl(self, dt):
+        law, t1 = self.law, self.t + dt
+        self.history.begin_step(dt)                                  # sum the stored past once
+        # predict: V̄ = V^n, δ* = δ^n + Δt V̄
+        vbar_k = self.V_k
+        f_star = self._functional(self.delta_k + dt * vbar_k, vbar_k)
+        if law.has_state:
+            # predict state: φ* = S(φ^n, w(V^n), Δt)
+            w_n = law.heal_rate(self.V)
+            phi_star = fr.state_step(self.phi, w_n, dt)
+        else:
+            phi_star = self.phi
+        # solve the interface law at each point: σ f(V*, φ*) + ηV* = τ_load + f*
+        v_star, _, it1 = law.solve(law.tau_load + f_star, phi_star, t1, self.x, self.V)
+        # correct: V̄ = (V^n + V*)/2, δ^{n+1} = δ^n + Δt V̄
+        vbar = 0.5 * (self.V + v_star)
+        vbar_k = 0.5 * (self.V_k + self.fft.forward(v_star))
+        delta_k = self.delta_k + dt * vbar_k
+        if law.has_state:
+            # correct state: φ^{n+1} = S(φ^n, (w(V^n) + w(V*))/2, Δt)
+            phi = fr.state_step(self.phi, 0.5 * (w_n + law.heal_rate(v_star)), dt)
+        else:
+            phi = self.phi
+        f_new = self._functional(delta_k, vbar_k)
+        # solve the interface law with the corrected stress and state
+        v_new, tau_new, it2 = law.solve(law.tau_load + f_new, phi, t1, self.x, v_star)
+        # commit: the history stores the step average V̄
+        self.history.commit(vbar_k, dt)
+        self.delta = self.delta + dt * vbar
+        self.delta_k = delta_k
+        self.phi = phi
+        self.V = v_new
+        self.V_k = self.fft.forward(v_new).copy()
+        self.tau = tau_new
+        self.iters = max(it1, it2)
+
+    # ------------------------------------------------------------------ checkpoints
+    def state(self) -> dict:
+        """Everything needed to continue bit-exactly (arrays copied)."""
+        st = {"t": np.float64(self.t), "nstep": np.int64(self.nstep),
+              "dt_prev": np.float64(self.dt_prev), "delta": self.delta.copy(),
+              "V": self.V.copy(), "phi": self.phi.copy(), "tau": self.tau.copy(),
+              "delta_k": self.delta_k.copy(), "V_k": self.V_k.copy()}
+        for key, val in self.history.state().items():
+            st[f"history/{key}"] = val
+        return st
+
+    def load_state(self, st: dict):
+        self.t = float(st["t"])
+        self.nstep = int(st["nstep"])
+        self.dt_prev = float(st["dt_prev"])
+        for key in ("delta", "V", "phi", "tau", "delta_k", "V_k"):
+            setattr(self, key, np.array(st[key]))
+        self.history.load_state({k.split("/", 1)[1]: v for k, v in st.items()
+                                 if k.startswith("history/")})
+        self.status = "resumed"
+
+
+#: Registry of steppers, selected by name.
+STEPPERS = {"pc2": PredictorCorrector}
+
+
+def make_stepper(name: str, *args, **kwargs):
+    try:
+        cls = STEPPERS[name]
+    except KeyError:
+        raise ParameterError(f"stepper={name!r} unknown; choose one of {sorted(STEPPERS)}")
+    return cls(*args, **kwargs)
