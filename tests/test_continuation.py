@@ -33,3 +33,16 @@ def test_family_refuses_bad_ranges(params, tmp_path):
         run_family(params, str(tmp_path / "f.h5"), start=1.2, stop=0.99)
     with pytest.raises(ParameterError, match="step"):
         run_family(params, str(tmp_path / "f.h5"), start=1.2, stop=1.1, step=-0.01)
+
+
+def test_beta_mode_inverts_tau_d_mode(params):
+    """Fixing β at the speed found at τ_d = 1.2 τ_min and solving for τ_d gives back 1.2."""
+    from slippulse.continuation import solve_at_beta
+    from slippulse.solver import solve_pulse
+    a = solve_pulse(params, 1.2, n_points=600)
+    assert a.stats.converged
+    b = solve_at_beta(params, (a.xi, a.x[:-1]), 1.199, a.beta, 600)
+    assert b.stats.converged
+    assert float(b.x[-1]) == pytest.approx(1.2, abs=2e-6)
+    pb = b.to_pulse()
+    assert pb.max_residual <= 1e-13 and pb.beta == a.beta

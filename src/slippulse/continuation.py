@@ -46,6 +46,8 @@ def _predict(guess, prev, current, trial):
         return guess
     r_prev, xi_p, y_p, beta_p = prev
     s = (trial - current) / (current - r_prev)
+    if abs(s) > 3.0:               # neighbours too close for a safe extrapolation
+        return guess
     y_prev_here = np.interp(xi, xi_p, y_p)
     y_new = y + s * (y - y_prev_here)
     b_new = beta + s * (beta - beta_p)
@@ -68,11 +70,12 @@ def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_i
     return SteadySolution(prob, x, st, time.perf_counter() - t0, 1)
 
 
-def march_in_beta(params, start, prev, target, n_points, spec=GridSpec(), shrink=0.85,
+def march_in_beta(params, start, prev, target, n_points, spec=GridSpec(), shrink=0.92,
                   min_shrink=0.97, progress=None):
     """From solution `start` = (xi, y, beta, q), step β toward 1 (1−β ← shrink·(1−β)) with τ_d free,
     until τ_d/τ_min ≤ target. Yields converged SteadySolutions; stops when a step below
-    `min_shrink` fails. Predictor: secant in ln(1−β) on (ln v, q)."""
+    `min_shrink` fails. Predictor: the last ln v (its shape: extrapolating it failed near β → 1,
+    measured) and a secant in ln(1−β) for q."""
     xi, y, beta, q = start
     hist = prev
     f = shrink
@@ -82,8 +85,7 @@ def march_in_beta(params, start, prev, target, n_points, spec=GridSpec(), shrink
         if hist is not None:
             s_prev, xi_p, y_p, q_p = hist
             ds = (np.log(1 - bnew) - np.log(1 - beta)) / (np.log(1 - beta) - s_prev)
-            yg = y + ds * (y - np.interp(xi, xi_p, y_p))
-            qg = q + ds * (q - q_p)
+            qg = q + min(ds, 3.0) * (q - q_p)
         qg = max(qg, 1.0 + 1e-6)
         sol = solve_at_beta(params, (xi, yg), qg, bnew, n_points, spec)
         ok = sol.stats.converged
@@ -101,8 +103,49 @@ def march_in_beta(params, start, prev, target, n_points, spec=GridSpec(), shrink
         yield sol
 
 
+def _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_iter, rep,
+                 progress):
+    """March in β from `guess` (at τ_d/τ_min = current) until τ_d passes `target`, writing the
+    intermediate pulses, then solve at `target` from the interpolated bracketing solutions.
+    Returns (prev, guess, solution) for the continuation, or None on failure."""
+    start = (guess[0], guess[1], guess[2], current)
+    prev_b = None if prev is None else (np.log(1 - prev[3]), prev[1], prev[2], prev[0])
+    hi, lo = None, None
+    for bsol in march_in_beta(params, start, prev_b, target, n_points, spec, progress=progress):
+        q = float(bsol.x[-1])
+        if q > target:
+            bp = bsol.to_pulse()
+            write_pulse(out, bp, params)
+            rep.written.append(bp.label)
+            rep.reached = q
+            hi = bsol
+        else:
+            lo = bsol
+    if lo is None:
+        return None
+    if hi is None:
+        hi_xi, hi_y, hi_q, hi_b = guess[0], guess[1], current, guess[2]
+    else:
+        hi_xi, hi_y, hi_q, hi_b = hi.xi, hi.x[:-1], float(hi.x[-1]), hi.beta
+    w = (hi_q - target) / (hi_q - float(lo.x[-1]))
+    y_t = (1 - w) * np.interp(lo.xi, hi_xi, hi_y) + w * lo.x[:-1]
+    b_t = (1 - w) * hi_b + w * lo.beta
+    sol = solve_pulse(params, target, n_points=n_points, guess=(lo.xi, y_t, b_t), spec=spec,
+                      passes=0, max_iter=max_iter)
+    pulse = sol.to_pulse()
+    ok = pulse.converged and pulse.extra["n_humps"] == 1
+    if progress:
+        progress(target, pulse if ok else None, sol.stats.message)
+    if not ok:
+        rep.failures.append((target, sol.stats.message))
+        return None
+    write_pulse(out, pulse, params)
+    rep.written.append(pulse.label)
+    return (hi_q, hi_xi, hi_y, hi_b), (sol.xi, sol.x[:-1].copy(), sol.beta), sol
+
+
 def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1.015,
-               step: float = 0.005, n_points: int = 2000, min_step: float = 1.25e-3,
+               step: float = 0.005, n_points: int = 2000, min_step: float | None = None,
                spec: GridSpec = GridSpec(), progress=None, max_iter: int = 25) -> FamilyReport:
     """Solve the family from `start` down to `stop` (τ_d/τ_min) and write it to `out`.
 
@@ -119,6 +162,8 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         raise ParameterError(f"to={stop} is invalid: must be < from={start} (continuation goes down)")
     if not (0 < step <= start - stop) or not math.isfinite(step):
         raise ParameterError(f"step={step} is invalid: must be in (0, from - to = {start - stop:.4g}]")
+    if min_step is None:
+        min_step = 0.5 * step          # two failed τ_d steps in a row switch to stepping in β
     t0 = time.perf_counter()
     rep = FamilyReport()
     guess = None
@@ -159,16 +204,26 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     tried = set()
     while targets:
         target = targets[0]
+        if h < min_step - 1e-15:
+            # natural continuation stalls near τ_min: step in β with τ_d free past the target,
+            # then solve at the exact target from the two β-solutions that bracket it
+            res = _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_iter,
+                               rep, progress)
+            if res is None:
+                rep.stopped_early = True
+                break
+            prev, guess, sol = res
+            current, rep.reached = target, target
+            targets.pop(0)
+            h = step
+            continue
         trial = max(target, round(current - h, 10))
         if (current, trial) in tried:
             h *= 0.5
-            if h < min_step - 1e-15:
-                rep.stopped_early = True
-                break
             continue
         tried.add((current, trial))
         sol = solve_pulse(params, trial, n_points=n_points, guess=_predict(guess, prev, current, trial),
-                          spec=spec, passes=1, coarse_points=n_points, max_iter=max_iter)
+                          spec=spec, passes=0, max_iter=max_iter)
         pulse = sol.to_pulse()
         ok = pulse.converged and pulse.extra["n_humps"] == 1
         msg = sol.stats.message
@@ -179,54 +234,6 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         if not ok:
             rep.failures.append((trial, msg))
             h *= 0.5
-            if h < min_step - 1e-15:
-                # natural continuation stalls near τ_min: step in β with τ_d free past the target,
-                # then solve at the exact target from the bracketing β-solutions
-                bracket = None
-                start = (guess[0], guess[1], guess[2], current)
-                prev_b = None if prev is None else (np.log(1 - prev[3]), prev[1], prev[2], prev[0])
-                last = None
-                for bsol in march_in_beta(params, start, prev_b, target, n_points, spec,
-                                          progress=progress):
-                    q = float(bsol.x[-1])
-                    if q > target:
-                        bp = bsol.to_pulse()
-                        write_pulse(out, bp, params)
-                        rep.written.append(bp.label)
-                        rep.reached = q
-                    last_prev, last = last, bsol
-                    if q <= target:
-                        bracket = (last_prev, bsol)
-                if bracket is None:
-                    rep.stopped_early = True
-                    break
-                lo, hi = bracket[1], bracket[0]
-                if hi is None:
-                    hi_xi, hi_y, hi_q, hi_b = guess[0], guess[1], current, guess[2]
-                else:
-                    hi_xi, hi_y, hi_q, hi_b = hi.xi, hi.x[:-1], float(hi.x[-1]), hi.beta
-                w = (hi_q - target) / (hi_q - float(lo.x[-1]))
-                y_t = (1 - w) * np.interp(lo.xi, hi_xi, hi_y) + w * lo.x[:-1]
-                b_t = (1 - w) * hi_b + w * lo.beta
-                sol = solve_pulse(params, target, n_points=n_points, guess=(lo.xi, y_t, b_t),
-                                  spec=spec, passes=1, coarse_points=n_points, max_iter=max_iter)
-                pulse = sol.to_pulse()
-                ok = pulse.converged and pulse.extra["n_humps"] == 1
-                if progress:
-                    progress(target, pulse if ok else None, sol.stats.message)
-                if not ok:
-                    rep.failures.append((target, sol.stats.message))
-                    rep.stopped_early = True
-                    break
-                trial = target
-                prev = (float(hi_q), hi_xi, hi_y, hi_b)
-                guess = (sol.xi, sol.x[:-1].copy(), sol.beta)
-                write_pulse(out, pulse, params)
-                rep.written.append(pulse.label)
-                current, rep.reached = trial, trial
-                targets.pop(0)
-                h = step
-                continue
             continue
         write_pulse(out, pulse, params)
         rep.written.append(pulse.label)
