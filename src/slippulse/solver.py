@@ -201,7 +201,7 @@ def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, 
 def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, guess=None,
                 method: str = "newton", tol: float = 1e-13, hilbert: str = "cubic",
                 spec: GridSpec = GridSpec(), passes: int = 2, coarse_points: int = 500,
-                progress=None, max_iter: int = 60) -> SteadySolution:
+                progress=None, max_iter: int = 60, adapt_guess: bool = True) -> SteadySolution:
     """Solve the steady pulse at τ_d = tau_d_ratio τ_min.
 
     Parameters
@@ -210,6 +210,8 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
         Initial ln v on its grid and β (e.g. a neighbouring pulse); default: :func:`default_guess`.
     passes : number of adapt-and-resolve passes after the first solve; the last one uses n_points.
     coarse_points : points of the intermediate passes.
+    adapt_guess : lay the first grid out from a given guess (with n_points when passes = 0);
+        otherwise solve on the guess's own grid.
     progress : callable(str), optional, told about each pass.
     """
     check_points(n_points)
@@ -222,9 +224,10 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
         xi, y, beta = default_guess(params, tau_d_ratio, min(coarse_points, n_points))
     else:
         xi, y, beta = guess
-        if passes > 0:
+        if adapt_guess:
+            n0 = min(coarse_points, n_points) if passes > 0 else n_points
             xi_new = adapted_grid(xi, y, _phi_of(params, tau_d_ratio, xi, y, beta), beta,
-                                  params, v_st, min(coarse_points, n_points), spec)
+                                  params, v_st, n0, spec)
             y = interpolate(xi, y, xi_new, v_st)
             xi = xi_new
     prob, x, stats = solve_on_grid(params, tau_d_ratio, xi, y, beta, method, tol, hilbert, max_iter)
