@@ -11,7 +11,7 @@ from tqdm import tqdm
 from .h5io import pulse_label, write_pulse
 from .newton import SOLVERS
 from .params import DEFAULT, ParameterError
-from .solver import MIN_POINTS, solve_pulse
+from .solver import check_points, solve_pulse
 
 
 def summary_line(pulse, params) -> str:
@@ -40,8 +40,7 @@ def cmd_solve(args) -> int:
     params = DEFAULT
     ratio = _ratio(args.tau_d)
     params.check_tau_d(ratio * params.tau_min)
-    if args.points < MIN_POINTS:
-        raise ParameterError(f"points={args.points} is invalid: must be an integer >= {MIN_POINTS}")
+    check_points(args.points)
     out = args.out or os.path.join("runs", "steady", f"{pulse_label(ratio)}.h5")
     bar = tqdm(total=3, desc=f"steady {pulse_label(ratio)}", unit="pass", disable=args.quiet,
                file=sys.stderr)
@@ -72,8 +71,7 @@ def cmd_family(args) -> int:
     start, stop = _ratio(args.from_), _ratio(args.to)
     if not (math.isfinite(args.step) and args.step > 0):
         raise ParameterError(f"step={args.step} is invalid: must be a number > 0")
-    if args.points < MIN_POINTS:
-        raise ParameterError(f"points={args.points} is invalid: must be an integer >= {MIN_POINTS}")
+    check_points(args.points)
     out = args.out or os.path.join("runs", "steady", "family.h5")
     n_total = int(round((start - stop) / args.step)) + 1
     bar = tqdm(total=n_total, desc="family", unit="pulse", disable=args.quiet, file=sys.stderr)
