@@ -151,8 +151,9 @@ def hilbert_matrix(xi, kind: str = "cubic", tails: bool = True, center: float | 
     Parameters
     ----------
     xi : (N,) array, strictly ascending, m.
-    kind : {"cubic", "linear"}
-        Natural cubic spline (default) or piecewise-linear interpolant.
+    kind : {"cubic", "linear", "fft"}
+        Natural cubic spline (default), piecewise-linear interpolant, or the FFT spectral transform
+        (uniform grids only, zero-padded ×2: :func:`hilbert_matrix_fft`).
     tails : bool
         Continue u beyond the ends with the algebraic far-field tails (see module notes).
     center : float, optional
@@ -162,6 +163,8 @@ def hilbert_matrix(xi, kind: str = "cubic", tails: bool = True, center: float | 
     -------
     H : (N, N) ndarray, 1 (dimensionless: the integral of u has the units of u).
     """
+    if kind == "fft":
+        return hilbert_matrix_fft(xi, pad=2, tails=tails, center=center)
     xi = np.ascontiguousarray(xi, dtype=float)
     n = xi.size
     if n < 4 or np.any(np.diff(xi) <= 0):
@@ -187,13 +190,73 @@ def hilbert_matrix(xi, kind: str = "cubic", tails: bool = True, center: float | 
         H[:, :-1] += X[:, 1:] * lo[1:]
         H[:, 1:] += X[:, :-1] * up[:-1]
     if tails:
-        c = 0.5 * (xi[0] + xi[-1]) if center is None else float(center)
-        if not (xi[0] < c < xi[-1]):
-            raise ValueError("tail centre must lie inside the grid")
-        behind, ahead = _tail_columns(xi, c)
-        H[:, 0] += behind
-        H[:, -1] += ahead
+        _add_tails(H, xi, center)
     return H
 
 
+def _add_tails(H, xi, center):
+    """Add the far-field tail integrals (see :func:`_tail_columns`) to the end columns of H."""
+    c = 0.5 * (xi[0] + xi[-1]) if center is None else float(center)
+    if not (xi[0] < c < xi[-1]):
+        raise ValueError("tail centre must lie inside the grid")
+    behind, ahead = _tail_columns(xi, c)
+    H[:, 0] += behind
+    H[:, -1] += ahead
+
+
 HILBERT_KINDS = {"cubic": "natural cubic spline", "linear": "piecewise linear"}
+
+
+# --------------------------------------------------------------------------------------------
+# FFT-based alternative on a uniform grid (benchmarks/bench_steady_methods.py compares it).
+def hilbert_matrix_fft(xi, pad: int | None = 2, tails: bool = False, center: float | None = None):
+    """Dense matrix of the FFT (spectral) Hilbert transform on a UNIFORM grid.
+
+    (H u)_i ≈ PV∫ u(z)/(z − ξ_i) dz for the band-limited (trigonometric) interpolant of u.
+
+    Derivation: with û(k) = ∫ u e^{−ikx} dx, the transform of PV 1/x is −iπ sign(k); the operator
+    u ↦ PV∫ u(z)/(z − ξ) dz = −(u * PV 1/x)(ξ) therefore has the symbol +iπ sign(k) (dimensionless,
+    so no factor h). The nodal values are zero-padded to M = pad·N points and transformed with the
+    discrete symbol iπ sign(k_m) (Nyquist mode set to 0); the operator is the circulant
+    c = ifft(iπ sign(k)) restricted to the N×N block, H_ij = c[(i − j) mod M] (Toeplitz).
+    On the periodic domain of length M h the kernel is the cotangent kernel
+    c_k = −(π/M)(1 − (−1)^k) cot(π k/M); in the limit M → ∞ it becomes the lattice kernel of the
+    sinc interpolant, c_k = −2/k for odd k, 0 for even k. Zero-padding by `pad` therefore leaves a
+    wrap-around error of relative size ≈ (π k/M)²/3 on the entry |i − j| = k, up to ~(π/pad)²/3 on
+    the far entries (k ~ N): the periodic images of the field are still felt. ``pad=None`` returns
+    the M → ∞ lattice kernel itself (no wrap-around; what an infinitely padded FFT converges to).
+
+    tails : add the same algebraic far-field continuation as :func:`hilbert_matrix` (the field
+        beyond the ends ∝ 1/(z − c)); default False (field zero outside the grid).
+    Raises ValueError when the grid is not uniform (relative spacing variation > 1e-8).
+    """
+    from scipy.linalg import toeplitz
+    xi = np.ascontiguousarray(xi, dtype=float)
+    n = xi.size
+    if n < 4:
+        raise ValueError("hilbert_matrix_fft needs ≥ 4 points")
+    h = np.diff(xi)
+    hm = (xi[-1] - xi[0]) / (n - 1)
+    if hm <= 0 or np.max(np.abs(h - hm)) > 1e-8 * hm:
+        raise ValueError("hilbert_matrix_fft needs a uniform, ascending grid")
+    if pad is None:
+        k = np.arange(1, n)
+        col = np.concatenate([[0.0], np.where(k % 2 == 1, -2.0 / k, 0.0)])
+        row = -col
+    else:
+        if int(pad) < 1:
+            raise ValueError("pad must be ≥ 1")
+        m = int(pad) * n
+        m += m % 2
+        sym = 1j * np.pi * np.sign(np.fft.fftfreq(m))
+        sym[m // 2] = 0.0                                    # Nyquist mode: no sign
+        c = np.fft.ifft(sym).real
+        col = c[:n]                                          # H[i, 0] = c[i]
+        row = c[(-np.arange(n)) % m]                         # H[0, j] = c[−j mod M]
+    H = toeplitz(col, row)
+    if tails:
+        _add_tails(H, xi, center)
+    return H
+
+
+HILBERT_KINDS["fft"] = "FFT spectral transform on a uniform grid (zero-padded ×2)"
