@@ -87,11 +87,11 @@ def test_help_everywhere(capsys):
     assert "--resume" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("policy", ["soe", "window"])
+@pytest.mark.parametrize("policy", ["soe", "window", "full"])
 def test_output_file_and_bit_exact_resume(tmp_path, policy):
     cfg = _write(tmp_path, policy)
     full, part = str(tmp_path / "full.h5"), str(tmp_path / "part.h5")
-    if policy == "window":      # fixed steps for the fixed-Δt policies
+    if policy != "soe":         # fixed steps for the fixed-Δt policies
         extra = ["--set", 'time.stepping="fixed"']
     else:
         extra = []
@@ -117,6 +117,12 @@ def test_output_file_and_bit_exact_resume(tmp_path, policy):
         assert f["scalars/step"][-1] == 240 and len(f["scalars/step"]) == 240
         assert np.all(np.diff(f["scalars/t"][()]) > 0)
         assert f["snapshots/step"][0] == 0
+
+
+def test_fixed_dt_policy_refuses_adaptive_steps(tmp_path, capsys):
+    cfg = _write(tmp_path, "full")
+    assert main(["dynamic", "run", cfg, "--out", str(tmp_path / "f.h5"), "--no-progress"]) == 2
+    assert "soe" in capsys.readouterr().err
 
 
 def test_resume_refuses_changed_physics(tmp_path):

@@ -14,7 +14,8 @@ def _K_quad(T):
                                 limit=5000, epsabs=1e-15, epsrel=1e-13)[0]
 
 
-@pytest.mark.parametrize("T", [0.0, 0.3, 2.0, 7.5, 19.99, 20.0, 20.1, 40.0, 300.0])
+# 25.76536449: scipy's struve(0, ·) returns NaN there (found at N = 2^16); 20: itj0y0's switch
+@pytest.mark.parametrize("T", [0.0, 0.3, 2.0, 7.5, 19.99, 20.0, 20.1, 25.76536449, 40.0, 300.0])
 def test_kernel_K_matches_quadrature(T):
     # K(T) = ∫_T^∞ J1(s)/s ds = 1 − ∫_0^T J1(s)/s ds
     assert abs(kernel_K(T) - _K_quad(T)) < 1e-12

@@ -37,23 +37,48 @@ def kernel_K(T):
 
     Notes
     -----
-    Uses J1(s)/s = J0(s) − J1'(s), so ∫_0^T J1(s)/s ds = ∫_0^T J0 − J1(T). ∫_0^T J0 is
-    T J0 + (πT/2)(J1 H0 − J0 H1) (Struve H_ν) for T < 50 and scipy's ``itj0y0`` beyond (whose
-    series/asymptotic switch at T = 20 errs by up to 5e-10). Absolute accuracy ~1e-14.
+    Uses J1(s)/s = J0(s) − J1'(s), so ∫_0^T J1(s)/s ds = ∫_0^T J0 − J1(T) (``integral_j0``).
+    Absolute accuracy ~1e-15.
     """
     T = np.asarray(T, dtype=float)
     return 1.0 - (integral_j0(T) - special.j1(T))
 
 
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(16)
+_T_SWITCH = 50.0
+
+
+def _cumulative_j0_table():
+    """∫_0^n J0 for n = 0..50 (16-point Gauss–Legendre per unit panel; error ~1e-16)."""
+    lo = np.arange(int(_T_SWITCH))[:, None]
+    panels = 0.5 * np.sum(_GL_W[None, :] * special.j0(lo + 0.5 * (_GL_X[None, :] + 1.0)), axis=1)
+    return np.concatenate([[0.0], np.cumsum(panels)])
+
+
+_J0_TABLE = _cumulative_j0_table()
+
+
 def integral_j0(T):
-    """∫_0^T J0(s) ds (accurate to ~1e-14 absolute for all T ≥ 0)."""
+    """∫_0^T J0(s) ds, accurate to ~1e-15 absolute for all T ≥ 0.
+
+    T < 50: tabulated ∫_0^n J0 at the integer n = ⌊T⌋ plus 16-point Gauss–Legendre on [n, T].
+    T ≥ 50: scipy ``itj0y0`` (its series/asymptotic switch near T = 20 errs by up to 5e-10, and
+    scipy's Struve H0 returns NaN at isolated points such as 25.765364, hence the quadrature).
+    """
     T = np.asarray(T, dtype=float)
     out = np.empty_like(T)
-    small = T < 50.0
-    Ts = T[small]
-    out[small] = Ts * special.j0(Ts) + 0.5 * math.pi * Ts * (
-        special.j1(Ts) * special.struve(0, Ts) - special.j0(Ts) * special.struve(1, Ts))
-    out[~small] = special.itj0y0(T[~small])[0]
+    flat_T, flat_out = T.reshape(-1), out.reshape(-1)
+    small = flat_T < _T_SWITCH
+    idx = np.nonzero(small)[0]
+    for c in range(0, idx.size, 1 << 16):          # bounded temporaries
+        i = idx[c:c + (1 << 16)]
+        t = flat_T[i]
+        n = np.floor(t)
+        h = t - n
+        nodes = n[:, None] + 0.5 * h[:, None] * (_GL_X[None, :] + 1.0)
+        flat_out[i] = _J0_TABLE[n.astype(np.int64)] + 0.5 * h * (special.j0(nodes) @ _GL_W)
+    big = ~small
+    flat_out[big] = special.itj0y0(flat_T[big])[0]
     return out
 
 
@@ -158,29 +183,39 @@ def _ring_sum(hist, head, count, W, nw, out):
 
 @numba.njit(parallel=True, cache=True)
 def _soe_past(E, Y, C, out):
-    """out[k] = Σ_j C[j] E[k, j] Y[k, j]: the history part of H_k at the end of the step."""
-    nk, p = Y.shape
+    """out[k] = Re Σ_j C_j E_kj Y_kj0 + i Re Σ_j C_j E_kj Y_kj1: the history part of H_k."""
+    nk, p, _ = Y.shape
     for k in numba.prange(nk):
-        s = 0j
+        s1 = 0.0
+        s2 = 0.0
         for j in range(p):
-            s += C[j] * E[k, j] * Y[k, j]
-        out[k] = s
+            ce = C[j] * E[k, j]
+            s1 += (ce * Y[k, j, 0]).real
+            s2 += (ce * Y[k, j, 1]).real
+        out[k] = complex(s1, s2)
 
 
 @numba.njit(parallel=True, cache=True)
 def _soe_commit(E, G, Y, V, C, past_next):
-    """Y[k, j] ← E[k, j] Y[k, j] + G[k, j] V[k] (exact for V constant over the step), and in the
-    same pass past_next[k] = Σ_j C[j] E[k, j] Y[k, j] — the next step's history sum if Δt is kept."""
-    nk, p = Y.shape
+    """Y_kj ← E_kj Y_kj + G_kj (Re V̄_k, Im V̄_k) (exact for V constant over the step), and in the
+    same pass the next step's history sum (``_soe_past`` of the new Y) in case Δt is kept."""
+    nk, p, _ = Y.shape
     for k in numba.prange(nk):
-        v = V[k]
-        s = 0j
+        u = V[k].real
+        w = V[k].imag
+        s1 = 0.0
+        s2 = 0.0
         for j in range(p):
             e = E[k, j]
-            y = e * Y[k, j] + G[k, j] * v
-            Y[k, j] = y
-            s += C[j] * e * y
-        past_next[k] = s
+            g = G[k, j]
+            y1 = e * Y[k, j, 0] + g * u
+            y2 = e * Y[k, j, 1] + g * w
+            Y[k, j, 0] = y1
+            Y[k, j, 1] = y2
+            ce = C[j] * e
+            s1 += (ce * y1).real
+            s2 += (ce * y2).real
+        past_next[k] = complex(s1, s2)
 
 
 # ----------------------------------------------------------------------------- policies
@@ -379,13 +414,17 @@ class WindowHistory(HistoryPolicy):
 
 
 class SOEHistory(HistoryPolicy):
-    """Sum-of-exponentials history: H_k = Σ_j C_j Y_jk, Y_jk(t) = ∫_0^t e^{Z_j ω_k s} V_k(t−s) ds.
+    """Sum-of-exponentials history. K(T) ≈ Re Σ_j a_j e^{z_j T} (``soe_nodes``) and K is real, so
+    with V_k = u + i w (u, w real)
 
-    With Z = (z, z̄) and C = (a/2, ā/2) from ``soe_nodes`` (K real, V_k complex), the update over a
-    step of length Δt at constant V̄ is exact: Y ← e^{Zω Δt} Y + V̄ (e^{ZωΔt} − 1)/(Zω).
-    The current step uses the exact weight P(ωΔt)/ω; any Δt sequence is allowed. The step
-    coefficients (e^{ZωΔt}, (e^{ZωΔt} − 1)/(Zω), P(ωΔt)/ω) of the last ``cache_size`` distinct Δt
-    are kept (adaptive stepping picks Δt on a geometric ladder, so few distinct values occur).
+        H_k = Re Σ_j a_j Y⁽ᵘ⁾_jk + i Re Σ_j a_j Y⁽ʷ⁾_jk,   Y⁽ᵘ⁾_jk(t) = ∫_0^t e^{z_j ω_k s} u(t−s) ds,
+
+    two complex accumulators per node and mode. Over a step of any length Δt at constant V̄ the
+    update is exact: Y ← e^{z ω Δt} Y + (e^{z ω Δt} − 1)/(z ω) · (Re V̄, Im V̄).
+    The current step uses the exact weight P(ωΔt)/ω. The step coefficients (e^{zωΔt},
+    (e^{zωΔt} − 1)/(zω), P(ωΔt)/ω) of the last ``cache_size`` distinct Δt are kept (adaptive
+    stepping picks Δt on a geometric ladder, so few distinct values occur).
+    Memory: (N/2+1)·p·(32 + 32 per cached Δt) bytes.
     """
 
     name = "soe"
@@ -394,10 +433,9 @@ class SOEHistory(HistoryPolicy):
     def __init__(self, omega, dt=None, x_min=1e-8, x_max=1e8, h=0.5, cache_size=3, **_):
         super().__init__(omega)
         z, a = soe_nodes(x_min, x_max, h)
-        self.Z = np.concatenate([z, np.conj(z)])
-        self.C = np.concatenate([0.5 * a, 0.5 * np.conj(a)])
+        self.Z, self.C = z, a
         self.p = self.Z.size
-        self.Y = np.zeros((self.nk, self.p), dtype=complex)
+        self.Y = np.zeros((self.nk, self.p, 2), dtype=complex)
         self.E = self.G = None
         self._past_next = np.zeros(self.nk, dtype=complex)
         self._next_dt = None

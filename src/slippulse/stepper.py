@@ -24,7 +24,7 @@ import numpy as np
 from . import friction as fr
 from .fft import RealFFT
 from .params import ParameterError, Parameters
-from .sbi import elastic_functional, make_history, wavenumbers
+from .sbi import HISTORY_POLICIES, elastic_functional, make_history, wavenumbers
 
 # ----------------------------------------------------------------------------- friction solve
 
@@ -243,12 +243,15 @@ class PredictorCorrector:
         numba.set_num_threads(min(self.threads, numba.config.NUMBA_NUM_THREADS))
         self.fft = RealFFT(self.n, threads=self.threads, planner=planner)
         opts = dict(history_options or {})
+        if history not in HISTORY_POLICIES:
+            raise ParameterError(f"history.policy={history!r} unknown; choose one of "
+                                 f"{sorted(HISTORY_POLICIES)}")
+        if rule.kind == "adaptive" and not HISTORY_POLICIES[history].variable_dt:
+            raise ParameterError(f"history.policy={history!r} needs time.stepping='fixed'; "
+                                 "use 'soe' for adaptive steps")
         self.history_name = history
         self.history = make_history(history, self.omega,
                                     self.dt_cfl if rule.kind == "fixed" else None, **opts)
-        if rule.kind == "adaptive" and not self.history.variable_dt:
-            raise ParameterError(f"history.policy={history!r} needs time.stepping='fixed'; "
-                                 "use 'soe' for adaptive steps")
         # state
         self.t = 0.0
         self.nstep = 0
