@@ -38,10 +38,9 @@ def register(subparsers) -> None:
 
 
 def cmd_run(args) -> int:
-    sets = list(args.sets)
+    cfg = load_config(args.config, args.sets)
     if args.out:
-        sets.append(f'output.file="{args.out}"')
-    cfg = load_config(args.config, sets)
+        cfg["output"]["file"] = args.out
     path = cfg["output"]["file"]
     stepper = build_stepper(cfg)
     if args.resume:
