@@ -146,13 +146,17 @@ def _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_
 
 def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1.015,
                step: float = 0.005, n_points: int = 2000, min_step: float | None = None,
-               spec: GridSpec = GridSpec(), progress=None, max_iter: int = 25) -> FamilyReport:
+               spec: GridSpec = GridSpec(), progress=None, max_iter: int = 12,
+               beta_switch: float = 0.85) -> FamilyReport:
     """Solve the family from `start` down to `stop` (τ_d/τ_min) and write it to `out`.
 
     Parameters
     ----------
     progress : callable(ratio, pulse_or_None, message), optional
         Called after every attempted solve.
+    max_iter : Newton iterations allowed per predicted step (converging steps take ≤ 6).
+    beta_switch : above this β, step in β (τ_d free) directly: there τ_d-steps of the family's
+        size fail (measured: every τ_d step from β ≈ 0.9 on needed halving or failed).
     """
     for name, val in (("from", start), ("to", stop)):
         params.check_tau_d(val * params.tau_min) if math.isfinite(val) else None
@@ -204,7 +208,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     tried = set()
     while targets:
         target = targets[0]
-        if h < min_step - 1e-15:
+        if h < min_step - 1e-15 or guess[2] > beta_switch:
             # natural continuation stalls near τ_min: step in β with τ_d free past the target,
             # then solve at the exact target from the two β-solutions that bracket it
             res = _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_iter,
