@@ -88,6 +88,7 @@ def timing(n, policy, nhist, steps):
         out[f"ms_per_step_{threads}t"] = round(1e3 * float(np.median(ts)), 3)
         out[f"ms_min_{threads}t"] = round(1e3 * float(np.min(ts)), 3)
     out["history_MB"] = round(st.history.nbytes / 2 ** 20, 1)
+    out["loadavg_1min"] = round(os.getloadavg()[0], 2)    # the machine is shared: record its load
     out["peak_rss_MB"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     return out
 

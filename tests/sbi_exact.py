@@ -131,9 +131,10 @@ def run_kostrov(n, v_r_ratio, policy="full", lam=1.0, dtau=1e6, a_end=0.3, histo
 
 
 def run_steady(n, beta, policy="full", lam=1.0, V_amp=1e-3, a=0.03, t_end=None, rule=None,
-               history_options=None, threads=1, tau_d_ratio=1.2):
+               history_options=None, threads=1, tau_d_ratio=1.2, steady_past=False):
     """Impose V = v_stick + V_amp exp(−(ξ/a)²), ξ = x − x0 − βc_s t, starting from static equilibrium
-    with the travelling slip profile; compare τ at the end with ``steady_translating_stress``.
+    with the travelling slip profile (or, with ``steady_past``, from the infinite steady past held by
+    the SOE history); compare τ at the end with ``steady_translating_stress``.
 
     Returns (error vs exact/​max|τ_ss − τ_d|, deviation from the steady operator alone/​same, stepper)."""
     from slippulse.params import DEFAULT as P
@@ -156,6 +157,8 @@ def run_steady(n, beta, policy="full", lam=1.0, V_amp=1e-3, a=0.03, t_end=None, 
     dk = np.zeros_like(vk)
     dk[1:] = 1j * vk[1:] / (kap[1:] * c)            # δ_k = i V_k/(kc): the travelling slip
     st.set_state(vfun(x, 0.0), delta=np.fft.irfft(dk, n=n))
+    if steady_past:                                  # SOE history of the infinite steady past
+        st.set_translating_past(c)
     st.run(t_end=t_end if t_end is not None else lam / P.c_s)
     kw = dict(V_amp=V_amp, a=a, lam=lam, c=c, c_s=P.c_s, mu=P.mu, tau_d=tau_d, v_stick=vs, x0=x0)
     exact = steady_translating_stress(x, st.t, **kw)

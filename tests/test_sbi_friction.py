@@ -1,5 +1,4 @@
 """The friction solve at each point and the initial conditions of the SBI stepper."""
-import math
 
 import numpy as np
 import pytest

@@ -1,5 +1,4 @@
 """Closed-form checks of the mode-III SBI kernel, its step weights, the SOE approximation, the FFTs."""
-import math
 
 import numpy as np
 import pytest
@@ -81,3 +80,24 @@ def test_real_fft_numpy_backend():
     assert np.allclose(F.inverse(F.forward(u)), u, atol=1e-14)
     with pytest.raises(ValueError):
         RealFFT(7)
+
+
+def test_fft_wisdom_is_cached(tmp_path, monkeypatch):
+    import slippulse.fft as sfft
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    F = RealFFT(128, planner="measure")
+    assert F.backend == "pyfftw"
+    assert (tmp_path / "slippulse" / "fftw_wisdom.pkl").exists()
+    u = np.linspace(0.0, 1.0, 128)
+    assert np.abs(F.forward(u) - np.fft.rfft(u)).max() < 1e-12
+    assert sfft.wisdom_path().startswith(str(tmp_path))
+
+
+def test_fft_falls_back_to_numpy_with_a_warning(monkeypatch):
+    import slippulse.fft as sfft
+    monkeypatch.setattr(sfft, "HAVE_PYFFTW", False)
+    with pytest.warns(RuntimeWarning, match="numpy.fft"):
+        F = sfft.RealFFT(16)
+    assert F.backend == "numpy"
+    u = np.arange(16.0)
+    assert np.allclose(F.inverse(F.forward(u)), u, atol=1e-13)

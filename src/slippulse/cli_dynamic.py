@@ -7,7 +7,7 @@ last checkpoint, bit-identically to an uninterrupted run.
 """
 from __future__ import annotations
 
-import argparse
+import os
 import sys
 import time
 
@@ -33,6 +33,8 @@ def register(subparsers) -> None:
     r.add_argument("--resume", action="store_true",
                    help="continue from the last checkpoint stored in the output file")
     r.add_argument("--out", metavar="FILE", help="output HDF5 file (overrides output.file)")
+    r.add_argument("--overwrite", action="store_true",
+                   help="replace an existing output file (default: refuse)")
     r.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
     r.set_defaults(func=cmd_run)
 
@@ -56,6 +58,9 @@ def cmd_run(args) -> int:
         stepper.load_state(state)
         out.update_config(cfg)
     else:
+        if os.path.exists(path) and not args.overwrite:
+            raise UsageError(f"output file {path} exists: use --resume to continue it, --overwrite "
+                             "to replace it, or --out for another file")
         out = RunFile.create(path, cfg, stepper.params, stepper)
         out.snapshot(stepper)
         out.checkpoint(stepper)
@@ -72,6 +77,7 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
     ckpt_every = cfg["output"]["checkpoint_every"]
     wall0, n0 = time.perf_counter(), st.nstep
     bar = tqdm(total=t_end, initial=min(st.t, t_end), unit="s", disable=not progress,
+               mininterval=0.5 if sys.stderr.isatty() else 10.0,
                bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
     status, message, rc = "finished", "t_end reached", 0
     try:
@@ -88,7 +94,7 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
             bar.update(min(dt, max(t_end - bar.n, 0.0)))
             if st.nstep % 50 == 0:
                 rate = (st.nstep - n0) / max(time.perf_counter() - wall0, 1e-9)
-                bar.set_postfix_str(f"{rate:.0f} steps/s, Vmax={st.V.max():.3g} m/s")
+                bar.set_postfix_str(f"{rate:.0f} steps/s, Vmax={st.V.max():.3g} m/s", refresh=False)
     except FloatingPointError as exc:
         status, message, rc = "failed", str(exc), 1
     except KeyboardInterrupt:

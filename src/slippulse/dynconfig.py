@@ -42,7 +42,7 @@ DEFAULTS: dict = {
 }
 
 #: Keys a resumed run may change (to extend it or move its output).
-RESUME_MUTABLE = {"time.t_end", "time.max_steps", "output.file", "fft.threads"}
+RESUME_MUTABLE = {"time.t_end", "time.max_steps", "output.file"}
 
 
 def _coerce(key: str, value, default):

@@ -101,10 +101,17 @@ def state_step(phi, w, dt):
 
     φ(t+dt) = φ_ss + (φ − φ_ss) e^{−w dt}, written as φ e^{−x} − dt·expm1(−x)/x with x = w dt:
     exact at constant v, unconditionally stable and stiff-accurate (→ 1/w as w dt → ∞).
+    Within a factor 2 of φ_ss the equivalent form φ_ss + (φ − φ_ss) e^{−x} is used: it keeps the
+    creeping rest state exactly fixed (the first form drifted by ~1e-16 φ per step, measured).
     """
     x = w * dt
     if x < 1e-300:
         return phi + dt
+    phi_ss = 1.0 / w
+    d = phi - phi_ss
+    if abs(d) <= phi_ss:
+        # near steady state: φ_ss is an exact fixed point of this form (no rounding drift)
+        return phi_ss + d * math.exp(-x)
     return phi * math.exp(-x) - dt * math.expm1(-x) / x
 
 

@@ -478,6 +478,27 @@ class SOEHistory(HistoryPolicy):
         self._next_dt = float(dt)
         self.count += 1
 
+    def prefill_translating(self, vhat_k, kabs, c):
+        """History of a slip-rate field that has translated at speed c (toward +x) forever:
+        V_k(t) = V̂_k e^{−ikct} for t ≤ 0, so Y_jk(0) = ∫_0^∞ e^{z_j ω_k s} V_k(−s) ds with
+        ∫_0^∞ e^{zωs} e^{±ikcs} ds = −1/(zω ± ikc) (Re z < 0) for the real and imaginary parts.
+        Mode k = 0 (no elastic stress) is left empty."""
+        vhat = np.asarray(vhat_k, dtype=complex)[:, None]
+        zw = self.Z[None, :] * self.omega[:, None]
+        kc = 1j * np.asarray(kabs, dtype=float)[:, None] * c
+        with np.errstate(all="ignore"):
+            plus = -vhat / (zw + kc)
+            minus = -np.conj(vhat) / (zw - kc)
+            self.Y[:, :, 0] = 0.5 * (plus + minus)
+            self.Y[:, :, 1] = (plus - minus) / 2j
+        self.Y[self.omega == 0.0] = 0.0
+        self._next_dt = None
+
+    def value(self) -> np.ndarray:
+        """H_k at the current time from the accumulators alone: Re Σ a Y⁽ᵘ⁾ + i Re Σ a Y⁽ʷ⁾."""
+        aY = np.einsum("j,kjc->kc", self.C, self.Y)
+        return aY[:, 0].real + 1j * aY[:, 1].real
+
     def state(self) -> dict:
         return {"Y": self.Y.copy(), "count": np.int64(self.count)}
 

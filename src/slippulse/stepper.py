@@ -73,17 +73,16 @@ def _solve_point(tau_el, phi, v_guess, eta, sigma, f0, b, alpha, v_star, phi_sta
     return math.exp(x), it
 
 
-@numba.njit(cache=True)
+@numba.njit(parallel=True, cache=True)
 def solve_friction(tau_el, phi, v_guess, eta, sigma, f0, b, alpha, v_star, phi_star, D, v_out):
     """Solve σ f(V_i, φ_i) + η V_i = τ_el,i at every point; returns the largest iteration count."""
-    itmax = 0
-    for i in range(tau_el.size):
+    its = np.empty(tau_el.size, dtype=np.int64)
+    for i in numba.prange(tau_el.size):
         v, it = _solve_point(tau_el[i], phi[i], v_guess[i], eta, sigma,
                              f0, b, alpha, v_star, phi_star, D)
         v_out[i] = v
-        if it > itmax:
-            itmax = it
-    return itmax
+        its[i] = it
+    return its.max() if its.size else 0
 
 
 # ----------------------------------------------------------------------------- interface laws
@@ -307,6 +306,25 @@ class PredictorCorrector:
                 f"initial.amplitude={amplitude:g} m/s is too large: no state phi >= 0 balances "
                 f"tau = tau_d - eta (V - v_stick) at V = {vmax:g} m/s; reduce the amplitude")
         self.set_state(V, phi, tau=tau)
+
+    def set_translating_past(self, c):
+        """Start as if the current V(x) had translated steadily at c (toward +x) since t = −∞:
+        δ_k = iV_k/(kc) for k > 0 (the travelling slip; δ_0 kept) and the SOE history filled with
+        the steady past (``SOEHistory.prefill_translating``), so τ starts at the steady-state
+        stress and no start-up transient is radiated. Requires history policy 'soe'."""
+        if self.history_name != "soe":
+            raise ParameterError("set_translating_past needs history.policy='soe'")
+        if not c > 0:
+            raise ParameterError(f"translation speed c={c!r} must be > 0 (m/s)")
+        dk = np.zeros_like(self.V_k)
+        dk[1:] = 1j * self.V_k[1:] / (self.kabs[1:] * c)
+        dk[0] = self.delta_k[0]
+        self.delta_k = dk
+        self.delta = self.fft.inverse(dk).copy()
+        self.history.prefill_translating(self.V_k, self.kabs, c)
+        H = self.history.value()                 # H_k(0) = ∫_0^∞ K(ωs) V_k(−s) ds
+        f = self.fft.inverse(elastic_functional(self.params.mu, self.kabs, self.delta_k, H))
+        self.tau = self.law.tau_load - self.eta * self.V + f
 
     # ------------------------------------------------------------------ time step choice
     def next_dt(self) -> float:
