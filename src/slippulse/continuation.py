@@ -61,7 +61,7 @@ def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_i
     t0 = time.perf_counter()
     v_st = params.v_stick(q_guess * params.tau_min)
     tmp = SteadyProblem(params, q_guess, xi, 0, 0.0, H=np.zeros((1, 1)))
-    phi = tmp.state(np.exp(y), beta)[0]
+    phi = tmp.state(np.exp(y), beta, False)[0]
     xn = adapted_grid(xi, y, phi, beta, params, v_st, n_points, spec)
     yn = interpolate(xi, y, xn, v_st)
     k, _ = front_pin(xn, yn, np.log(v_st))

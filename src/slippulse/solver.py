@@ -259,4 +259,4 @@ def _phi_of(params, tau_d_ratio, xi, y, beta):
     prob.params = params
     prob.xi = np.ascontiguousarray(xi, float)
     prob.phi_end = params.phi_rest(tau_d_ratio * params.tau_min)
-    return prob.state(np.exp(y), beta)[0]
+    return prob.state(np.exp(y), beta, False)[0]

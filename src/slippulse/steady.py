@@ -42,7 +42,7 @@ def _E(x):
 
 
 @njit(cache=True)
-def integrate_state(xi, v, beta_cs, phi_end, w, dw_dy):
+def integrate_state(xi, v, beta_cs, phi_end, w, dw_dy, with_jacobian=True):
     """State φ_i, upper-triangular ∂φ_i/∂y_j (y = ln v), ∂φ_i/∂(β c_s) and ∂φ_i/∂φ_N.
 
     Parameters
@@ -52,7 +52,7 @@ def integrate_state(xi, v, beta_cs, phi_end, w, dw_dy):
     """
     n = xi.size
     phi = np.empty(n)
-    P = np.zeros((n, n))
+    P = np.zeros((n, n) if with_jacobian else (1, 1))
     dphi_dc = np.zeros(n)
     G = np.empty(n)                                     # ∂φ_i/∂φ_N
     G[n - 1] = 1.0
@@ -70,11 +70,12 @@ def integrate_state(xi, v, beta_cs, phi_end, w, dw_dy):
         a = exa * exb                                   # ∂φ_i/∂φ_{i+1}
         dpa = (-phi[i + 1] * exa + h2 * dea) * exb      # ∂φ_i/∂x_a
         dpb = -phi_mid * exb + h2 * deb                 # ∂φ_i/∂x_b
-        # row i of P: a · row i+1 plus the local dependence on y_{i+1} (via x_a) and y_i (via x_b)
-        for j in range(i + 1, n):
-            P[i, j] = a * P[i + 1, j]
-        P[i, i + 1] += dpa * h2 * dw_dy[i + 1]
-        P[i, i] += dpb * h2 * dw_dy[i]
+        if with_jacobian:
+            # row i of P: a · row i+1 plus the local dependence on y_{i+1} (via x_a) and y_i (via x_b)
+            for j in range(i + 1, n):
+                P[i, j] = a * P[i + 1, j]
+            P[i, i + 1] += dpa * h2 * dw_dy[i + 1]
+            P[i, i] += dpb * h2 * dw_dy[i]
         # ∂/∂c (c = β c_s): h2 ∝ 1/c, x_a, x_b ∝ 1/c ⇒ direct part = −(x_a dpa + x_b dpb + h2 ∂φ/∂h2)/c
         dphi_dh2 = ea * exb + eb
         direct = -(xa * dpa + xb * dpb + h2 * dphi_dh2) / beta_cs
@@ -148,16 +149,17 @@ class SteadyProblem:
         p = self.params
         return p.tau_min < x[-1] * p.tau_min < p.tau_peak
 
-    def state(self, v, beta):
+    def state(self, v, beta, with_jacobian=True):
+        """(φ, ∂φ/∂y, ∂φ/∂(βc_s), ∂φ/∂φ_N); ∂φ/∂y is a 1×1 placeholder without the Jacobian."""
         p = self.params
         w = fr.heal_rate(v, p.v_star, p.D)
         dw_dy = v * v / (p.D * p.D * w)
-        return integrate_state(self.xi, v, beta * p.c_s, self.phi_end, w, dw_dy)
+        return integrate_state(self.xi, v, beta * p.c_s, self.phi_end, w, dw_dy, with_jacobian)
 
     def fields(self, x):
         """(v, φ, τ, Hu) for unknowns x: slip rate, state, friction stress and Hilbert integral."""
         v, beta = self.split(x)
-        phi = self.state(v, beta)[0]
+        phi = self.state(v, beta, False)[0]
         tau = self.params.sigma * fr.f(v, phi, *self.params.law_args)
         return v, phi, tau, self.H @ (v - self.v_stick)
 
@@ -167,7 +169,7 @@ class SteadyProblem:
             return np.full(self.n + 1, np.inf)
         p = self.params
         v, beta = self.split(x)
-        phi = self.state(v, beta)[0]
+        phi = self.state(v, beta, False)[0]
         hu = self.H @ (v - self.v_stick)
         r = np.empty(self.n + 1)
         r[:-1] = (self.tau_d - p.sigma * fr.f(v, phi, *p.law_args) - p.mu * p.F3(beta) * hu) / self.tau_d
