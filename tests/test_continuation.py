@@ -46,3 +46,25 @@ def test_beta_mode_inverts_tau_d_mode(params):
     assert float(b.x[-1]) == pytest.approx(1.2, abs=2e-6)
     pb = b.to_pulse()
     assert pb.max_residual <= 1e-13 and pb.beta == a.beta
+
+
+def test_interrupted_family_leaves_valid_file_and_resumes(params, tmp_path):
+    """Ctrl-C in the middle of a family: the file holds the pulses finished before, and a rerun
+    continues from the last of them."""
+    out = str(tmp_path / "fam.h5")
+    seen = []
+
+    def interrupt_after_two(ratio, pulse, msg):
+        seen.append(ratio)
+        if len(seen) == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_family(params, out, start=1.2, stop=1.185, step=0.005, n_points=500,
+                   progress=interrupt_after_two)
+    # the pulse whose progress call was interrupted had not been written yet
+    assert list_pulses(out) == ["td1.2000"]
+    rep = run_family(params, out, start=1.2, stop=1.185, step=0.005, n_points=500)
+    assert rep.resumed_from == "td1.2000"
+    assert list_pulses(out) == ["td1.2000", "td1.1950", "td1.1900", "td1.1850"]
+    assert all(read_pulse(out, lab)[0].converged for lab in list_pulses(out))
