@@ -37,6 +37,28 @@ def register(subparsers) -> None:
                    help="replace an existing output file (default: refuse)")
     r.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
     r.set_defaults(func=cmd_run)
+    v = sub.add_parser("verify", help="propagate a seeded steady pulse and measure its drift",
+                       description="Seed the SBI with a steady pulse (docs/dynamic.md §9), run it "
+                                   "over DISTANCE pulse lengths in a frame that follows it and "
+                                   "measure c_p, v_max, L and ln v against the steady solution.")
+    v.add_argument("--steady", required=True, metavar="FILE", help="steady family file (HDF5 schema)")
+    v.add_argument("--label", default=None, help="pulse group, e.g. td1.2000 (default: the only one)")
+    v.add_argument("--distance", type=float, default=1.0, metavar="D",
+                   help="distance to travel, in pulse lengths (default 1)")
+    v.add_argument("--out", metavar="FILE", help="output HDF5 (default verify_<label>.h5); a PNG "
+                                                  "of v(xi) at several times is written beside it")
+    v.add_argument("--points", type=int, default=None, metavar="N",
+                   help="grid points; sets dx = (ahead + behind)·L/N (default: --dx)")
+    v.add_argument("--dx", type=float, default=2e-3, help="grid spacing, m (default 2e-3)")
+    v.add_argument("--ahead", type=float, default=4.0, help="domain ahead of the front, in L (4)")
+    v.add_argument("--behind", type=float, default=4.0, help="domain behind the front, in L (4)")
+    v.add_argument("--far-field", choices=("steady", "none"), default="steady",
+                   help="add the isolated pulse's far field to the loading (default steady)")
+    v.add_argument("--xi-stab", type=float, default=0.5, help="time.xi_stab of the adaptive rule")
+    v.add_argument("--samples", type=int, default=100, help="measurements (default 100)")
+    v.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    v.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
+    v.set_defaults(func=cmd_verify)
 
 
 def cmd_run(args) -> int:
@@ -114,3 +136,41 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
           f"max V = {np.max(st.V):.4g} m/s, {(st.nstep - n0) / max(wall, 1e-9):.0f} steps/s, "
           f"{wall:.1f} s wall; output {out.path}", file=sys.stderr if rc else sys.stdout)
     return rc
+
+
+def cmd_verify(args) -> int:
+    """``slippulse dynamic verify``: seed, propagate, measure, write HDF5 + PNG, print one line."""
+    from .h5io import SchemaError, read_pulse
+    from .params import ParameterError
+    from .pulse_verify import plot_result, summary, verify_pulse, write_result
+    from .seeding import DomainSpec
+    from .stepper import TimeStepRule
+
+    try:
+        pulse, params = read_pulse(args.steady, args.label)
+    except SchemaError as exc:
+        raise UsageError(str(exc))
+    label = pulse.label
+    out = args.out or f"verify_{label}.h5"
+    if os.path.exists(out) and not args.overwrite:
+        raise UsageError(f"output file {out} exists: use --overwrite or another --out")
+    if not args.distance > 0:
+        raise UsageError(f"--distance={args.distance} must be > 0 (pulse lengths)")
+    dx = args.dx
+    if args.points is not None:
+        if args.points < 16:
+            raise UsageError(f"--points={args.points} must be >= 16")
+        dx = (args.ahead + args.behind) * pulse.L / args.points
+    try:
+        spec = DomainSpec(dx=dx, ahead=args.ahead, behind=args.behind)
+        rule = TimeStepRule(kind="adaptive", xi_stab=args.xi_stab)
+        res = verify_pulse(pulse, params, args.distance, spec, rule=rule,
+                           far_field=args.far_field, n_samples=args.samples,
+                           progress=not args.no_progress)
+    except ParameterError as exc:
+        raise UsageError(str(exc))
+    write_result(out, res, params, source=os.path.abspath(args.steady), label=label)
+    png = os.path.splitext(out)[0] + ".png"
+    plot_result(png, res, pulse, params)
+    print(summary(res) + f"; output {out}, figure {png}")
+    return 0 if res.info["status"] == "finished" else 2

@@ -1,0 +1,290 @@
+"""Propagate a seeded steady pulse and measure its drift from the steady solution (issue 4).
+
+``verify_pulse`` seeds the SBI stepper with a steady pulse (:mod:`slippulse.seeding`), steps it over
+a given number of pulse lengths with adaptive time steps, keeps it in a frame that follows it
+(``seeding.follow_pulse``) and measures, in the co-moving frame:
+
+* c_p(t)/c_p⁰ − 1: c_p(t) = ΔX/Δt of the front position X (the front half-maximum crossing of
+  ln(v/v*+1), located to a fraction of a cell by a local cubic, ``analysis._cross``) over the last
+  sampling interval; the end-of-run value ``c_p_error`` is the mean speed over the last quarter of
+  the run;
+* v_max(t)/v_max⁰ − 1: v_max from a parabola through ln v at the three points around the maximum;
+* L(t)/L⁰ − 1: L, the FWHM of ln(v/v*+1) (``analysis.pulse_length``);
+* the relative L2 error of y = ln(v/v*+1) over the pulse, ‖y − y⁰‖₂/‖y⁰‖₂ on the grid points with
+  ξ − ξ_front ∈ [−1.25 L⁰, 0.25 L⁰], y⁰ the steady profile shifted onto the measured front (so it
+  measures shape, not position: position errors are in c_p).
+
+The references c_p⁰, v_max⁰, L⁰ are the steady file's values. ``write_result`` stores the final
+errors as root attributes and their time series; ``plot_result`` draws v(ξ) at several times over
+the steady profile. CLI: ``slippulse dynamic verify`` (cli_dynamic.py).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from .analysis import _cross, pulse_length
+from .seeding import DomainSpec, SeededPulse, follow_pulse, seed_pulse
+from .stepper import TimeStepRule
+
+#: Window of the ln v error, in steady pulse lengths relative to the front crossing.
+LNV_WINDOW = (-1.25, 0.25)
+SERIES = ("c_p_error", "v_max_error", "L_error", "lnv_error")
+
+
+class PulseLost(RuntimeError):
+    """The pulse left the steady neighbourhood (grew into a crack or arrested)."""
+
+
+def growth_rate(distance, err, lo=3e-5, hi=3e-2):
+    """Exponential growth rate of |err| per pulse length travelled, least squares in ln|err|.
+
+    Uses the samples with lo ≤ |err| ≤ hi (above the start-up level, below saturation); NaN when
+    fewer than 3 qualify.
+    """
+    d, e = np.asarray(distance), np.abs(np.asarray(err))
+    sel = (e >= lo) & (e <= hi) & np.isfinite(e)
+    if sel.sum() < 3:
+        return float("nan")
+    return float(np.polyfit(d[sel], np.log(e[sel]), 1)[0])
+
+
+@dataclass
+class VerifyResult:
+    """Time series and end-of-run errors of a verification run."""
+
+    t: np.ndarray
+    x_front: np.ndarray
+    series: dict
+    errors: dict
+    info: dict
+    snapshots: list = field(default_factory=list)   # (t, ξ − ξ_front, V)
+
+
+def front_position(x, V, v_star):
+    """Front half-maximum crossing of y = ln(V/v* + 1) on a uniform grid, and y's maximum.
+
+    Returns (x_front, L, v_max): x_front and L as in ``analysis.pulse_length``; v_max from the
+    parabola through ln V at the maximum and its two neighbours (periodic indices).
+    """
+    L, _, xr = pulse_length(x, V, v_star)
+    i = int(np.argmax(V))
+    n = V.size
+    a, b, c = np.log(V[(i - 1) % n]), np.log(V[i]), np.log(V[(i + 1) % n])
+    den = a - 2.0 * b + c
+    vmax = math.exp(b - 0.125 * (c - a) ** 2 / den) if den < 0 else float(V[i])
+    return xr, L, vmax
+
+
+def measure(seed: SeededPulse, steady_y, xi_front_steady):
+    """Front position (unwrapped, m), L (m), v_max (m/s) and the ln v error of the current state."""
+    st, pulse, p = seed.stepper, seed.pulse, seed.params
+    xr, L, vmax = front_position(st.x, st.V, p.v_star)
+    rel = st.x - xr
+    lo, hi = LNV_WINDOW[0] * pulse.L, LNV_WINDOW[1] * pulse.L
+    sel = (rel >= lo) & (rel <= hi)
+    y = np.log1p(st.V[sel] / p.v_star)
+    y0 = steady_y(xi_front_steady + rel[sel])
+    err = float(np.linalg.norm(y - y0) / np.linalg.norm(y0))
+    return xr + seed.shift_cells * st.dx, L, vmax, err
+
+
+def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec(),
+                 rule: TimeStepRule | None = None, far_field: str = "steady", follow: bool = True,
+                 n_samples: int = 100, n_snapshots: int = 6, progress: bool = True,
+                 history_options=None, threads: int = 1, track_every: int = 4,
+                 lost_factor: float = 20.0, history_start: str = "steady") -> VerifyResult:
+    """Seed ``pulse`` and propagate it over ``distance`` steady pulse lengths.
+
+    Parameters
+    ----------
+    pulse, params
+        Steady pulse and its parameters (``h5io.read_pulse``).
+    distance : float
+        Distance to travel, in pulse lengths L⁰ (run time t_end = distance·L⁰/c_p⁰).
+    spec : DomainSpec
+        Grid spacing and domain; with ``follow=False`` the travel distance is added ahead.
+    rule : TimeStepRule, optional
+        Default adaptive, β_cfl = 0.5, ξ = 0.1, ξ_s = 0.5.
+    far_field : {"steady", "none"}
+        See ``seeding.seed_pulse`` ("steady" requires ``follow``).
+    history_start : {"steady", "rest"}
+        See ``seeding.seed_pulse`` ("rest": a history started at t = 0, for the failure map).
+    follow : bool
+        Shift the frame by whole cells to keep the pulse in place (``seeding.follow_pulse``).
+    n_samples : int
+        Measurements (evenly spaced in time).
+    n_snapshots : int
+        Stored slip-rate profiles (evenly spaced in time, t = 0 included).
+    track_every : int
+        Steps between front measurements that move the frame and the far-field load
+        (the front moves ≈ Δx/70 per adaptive step at 1.2 τ_min).
+    lost_factor : float
+        Stop (status "pulse lost") once max V exceeds lost_factor·v_max⁰, or when the FWHM can
+        no longer be measured.
+    progress : bool
+        tqdm bar on stderr (refresh ≥ 0.5 s on a terminal, 10 s otherwise).
+
+    Returns
+    -------
+    VerifyResult
+    """
+    from tqdm import tqdm
+
+    if far_field == "steady" and not follow:
+        raise ValueError("far_field='steady' is attached to the frame: it needs follow=True")
+    if not distance > 0:
+        raise ValueError(f"distance={distance!r} must be > 0 (pulse lengths)")
+    if not follow:
+        spec = DomainSpec(dx=spec.dx, ahead=spec.ahead, behind=spec.behind, travel=distance)
+    wall0 = time.perf_counter()
+    seed = seed_pulse(pulse, params, spec, rule=rule, far_field=far_field,
+                      history_options=history_options, threads=threads,
+                      history_start=history_start)
+    st, p = seed.stepper, params
+    _, _, xi_front = pulse_length(pulse.xi, pulse.v, p.v_star)
+    steady_y = PchipInterpolator(pulse.xi, np.log1p(pulse.v / p.v_star))
+    t_end = distance * pulse.L / pulse.c_p
+    t_samp = np.linspace(0.0, t_end, n_samples + 1)
+    t_snap = set(np.round(np.linspace(0, n_samples, n_snapshots)).astype(int))
+    rows = []
+
+    def record(j):
+        X, L, vmax, err = measure(seed, steady_y, xi_front)
+        rows.append((st.t, X, L, vmax, err))
+        if j in t_snap:
+            xr = X - seed.shift_cells * st.dx
+            seed_snap.append((st.t, st.x - xr, st.V.copy()))
+
+    seed_snap = []
+    record(0)
+    bar = tqdm(total=t_end, unit="s", disable=not progress, file=sys.stderr,
+               mininterval=0.5 if sys.stderr.isatty() else 10.0,
+               bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
+    j = 1
+    status = "finished"
+    try:
+        while j <= n_samples:
+            dt = st.step()        # adaptive Δt; samples are taken at the first step past t_j
+            bar.update(min(dt, max(t_end - bar.n, 0.0)))
+            if follow and st.nstep % track_every == 0:
+                xr, _, _ = front_position(st.x, st.V, p.v_star)
+                follow_pulse(seed, xr)
+            if float(st.V.max()) > lost_factor * pulse.v_max:
+                raise PulseLost(f"v_max > {lost_factor:g} v_max0 at t = {st.t:.4g} s")
+            if st.t >= t_samp[j] * (1 - 1e-12):
+                record(j)
+                if follow:
+                    follow_pulse(seed, rows[-1][1] - seed.shift_cells * st.dx)
+                bar.set_postfix_str(f"{st.nstep} steps, dt={dt:.3g} s", refresh=False)
+                j += 1
+    except FloatingPointError as exc:
+        status = f"failed: {exc}"
+    except (PulseLost, ValueError) as exc:
+        # ValueError: the FWHM no longer exists on both sides of the maximum (crack-like growth)
+        status = f"pulse lost: {exc}"
+    finally:
+        bar.close()
+    wall = time.perf_counter() - wall0
+    arr = np.array(rows)
+    t, X, L, vmax, lnv = arr.T
+    cp = np.full_like(t, np.nan)
+    cp[1:] = np.diff(X) / np.diff(t) / pulse.c_p - 1.0
+    series = {"c_p_error": cp, "v_max_error": vmax / pulse.v_max - 1.0,
+              "L_error": L / pulse.L - 1.0, "lnv_error": lnv}
+    q = min(max(1, (t.size - 1) // 4), t.size - 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cp_end = (X[-1] - X[-1 - q]) / (t[-1] - t[-1 - q]) / pulse.c_p - 1.0 if q > 0 else np.nan
+        cp_mean = (X[-1] - X[0]) / (t[-1] - t[0]) / pulse.c_p - 1.0 if q > 0 else np.nan
+    errors = {"c_p_error": float(cp_end),
+              "v_max_error": float(series["v_max_error"][-1]),
+              "L_error": float(series["L_error"][-1]),
+              "lnv_error": float(lnv[-1]),
+              "c_p_mean_error": float(cp_mean)}
+    dist = (X - X[0]) / pulse.L
+    info = {"status": status,
+            "growth_rate_v_max": growth_rate(dist, series["v_max_error"]),
+            "growth_rate_lnv": growth_rate(dist, lnv, lo=1e-4, hi=1e-1), "wall_time": wall, "n_steps": st.nstep, "t_end": float(st.t),
+            "distance": float(distance), "travelled": float((X[-1] - X[0]) / pulse.L),
+            "n": st.n, "length": st.length, "dx": st.dx, "ahead": spec.ahead,
+            "behind": spec.behind, "far_field": far_field, "follow": bool(follow),
+            "history_start": history_start,
+            "shift_cells": seed.shift_cells, "tau_d_ratio": pulse.tau_d_ratio,
+            "beta": pulse.beta, "c_p": pulse.c_p, "L": pulse.L, "v_max": pulse.v_max,
+            "beta_cfl": st.rule.beta_cfl, "xi": st.rule.xi, "xi_stab": st.rule.xi_stab,
+            "t0_v_max_error": float(series["v_max_error"][0]),
+            "t0_L_error": float(series["L_error"][0]), "t0_lnv_error": float(lnv[0])}
+    return VerifyResult(t=t, x_front=X, series=series, errors=errors, info=info,
+                        snapshots=seed_snap)
+
+
+def summary(res: VerifyResult) -> str:
+    """One line: the four end-of-run errors, distance, steps and wall time."""
+    e, i = res.errors, res.info
+    return (f"verify td{i['tau_d_ratio']:.4f}: {i['status']}; travelled {i['travelled']:.3f} L in "
+            f"{i['n_steps']} steps ({i['wall_time']:.1f} s wall, N={i['n']}, dx={i['dx'] * 1e3:.3g} mm); "
+            f"c_p_error={e['c_p_error']:.2e} v_max_error={e['v_max_error']:.2e} "
+            f"L_error={e['L_error']:.2e} lnv_error={e['lnv_error']:.2e}")
+
+
+def write_result(path: str, res: VerifyResult, params, source: str = "", label: str = "") -> None:
+    """Write the errors (root attributes), their time series and the snapshots to HDF5, atomically."""
+    from .h5io import atomic_update, write_parameters
+
+    def fill(h5):
+        for key in list(h5.keys()):
+            del h5[key]
+        write_parameters(h5, params)
+        for k, v in res.errors.items():
+            h5.attrs[k] = v
+        for k, v in res.info.items():
+            h5.attrs[k] = v
+        h5.attrs["steady_file"] = source
+        h5.attrs["label"] = label
+        ts = h5.create_group("series")
+        ts.create_dataset("t", data=res.t).attrs["units"] = "s"
+        ts.create_dataset("x_front", data=res.x_front).attrs["units"] = "m"
+        for k in SERIES:
+            ts.create_dataset(k, data=res.series[k]).attrs["units"] = "1"
+        sn = h5.create_group("snapshots")
+        for m, (t, xr, V) in enumerate(res.snapshots):
+            g = sn.create_group(f"{m:03d}")
+            g.attrs["t"] = t
+            g.create_dataset("xi_rel", data=xr).attrs["units"] = "m"
+            g.create_dataset("v", data=V).attrs["units"] = "m/s"
+
+    atomic_update(path, fill)
+
+
+def plot_result(path_png: str, res: VerifyResult, pulse, params) -> None:
+    """v(ξ − ξ_front) at the stored times over the steady profile (log scale), PNG."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    _, _, xi_front = pulse_length(pulse.xi, pulse.v, params.v_star)
+    L = pulse.L
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    sel = (pulse.xi - xi_front > -3 * L) & (pulse.xi - xi_front < 1.5 * L)
+    ax.semilogy((pulse.xi[sel] - xi_front) / L, pulse.v[sel], "k-", lw=3, alpha=0.3,
+                label="steady")
+    cmap = plt.get_cmap("viridis")
+    for m, (t, xr, V) in enumerate(res.snapshots):
+        o = np.argsort(xr)
+        s = (xr[o] > -3 * L) & (xr[o] < 1.5 * L)
+        ax.semilogy(xr[o][s] / L, V[o][s], color=cmap(m / max(1, len(res.snapshots) - 1)), lw=1,
+                    label=f"t = {t * pulse.c_p / L:.2f} L/c_p")
+    ax.set_xlabel("(ξ − ξ_front)/L")
+    ax.set_ylabel("v (m/s)")
+    e = res.errors
+    ax.set_title(f"τ_d = {pulse.tau_d_ratio:.4g} τ_min: c_p err {e['c_p_error']:.1e}, "
+                 f"v_max err {e['v_max_error']:.1e}", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path_png, dpi=120)
+    plt.close(fig)
