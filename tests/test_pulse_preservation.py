@@ -16,9 +16,9 @@ The error is dominated by the steady solution's resolution (N = 1000 → 3000 di
 errors by 7 and 20), not by the SBI grid or the domain (changes ≤ 2e-4). The tolerance 2e-3 is
 2.3× the largest measured error and 10× the largest change under refinement: a
 regression that doubles the error still passes only if it stays below the level the coarse steady
-grid itself produces; seeding mistakes fail it by far (history started at t = 0: see
-``test_history_started_at_rest_breaks_the_pulse``; no far field on this short domain: v_max error
-grows to ~1e-2).
+grid itself produces; seeding mistakes fail it by far: a history started at t = 0 gives
+v_max and c_p errors of 0.59 and 0.54 within 0.025 L; no far-field load on this short domain gives
+L error 8.6e-2 and ln v error 5.5e-2 at 0.5 L (both tested below).
 
 At 1.2 τ_min the same machinery shows an exponentially growing deviation (e-folding every
 0.045 L, independent of Δx, Δt, domain and SOE kernel: an unstable mode of the pulse, see
@@ -58,7 +58,7 @@ def test_pulse_preserved_over_half_a_length(pulse105, params):
 
 def test_history_started_at_rest_breaks_the_pulse(pulse105, params):
     """Same slip and state, but no elastodynamic past: a start-up transient radiates and the
-    pulse is off by far more than the tolerance within 0.05 L."""
+    pulse is off by far more than the tolerance within 0.05 L (measured: 0.59 in v_max)."""
     res = verify_pulse(pulse105, params, 0.05, DomainSpec(dx=4e-3, ahead=2.0, behind=2.0),
                        n_samples=5, progress=False, history_start="rest")
     worst = max(np.nanmax(np.abs(res.series[k])) for k in ("v_max_error", "lnv_error"))
@@ -68,14 +68,23 @@ def test_history_started_at_rest_breaks_the_pulse(pulse105, params):
 @pytest.mark.slow
 def test_unstable_mode_growth_rate_is_converged(params):
     """τ_d = 1.2 τ_min: |v_max − v_max⁰| grows like e^{γ d} (d in pulse lengths) with the same γ
-    for Δt halved (ξ_s = 0.25) — a property of the pulse, not of the time step. Measured
-    γ = 22–23 per L (Δx = 2 mm, 1 mm; ξ_s = 0.5, 0.25; domains 4+4 and 8+8 L). ~70 s."""
+    for Δt halved (ξ_s = 0.25) although the seed changes sign — a property of the pulse, not of the
+    time step. Measured γ = 22.2 and 22.9 per L (fit where 3e-4 ≤ |error| ≤ 3e-2); 22.9 at Δx = 1 mm.
+    ~60 s."""
     from slippulse.solver import solve_pulse
     pulse = solve_pulse(params, 1.2, n_points=3000).to_pulse()
     rates = []
     for xi_stab in (0.5, 0.25):
-        res = verify_pulse(pulse, params, 0.35, DomainSpec(dx=2e-3), n_samples=14,
+        res = verify_pulse(pulse, params, 0.42, DomainSpec(dx=2e-3), n_samples=17,
                            rule=TimeStepRule(kind="adaptive", xi_stab=xi_stab), progress=False)
         rates.append(res.info["growth_rate_v_max"])
-    assert all(15 < g < 30 for g in rates), rates
-    assert abs(rates[0] - rates[1]) < 0.2 * rates[0], rates
+    assert all(18 < g < 28 for g in rates), rates
+    assert abs(rates[0] - rates[1]) < 0.1 * rates[0], rates
+
+
+def test_without_far_field_the_short_domain_distorts_the_pulse(pulse105, params):
+    """The bare period (λ = 4 L) is a train of pulses: their images distort the pulse
+    (measured L error 8.6e-2 at 0.5 L), so the far-field load is what makes the short domain work."""
+    res = verify_pulse(pulse105, params, 0.5, DomainSpec(dx=4e-3, ahead=2.0, behind=2.0),
+                       n_samples=10, progress=False, far_field="none")
+    assert abs(res.errors["L_error"]) > 10 * TOL

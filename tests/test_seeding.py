@@ -123,3 +123,28 @@ def test_seed_from_file_round_trip(tmp_path, pulse12, params):
     p2, _ = read_pulse(path, pu.label)
     assert s.pulse.c_p == p2.c_p
     assert s.stepper.law.tau_load.shape == (s.stepper.n,)
+
+
+def test_verify_cli_writes_errors_series_and_figure(tmp_path, pulse12, params, capsys):
+    """`slippulse dynamic verify`: HDF5 attributes + time series, PNG beside it, one-line summary."""
+    import h5py
+
+    from slippulse.cli import main
+    src = str(tmp_path / "fam.h5")
+    pu = pulse12.to_pulse()
+    write_pulse(src, pu, params)
+    out = str(tmp_path / "v.h5")
+    rc = main(["dynamic", "verify", "--steady", src, "--label", pu.label, "--distance", "0.01",
+               "--dx", "4e-3", "--samples", "4", "--out", out, "--no-progress"])
+    assert rc == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert line.startswith("verify td1.2000: finished") and "lnv_error=" in line
+    with h5py.File(out, "r") as h5:
+        for key in ("c_p_error", "v_max_error", "L_error", "lnv_error"):
+            assert np.isfinite(h5.attrs[key])
+            assert h5["series"][key].shape == (5,)
+        assert h5.attrs["travelled"] > 0.009
+    assert (tmp_path / "v.png").stat().st_size > 1000
+    # an existing output is not replaced without --overwrite
+    assert main(["dynamic", "verify", "--steady", src, "--distance", "0.01", "--out", out]) == 2
+    assert "exists" in capsys.readouterr().err

@@ -13,10 +13,13 @@ to the steady one:
   isolated pulse by a uniform gradient only (no wrap dislocation; derivation in
   :func:`periodic_slip`);
 * **loading**: τ_load = τ_d + η⟨V⟩, so that the uniform (k = 0) part of the stress is τ_d
-  (the damping term −η⟨V − v_stick⟩ of the uniform mode is compensated; see :func:`seed_pulse`);
+  (the damping term −η⟨V − v_stick⟩ of the uniform mode is compensated; see :func:`seed_pulse`),
+  plus (default) the static far field τ_ff the period misses — the images removed, the cut tail
+  added (:func:`far_field_stress`);
 * **domain**: ``ahead`` pulse lengths ahead of the leading edge (plus the distance to travel) and
   ``behind`` pulse lengths of the healing tail; :func:`follow_pulse` keeps the pulse at a fixed
-  place by shifting the periodic frame by whole cells and resetting the re-entering tail to rest.
+  place by shifting the periodic frame by whole cells and resetting the re-entering tail to rest,
+  and moves τ_ff with the sub-cell front position.
 """
 from __future__ import annotations
 
