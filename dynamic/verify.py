@@ -2,7 +2,7 @@
 
 Run (from the repository root)::
 
-    python dynamic/verify.py                 # all cases, ~12 min on one busy core
+    python dynamic/verify.py                 # all cases, ~7 min
     python dynamic/verify.py --only td1.0500 # one pulse
 
 1. Computes the steady family 1.2 → 1.05 τ_min at N = 3000 into runs/family_n3000.h5 if absent
@@ -11,9 +11,9 @@ Run (from the repository root)::
    prints a markdown table of the end-of-run errors, the growth rate of |v_max − v_max⁰| per pulse
    length and the wall time (the table in benchmarks/verify_results.md comes from this script).
 
-Wall times (2-core machine shared with other work): 1.2 τ_min 1 mm ~100 s (stops at ≈0.5 L, see
-benchmarks/verify_results.md), 2 mm ~25 s; 1.1 τ_min 2 mm ~85 s, 4 mm ~25 s; 1.05 τ_min 2 mm ~150 s,
-4 mm ~40 s.
+Wall times measured (2-core machine, one run at a time): 1.2 τ_min 1 mm 81 s and 2 mm 26 s (both stop
+at ≈ 0.5 L, "pulse lost": an unstable mode, see benchmarks/verify_results.md); 1.1 τ_min 2 mm 81 s,
+4 mm 20 s; 1.05 τ_min 2 mm 158 s, 4 mm 39 s. Total ≈ 7 min.
 """
 import argparse
 import os

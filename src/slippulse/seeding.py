@@ -492,9 +492,9 @@ def _place_far_field(seed: SeededPulse, x_front: float) -> None:
     """Move the far-field load with the pulse: τ_load = τ_load0 + τ_ff(x − s), s = x_front − x_front0.
 
     s ∈ [0, Δx) after :func:`follow_pulse`; τ_ff(x − s) by linear interpolation between cells
-    (τ_ff is smooth near the pulse: the error is O(Δx² τ_ff'') there). Measured: leaving τ_ff one
-    cell (2 mm) behind at 1.2 τ_min changes v_max by 1.4e-4 — the pulse is that sensitive to the
-    stress — so the load must follow the front continuously, not only by whole cells.
+    (τ_ff is smooth near the pulse: the error is O(Δx² τ_ff'') there). The pulse is very sensitive
+    to the stress (docs/dynamic.md §9: a load misplaced by whole cells made v_max drift by 2e-2
+    within 0.1 L at 1.2 τ_min), so the load follows the front continuously.
     """
     if seed.tau_ff is None:
         return
