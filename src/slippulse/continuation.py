@@ -18,7 +18,7 @@ import numpy as np
 from .h5io import list_pulses, read_pulse, write_pulse
 from .params import ParameterError, Parameters
 from .newton import newton
-from .solver import GridSpec, SteadySolution, adapted_grid, front_pin, interpolate, solve_pulse
+from .solver import GridSpec, SteadySolution, front_pin, regrid_guess, solve_pulse
 from .steady import SteadyProblem
 
 
@@ -59,12 +59,8 @@ def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_i
     """Solve with β fixed and τ_d/τ_min unknown, on a grid adapted to the guess (xi, y)."""
     xi, y = guess
     t0 = time.perf_counter()
-    v_st = params.v_stick(q_guess * params.tau_min)
-    tmp = SteadyProblem(params, q_guess, xi, 0, 0.0, H=np.zeros((1, 1)))
-    phi = tmp.state(np.exp(y), beta, False)[0]
-    xn = adapted_grid(xi, y, phi, beta, params, v_st, n_points, spec)
-    yn = interpolate(xi, y, xn, v_st)
-    k, _ = front_pin(xn, yn, np.log(v_st))
+    xn, yn = regrid_guess(params, q_guess, xi, y, beta, n_points, spec)
+    k, _ = front_pin(xn, yn, np.log(params.v_stick(q_guess * params.tau_min)))
     prob = SteadyProblem(params, q_guess, xn, k, float(yn[k]), free="tau_d", beta=beta)
     x, st = newton(prob, np.concatenate([yn, [q_guess]]), tol=1e-13, max_iter=max_iter)
     return SteadySolution(prob, x, st, time.perf_counter() - t0, 1)
@@ -103,6 +99,16 @@ def march_in_beta(params, start, prev, target, n_points, spec=GridSpec(), shrink
         yield sol
 
 
+def _judge(sol):
+    """(pulse, ok, message): a solve is accepted when it converged to a single-hump pulse."""
+    pulse = sol.to_pulse()
+    ok = pulse.converged and pulse.extra["n_humps"] == 1
+    msg = sol.stats.message
+    if pulse.converged and not ok:
+        msg = f"converged to a {pulse.extra['n_humps']}-hump solution: rejected"
+    return pulse, ok, msg
+
+
 def _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_iter, rep,
                  progress):
     """March in β from `guess` (at τ_d/τ_min = current) until τ_d passes `target`, writing the
@@ -132,12 +138,11 @@ def _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_
     b_t = (1 - w) * hi_b + w * lo.beta
     sol = solve_pulse(params, target, n_points=n_points, guess=(lo.xi, y_t, b_t), spec=spec,
                       passes=0, max_iter=max_iter)
-    pulse = sol.to_pulse()
-    ok = pulse.converged and pulse.extra["n_humps"] == 1
+    pulse, ok, msg = _judge(sol)
     if progress:
-        progress(target, pulse if ok else None, sol.stats.message)
+        progress(target, pulse if ok else None, msg)
     if not ok:
-        rep.failures.append((target, sol.stats.message))
+        rep.failures.append((target, msg))
         return None
     write_pulse(out, pulse, params)
     rep.written.append(pulse.label)
@@ -159,9 +164,9 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         size fail (measured: every τ_d step from β ≈ 0.9 on needed halving or failed).
     """
     for name, val in (("from", start), ("to", stop)):
-        params.check_tau_d(val * params.tau_min) if math.isfinite(val) else None
         if not math.isfinite(val):
             raise ParameterError(f"{name}={val!r} is invalid: must be a finite tau_d/tau_min")
+        params.check_tau_d(val * params.tau_min)
     if not (stop < start):
         raise ParameterError(f"to={stop} is invalid: must be < from={start} (continuation goes down)")
     if not (0 < step <= start - stop) or not math.isfinite(step):
@@ -228,11 +233,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         tried.add((current, trial))
         sol = solve_pulse(params, trial, n_points=n_points, guess=_predict(guess, prev, current, trial),
                           spec=spec, passes=0, max_iter=max_iter)
-        pulse = sol.to_pulse()
-        ok = pulse.converged and pulse.extra["n_humps"] == 1
-        msg = sol.stats.message
-        if pulse.converged and not ok:
-            msg = f"converged to a {pulse.extra['n_humps']}-hump solution: rejected"
+        pulse, ok, msg = _judge(sol)
         if progress:
             progress(trial, pulse if ok else None, msg)
         if not ok:

@@ -66,8 +66,7 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None):
         big = np.max(np.abs(dx[:-1]))
         if big > max_dy:
             lam = max_dy / big
-        valid = getattr(problem, "valid", lambda z: 0.0 < z[-1] < 1.0)
-        while not valid(x + lam * dx) and lam > 1e-12:
+        while not problem.valid(x + lam * dx) and lam > 1e-12:
             lam *= 0.5
         accepted = False
         for _ in range(30):

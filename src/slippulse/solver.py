@@ -228,10 +228,7 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
         xi, y, beta = guess
         if adapt_guess:
             n0 = min(coarse_points, n_points) if passes > 0 else n_points
-            xi_new = adapted_grid(xi, y, _phi_of(params, tau_d_ratio, xi, y, beta), beta,
-                                  params, v_st, n0, spec)
-            y = interpolate(xi, y, xi_new, v_st)
-            xi = xi_new
+            xi, y = regrid_guess(params, tau_d_ratio, xi, y, beta, n0, spec)
     prob, x, stats = solve_on_grid(params, tau_d_ratio, xi, y, beta, method, tol, hilbert, max_iter)
     if progress:
         progress(f"pass 0: N={xi.size} {stats.message}")
@@ -254,9 +251,11 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
     return SteadySolution(prob, x, stats, time.perf_counter() - t0, npass)
 
 
-def _phi_of(params, tau_d_ratio, xi, y, beta):
-    prob = SteadyProblem.__new__(SteadyProblem)
-    prob.params = params
-    prob.xi = np.ascontiguousarray(xi, float)
-    prob.phi_end = params.phi_rest(tau_d_ratio * params.tau_min)
-    return prob.state(np.exp(y), beta, False)[0]
+def regrid_guess(params, tau_d_ratio, xi, y, beta, n_points, spec: GridSpec = GridSpec()):
+    """Lay out a grid of n_points adapted to a guess (ln v on xi, speed β; its state follows from
+    the steady state equation) and move ln v onto it. Returns (xi_new, y_new)."""
+    v_st = params.v_stick(tau_d_ratio * params.tau_min)
+    probe = SteadyProblem(params, tau_d_ratio, xi, 0, 0.0, H=np.zeros((1, 1)))   # no Hilbert needed
+    phi = probe.state(np.exp(y), beta, False)[0]
+    xi_new = adapted_grid(xi, y, phi, beta, params, v_st, n_points, spec)
+    return xi_new, interpolate(xi, y, xi_new, v_st)
