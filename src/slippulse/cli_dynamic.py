@@ -59,6 +59,29 @@ def register(subparsers) -> None:
     v.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     v.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
     v.set_defaults(func=cmd_verify)
+    sd = sub.add_parser("seed", help="seed the SBI with a steady pulse and report the t = 0 mismatch",
+                        description="Put a steady pulse on the periodic SBI grid with its steady past "
+                                    "(docs/dynamic.md §9), write the t = 0 state (x, V, phi, delta, "
+                                    "tau, tau_steady, tau_load) to HDF5 and print how far the SBI "
+                                    "stress is from the steady one.")
+    sd.add_argument("--steady", required=True, metavar="FILE", help="steady family file (HDF5 schema)")
+    sd.add_argument("--label", default=None, help="pulse group, e.g. td1.2000 (default: the only one)")
+    sd.add_argument("--out", metavar="FILE", help="output HDF5 (default seed_<label>.h5)")
+    sd.add_argument("--dx", type=float, default=2e-3, help="grid spacing, m (default 2e-3)")
+    sd.add_argument("--ahead", type=float, default=4.0, help="domain ahead of the front, in L (4)")
+    sd.add_argument("--behind", type=float, default=4.0, help="domain behind the front, in L (4)")
+    sd.add_argument("--far-field", choices=("steady", "none"), default="steady",
+                    help="add the isolated pulse's far field to the loading (default steady)")
+    sd.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    sd.set_defaults(func=cmd_seed)
+    try:                                   # ``dynamic scan`` (cli_scan.py)
+        import importlib
+        cli_scan = importlib.import_module("slippulse.cli_scan")
+    except ModuleNotFoundError as exc:
+        if exc.name != "slippulse.cli_scan":
+            raise
+    else:
+        cli_scan.register(sub)
 
 
 def cmd_run(args) -> int:
@@ -174,3 +197,31 @@ def cmd_verify(args) -> int:
     plot_result(png, res, pulse, params)
     print(summary(res) + f"; output {out}, figure {png}")
     return 0 if res.info["status"] == "finished" else 2
+
+
+def cmd_seed(args) -> int:
+    """``slippulse dynamic seed``: seed, write the t = 0 state, print the stress mismatch."""
+    from .h5io import SchemaError, read_pulse
+    from .params import ParameterError
+    from .seeding import DomainSpec, seed_pulse, write_seed
+
+    try:
+        pulse, params = read_pulse(args.steady, args.label)
+    except SchemaError as exc:
+        raise UsageError(str(exc))
+    out = args.out or f"seed_{pulse.label}.h5"
+    if os.path.exists(out) and not args.overwrite:
+        raise UsageError(f"output file {out} exists: use --overwrite or another --out")
+    try:
+        seed = seed_pulse(pulse, params, DomainSpec(dx=args.dx, ahead=args.ahead,
+                                                    behind=args.behind),
+                          far_field=args.far_field)
+    except ParameterError as exc:
+        raise UsageError(str(exc))
+    mis = write_seed(out, seed, source=os.path.abspath(args.steady), label=pulse.label)
+    st = seed.stepper
+    print(f"seed {pulse.label}: N={st.n}, dx={st.dx * 1e3:.3g} mm, domain {st.length:.4g} m "
+          f"({args.behind:g} L behind + {args.ahead:g} L ahead); t = 0 stress vs steady: "
+          f"{mis['stress']:.2e} tau_d over the pulse, {mis['stress_all']:.2e} anywhere; "
+          f"friction imbalance {mis['friction']:.2e} tau_d; output {out}")
+    return 0

@@ -11,7 +11,7 @@ Sections and keys (units SI):
 ``[initial]``   kind ("creep" | "gaussian"), amplitude (m/s), width (m), position (m)
 ``[time]``      stepping ("fixed" | "adaptive"), beta_cfl, xi, xi_stab, growth, ladder,
                 dt_max (s; 0 = no cap), t_end (s), max_steps (0 = no limit)
-``[history]``   policy ("full" | "window" | "soe"), window_periods, window_max_steps,
+``[history]``   policy ("full" | "window" | "soe" | "quasi_dynamic"), window_periods, window_max_steps,
                 soe_x_min, soe_x_max, soe_h
 ``[stepper]``   name ("pc2")
 ``[fft]``       threads, planner ("estimate" | "measure" | "patient")
@@ -138,7 +138,8 @@ def build_stepper(cfg: dict):
     h = cfg["history"]
     options = {"full": {},
                "window": {"periods": h["window_periods"], "max_steps": h["window_max_steps"]},
-               "soe": {"x_min": h["soe_x_min"], "x_max": h["soe_x_max"], "h": h["soe_h"]}}
+               "soe": {"x_min": h["soe_x_min"], "x_max": h["soe_x_max"], "h": h["soe_h"]},
+               "quasi_dynamic": {}}
     if h["policy"] not in options:
         raise ParameterError(f"history.policy={h['policy']!r} must be one of {sorted(options)}")
     st = make_stepper(cfg["stepper"]["name"], params, cfg["grid"]["n"], cfg["grid"]["length"], law,

@@ -423,3 +423,107 @@ def save_all(data, outdir, formats=("png", "pdf"), dpi=150):
             fig.savefig(out, dpi=dpi)
             written.append(out)
     return written
+
+
+# --------------------------------------------------------------------------------------------
+# Instability study (stability.py, ``slippulse dynamic scan``)
+
+def _steady_curve(path):
+    """(L, β) of every pulse of a steady family file, sorted by L."""
+    pts = []
+    for lab in h5io.list_pulses(path):
+        pu = h5io.read_pulse(path, lab)[0]
+        pts.append((pu.L, pu.beta, pu.tau_d_ratio))
+    return np.array(sorted(pts))
+
+
+def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_"):
+    """Figures of a perturbation scan; returns the paths.
+
+    File names start with ``prefix``:
+
+    * ``stab_deviation.png``: |v_max/v_max⁰ − 1| against the distance travelled (in L⁰), every
+      run (solid +ε, dashed −ε), coloured by τ_d;
+    * ``stab_trajectories.png``: each run in the (L, c_p/c_s) plane over the steady curve β(L) of
+      its steady family file;
+    * ``stab_modes.png``: the unstable mode of each ±ε pair (antisymmetric deviation of
+      ln(v/v*+1) per unit v_max deviation, co-moving frame), ``stability.pair_growth``.
+    """
+    from .stability import read_series
+
+    os.makedirs(out_dir, exist_ok=True)
+    runs = [r for r in rows if r.get("file") and os.path.exists(str(r["file"]))]
+    if not runs:
+        return []
+    ratios = sorted({round(float(r["tau_d_ratio"]), 6) for r in runs})
+    cmap = matplotlib_cmap("viridis")
+    colour = {q: cmap(i / max(1, len(ratios) - 1)) for i, q in enumerate(ratios)}
+    series = {r["file"]: read_series(r["file"]) for r in runs}
+    written = []
+
+    fig = Figure(figsize=(6.4, 4.2))
+    ax = fig.add_subplot()
+    for r in runs:
+        s = series[r["file"]]
+        ls = "-" if float(r["eps"]) > 0 else ("--" if float(r["eps"]) < 0 else ":")
+        ax.semilogy(s["distance"], np.abs(s["v_max_error"]), ls=ls, lw=0.9,
+                    color=colour[round(float(r["tau_d_ratio"]), 6)])
+    for q in ratios:
+        ax.plot([], [], color=colour[q], label=f"τ_d = {q:.4g} τ_min")
+    ax.plot([], [], "k-", label="+ε")
+    ax.plot([], [], "k--", label="−ε")
+    ax.set_xlabel("distance travelled / L⁰")
+    ax.set_ylabel("|v_max/v_max⁰ − 1|")
+    ax.set_ylim(1e-6, 30)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    written.append(os.path.join(out_dir, f"{prefix}deviation.png"))
+    fig.savefig(written[-1], dpi=dpi)
+
+    fig = Figure(figsize=(6.4, 4.6))
+    ax = fig.add_subplot()
+    steady_files = sorted({str(r["steady"]) for r in runs if r.get("steady")})
+    for path in steady_files:
+        if os.path.exists(path):
+            cur = _steady_curve(path)
+            ax.plot(cur[:, 0], cur[:, 1], "k-", lw=3, alpha=0.3, label="steady pulses β(L)")
+    for r in runs:
+        s = series[r["file"]]
+        cs = float(s["attrs"]["c_p"]) / float(s["attrs"]["beta"])
+        # c_p from the front positions, smoothed over 5 samples (sampling noise of Δx/Δt)
+        cp = np.convolve(np.nan_to_num(s["c_p"], nan=float(s["attrs"]["c_p"])),
+                         np.ones(5) / 5, mode="same")
+        ls = "-" if float(r["eps"]) > 0 else "--"
+        ax.plot(s["L"][2:-2], cp[2:-2] / cs, ls=ls, lw=1,
+                color=colour[round(float(r["tau_d_ratio"]), 6)])
+        ax.plot([s["attrs"]["L"]], [s["attrs"]["beta"]], "o", ms=4,
+                color=colour[round(float(r["tau_d_ratio"]), 6)])
+    ax.set_xscale("log")
+    ax.set_xlabel("pulse length L (m)")
+    ax.set_ylabel("c_p / c_s")
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    written.append(os.path.join(out_dir, f"{prefix}trajectories.png"))
+    fig.savefig(written[-1], dpi=dpi)
+
+    modes = [p for p in pairs if p["_growth"].get("mode") is not None]
+    if modes:
+        fig = Figure(figsize=(6.4, 4.2))
+        ax = fig.add_subplot()
+        for p in modes:
+            g = p["_growth"]
+            ax.plot(g["mode_xi"], g["mode"], lw=1,
+                    label=f"{p['tau_d_ratio']:.4g} τ_min, ε={p['eps']:g}, Δx={1e3 * float(p['dx']):g} mm")
+        ax.set_xlabel("(ξ − ξ_front)/L⁰")
+        ax.set_ylabel("δ ln(v/v*+1) per unit δv_max/v_max")
+        ax.legend(fontsize=6)
+        fig.tight_layout()
+        written.append(os.path.join(out_dir, f"{prefix}modes.png"))
+        fig.savefig(written[-1], dpi=dpi)
+    return written
+
+
+def matplotlib_cmap(name):
+    """A colormap by name (without pyplot)."""
+    import matplotlib
+    return matplotlib.colormaps[name]

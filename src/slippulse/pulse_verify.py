@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -36,6 +36,12 @@ from .stepper import TimeStepRule
 #: Window of the ln v error, in steady pulse lengths relative to the front crossing.
 LNV_WINDOW = (-1.25, 0.25)
 SERIES = ("c_p_error", "v_max_error", "L_error", "lnv_error")
+#: Other series written by :func:`write_result`, with units.
+EXTRA_SERIES = {"L": "m", "v_max": "m/s", "slip": "m", "distance": "1", "c_p": "m/s"}
+#: Window and sampling of the stored deviation field y − y⁰ (in L⁰ relative to the front).
+DEV_WINDOW = (-1.5, 0.5)
+DEV_POINTS = 201
+PERTURBATIONS = ("excess", "tau_d")
 
 
 class PulseLost(RuntimeError):
@@ -112,11 +118,67 @@ def measure(seed: SeededPulse, steady_y, xi_front_steady):
     return xr + seed.shift_cells * st.dx, L, vmax, err
 
 
+def perturbed_pulse(pulse, kind: str, eps: float):
+    """The pulse to seed for a perturbation ``kind`` of size ``eps`` (:func:`perturb_seed`)."""
+    if kind not in PERTURBATIONS:
+        raise ValueError(f"perturbation={kind!r} must be one of {PERTURBATIONS}")
+    if not (math.isfinite(eps) and abs(eps) < 0.5):
+        raise ValueError(f"eps={eps!r} must satisfy |eps| < 0.5")
+    if kind == "excess":
+        v = pulse.v + eps * np.maximum(pulse.v - pulse.v_stick, 0.0)
+        return replace(pulse, v=v)
+    return pulse
+
+
+def perturb_seed(seed: SeededPulse, pulse, kind: str, eps: float) -> None:
+    """Finish a perturbed seed and restore the unperturbed pulse as the reference.
+
+    ``"excess"``: the seed was built from v' = v + ε·max(v − v_stick, 0) — the slip-rate excess
+    scaled by 1 + ε where the interface slips faster than creep, so v' > 0 for ε > −1 — with
+    the slip, history and far-field load of v' translating at c_p forever (the state φ is the
+    steady one). The friction law then picks the slip rate consistent with that stress and state:
+    a perturbation of slip rate, slip and stress at once, of relative size ε.
+
+    ``"tau_d"``: the unperturbed seed with the driving stress raised by ε·τ_d everywhere
+    (τ_load0 and the current load): the pulse is off its steady state by the neighbour pulse at
+    τ_d(1 + ε); far ahead the creep at v_stick is slightly out of balance too (a uniform
+    acceleration of order ε·τ_d/(σ a) relative).
+    """
+    if kind == "tau_d":
+        dtau = eps * pulse.tau_d
+        seed.tau_load0 += dtau
+        seed.stepper.law.tau_load = seed.stepper.law.tau_load + dtau
+    seed.pulse = pulse
+
+
+def slip_across(st, x_front, L):
+    """δ(x_front − 1.5 L) − δ(x_front + 0.5 L) on the periodic grid (linear interpolation), m."""
+    xs = np.array([x_front - 1.5 * L, x_front + 0.5 * L]) % st.length
+    d = np.interp(xs, np.r_[st.x, st.length], np.r_[st.delta, st.delta[0]])
+    return float(d[0] - d[1])
+
+
+def steady_slip(pulse, params, xi_front):
+    """The same slip for the isolated steady pulse: ∫(v − v_stick)dξ/c_p over [ξ_R − 1.5L, ξ_R + 0.5L]."""
+    sel = (pulse.xi >= xi_front - 1.5 * pulse.L) & (pulse.xi <= xi_front + 0.5 * pulse.L)
+    return float(np.trapezoid(pulse.v[sel] - pulse.v_stick, pulse.xi[sel]) / pulse.c_p)
+
+
+def deviation_field(st, x_front, steady_y, xi_front, rel, v_star):
+    """y − y⁰ at ξ − ξ_front = ``rel`` (linear interpolation of the grid's y = ln(V/v*+1))."""
+    xs = (x_front + rel) % st.length
+    y = np.interp(xs, np.r_[st.x, st.length], np.log1p(np.r_[st.V, st.V[0]] / v_star))
+    return y - steady_y(xi_front + rel)
+
+
 def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec(),
                  rule: TimeStepRule | None = None, far_field: str = "steady", follow: bool = True,
                  n_samples: int = 100, n_snapshots: int = 6, progress: bool = True,
                  history_options=None, threads: int = 1, track_every: int = 4,
-                 lost_factor: float = 20.0, history_start: str = "steady") -> VerifyResult:
+                 lost_factor: float = 20.0, history_start: str = "steady",
+                 perturbation: tuple[str, float] | None = None,
+                 stop_check=None, history: str = "soe",
+                 wrap_dislocation: bool = False) -> VerifyResult:
     """Seed ``pulse`` and propagate it over ``distance`` steady pulse lengths.
 
     Parameters
@@ -133,6 +195,10 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
         See ``seeding.seed_pulse`` ("steady" requires ``follow``).
     history_start : {"steady", "rest"}
         See ``seeding.seed_pulse`` ("rest": a history started at t = 0, for the failure map).
+    history : {"soe", "quasi_dynamic"}
+        See ``seeding.seed_pulse`` ("quasi_dynamic": radiation damping only, failure map).
+    wrap_dislocation : bool
+        Leave the wrap dislocation in the seeded slip (failure map; ``seeding.seed_pulse``).
     follow : bool
         Shift the frame by whole cells to keep the pulse in place (``seeding.follow_pulse``).
     n_samples : int
@@ -143,8 +209,17 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
         Steps between front measurements that move the frame and the far-field load
         (the front moves ≈ Δx/70 per adaptive step at 1.2 τ_min).
     lost_factor : float
-        Stop (status "pulse lost") once max V exceeds lost_factor·v_max⁰, or when the FWHM can
-        no longer be measured.
+        Stop once max V exceeds lost_factor·v_max⁰ (status "pulse lost: grew ..."), falls below
+        v_max⁰/lost_factor ("pulse lost: arrested ..."), or when the FWHM can no longer be
+        measured (grew or arrested by the sign of v_max − v_max⁰).
+    perturbation : (kind, ε), optional
+        Start from a perturbed pulse (:func:`perturb_seed`): ``("excess", ε)`` scales the slip-rate
+        excess by 1 + ε, ``("tau_d", ε)`` raises the driving stress by ε·τ_d. The errors are still
+        measured against the unperturbed steady pulse.
+    stop_check : callable, optional
+        ``stop_check(rows) -> str | None``, called after each measurement with the list of rows
+        (t, X, L, v_max, lnv_error, slip); a string ends the run with that status (e.g. the
+        deviation has grown past the linear regime).
     progress : bool
         tqdm bar on stderr (refresh ≥ 0.5 s on a terminal, 10 s otherwise).
 
@@ -161,9 +236,13 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
     if not follow:
         spec = DomainSpec(dx=spec.dx, ahead=spec.ahead, behind=spec.behind, travel=distance)
     wall0 = time.perf_counter()
-    seed = seed_pulse(pulse, params, spec, rule=rule, far_field=far_field,
+    seed = seed_pulse(pulse if perturbation is None else perturbed_pulse(pulse, *perturbation),
+                      params, spec, rule=rule, far_field=far_field,
                       history_options=history_options, threads=threads,
-                      history_start=history_start)
+                      history_start=history_start, history=history,
+                      wrap_dislocation=wrap_dislocation)
+    if perturbation is not None:
+        perturb_seed(seed, pulse, *perturbation)
     st, p = seed.stepper, params
     _, _, xi_front = pulse_length(pulse.xi, pulse.v, p.v_star)
     steady_y = PchipInterpolator(pulse.xi, np.log1p(pulse.v / p.v_star))
@@ -171,10 +250,18 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
     t_samp = np.linspace(0.0, t_end, n_samples + 1)
     t_snap = set(np.round(np.linspace(0, n_samples, n_snapshots)).astype(int))
     rows = []
+    devs = []
+    rel_dev = np.linspace(DEV_WINDOW[0], DEV_WINDOW[1], DEV_POINTS) * pulse.L
+    slip_fix = [0.0]
 
     def record(j):
         X, L, vmax, err = measure(seed, steady_y, xi_front)
-        rows.append((st.t, X, L, vmax, err))
+        xr = X - seed.shift_cells * st.dx
+        raw = slip_across(st, xr, pulse.L)
+        if j == 0:      # the periodic slip's uniform gradient (seeding.periodic_slip) is constant
+            slip_fix[0] = steady_slip(pulse, params, xi_front) - raw
+        rows.append((st.t, X, L, vmax, err, raw + slip_fix[0]))
+        devs.append(deviation_field(st, xr, steady_y, xi_front, rel_dev, p.v_star))
         if j in t_snap:
             xr = X - seed.shift_cells * st.dx
             seed_snap.append((st.t, st.x - xr, st.V.copy()))
@@ -193,29 +280,44 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
             if follow and st.nstep % track_every == 0:
                 xr, _, _ = front_position(st.x, st.V, p.v_star)
                 follow_pulse(seed, xr)
-            if float(st.V.max()) > lost_factor * pulse.v_max:
-                raise PulseLost(f"max V > {lost_factor:g} v_max0 at t = {st.t:.4g} s")
+            vtop = float(st.V.max())
+            if vtop > lost_factor * pulse.v_max:
+                raise PulseLost(f"grew: max V > {lost_factor:g} v_max0 at t = {st.t:.4g} s")
+            if vtop < pulse.v_max / lost_factor:
+                raise PulseLost(f"arrested: max V < v_max0/{lost_factor:g} at t = {st.t:.4g} s")
             if st.t >= t_samp[j] * (1 - 1e-12):
-                record(j)
+                try:
+                    record(j)
+                except ValueError as exc:
+                    # the FWHM no longer exists on both sides of the maximum
+                    how = "grew" if float(st.V.max()) > pulse.v_max else "arrested"
+                    raise PulseLost(f"{how}: {exc} at t = {st.t:.4g} s") from None
+                if stop_check is not None:
+                    why = stop_check(rows)
+                    if why:
+                        status = f"stopped: {why}"
+                        break
                 if follow:
                     follow_pulse(seed, rows[-1][1] - seed.shift_cells * st.dx)
                 bar.set_postfix_str(f"{st.nstep} steps, dt={dt:.3g} s", refresh=False)
                 j += 1
     except FloatingPointError as exc:
         status = f"failed: {exc}"
-    except (PulseLost, ValueError) as exc:
-        # ValueError: the FWHM no longer exists on both sides of the maximum (crack-like growth)
+    except PulseLost as exc:
         status = f"pulse lost: {exc}"
     finally:
         bar.close()
     wall = time.perf_counter() - wall0
     arr = np.array(rows)
-    t, X, L, vmax, lnv = arr.T
+    t, X, L, vmax, lnv, slip = arr.T
     cp = np.full_like(t, np.nan)
     cp[1:] = np.diff(X) / np.diff(t) / pulse.c_p - 1.0
     v_max0 = reference_v_max(pulse.xi, pulse.v)
     series = {"c_p_error": cp, "v_max_error": vmax / v_max0 - 1.0,
-              "L_error": L / pulse.L - 1.0, "lnv_error": lnv}
+              "L_error": L / pulse.L - 1.0, "lnv_error": lnv,
+              "L": L, "v_max": vmax, "slip": slip, "distance": (X - X[0]) / pulse.L,
+              "c_p": np.r_[np.nan, np.diff(X) / np.diff(t)] if t.size > 1 else np.array([np.nan]),
+              "deviation": np.array(devs), "deviation_xi": rel_dev / pulse.L}
     q = min(max(1, (t.size - 1) // 4), t.size - 1)
     with np.errstate(invalid="ignore", divide="ignore"):
         cp_end = (X[-1] - X[-1 - q]) / (t[-1] - t[-1 - q]) / pulse.c_p - 1.0 if q > 0 else np.nan
@@ -232,7 +334,11 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
             "distance": float(distance), "travelled": float((X[-1] - X[0]) / pulse.L),
             "n": st.n, "length": st.length, "dx": st.dx, "ahead": spec.ahead,
             "behind": spec.behind, "far_field": far_field, "follow": bool(follow),
-            "history_start": history_start,
+            "history_start": history_start, "history": history,
+            "wrap_dislocation": bool(wrap_dislocation),
+            "perturbation": "none" if perturbation is None else str(perturbation[0]),
+            "eps": 0.0 if perturbation is None else float(perturbation[1]),
+            "slip0": float(slip[0]),
             "shift_cells": seed.shift_cells, "tau_d_ratio": pulse.tau_d_ratio,
             "beta": pulse.beta, "c_p": pulse.c_p, "L": pulse.L, "v_max": pulse.v_max,
             "v_max_ref": v_max0,
@@ -271,6 +377,14 @@ def write_result(path: str, res: VerifyResult, params, source: str = "", label: 
         ts.create_dataset("x_front", data=res.x_front).attrs["units"] = "m"
         for k in SERIES:
             ts.create_dataset(k, data=res.series[k]).attrs["units"] = "1"
+        for k, unit in EXTRA_SERIES.items():
+            if k in res.series:
+                ts.create_dataset(k, data=res.series[k]).attrs["units"] = unit
+        if "deviation" in res.series:
+            dv = ts.create_dataset("deviation", data=res.series["deviation"])
+            dv.attrs["units"] = "1"
+            dv.attrs["definition"] = "ln(v/v*+1) - steady, rows: samples, columns: deviation_xi"
+            ts.create_dataset("deviation_xi", data=res.series["deviation_xi"]).attrs["units"] = "L0"
         sn = h5.create_group("snapshots")
         for m, (t, xr, V) in enumerate(res.snapshots):
             g = sn.create_group(f"{m:03d}")

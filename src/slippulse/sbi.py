@@ -513,8 +513,49 @@ class SOEHistory(HistoryPolicy):
         return self.Y.nbytes + sum(e.nbytes + g.nbytes for e, g, _ in self._cache.values())
 
 
+class QuasiDynamicHistory(HistoryPolicy):
+    """No elastodynamic memory at all: H_k ≡ 0, so f_k = −(μ|k|/2)δ_k is the *static* stress of
+    the current slip and, with the stepper's radiation damping −ηV, the model is quasi-dynamic.
+
+    Not a discretisation of the mode-III kernel: the quasi-dynamic model of the failure map
+    (does a steady pulse of the full problem survive in it, and at what speed?). Any Δt; the
+    translating past of a seeded pulse is simply absent (``prefill_translating`` does nothing).
+    """
+
+    name = "quasi_dynamic"
+    variable_dt = True
+
+    def __init__(self, omega, dt=None, **_):
+        super().__init__(omega)
+        self.Y = np.zeros((self.nk, 0, 2))      # empty accumulators: frame shifts rotate nothing
+        self._next_dt = None
+
+    def begin_step(self, dt):
+        pass
+
+    def commit(self, vbar_k, dt):
+        pass
+
+    def prefill_translating(self, vhat_k, kabs, c):
+        pass
+
+    def value(self) -> np.ndarray:
+        return np.zeros(self.nk, dtype=complex)
+
+    def state(self) -> dict:
+        return {}
+
+    def load_state(self, st: dict):
+        pass
+
+    @property
+    def nbytes(self) -> int:
+        return 0
+
+
 #: Registry of history policies, selected by name in configs and tests.
-HISTORY_POLICIES = {"full": FullHistory, "window": WindowHistory, "soe": SOEHistory}
+HISTORY_POLICIES = {"full": FullHistory, "window": WindowHistory, "soe": SOEHistory,
+                    "quasi_dynamic": QuasiDynamicHistory}
 
 
 def make_history(name: str, omega, dt=None, **options) -> HistoryPolicy:

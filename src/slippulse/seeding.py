@@ -213,7 +213,7 @@ def dislocated_slip(V, dx, c, v_stick):
 def seed_pulse(pulse: Pulse, params: Parameters, spec: DomainSpec = DomainSpec(),
                rule: TimeStepRule | None = None, history_options=None, threads: int = 1,
                wrap_dislocation: bool = False, far_field: str = "steady",
-               history_start: str = "steady") -> SeededPulse:
+               history_start: str = "steady", history: str = "soe") -> SeededPulse:
     """Put a steady pulse on the periodic SBI grid with its steady past (t = 0 of a verification).
 
     Parameters
@@ -232,6 +232,10 @@ def seed_pulse(pulse: Pulse, params: Parameters, spec: DomainSpec = DomainSpec()
     wrap_dislocation : bool
         For tests only: replace the periodic slip by the isolated pulse's slip, which jumps by the
         net slip Δδ at the wrap (:func:`dislocated_slip`).
+    history : {"soe", "quasi_dynamic"}
+        History policy of the stepper: the full kernel (SOE, seeded with the steady past) or, for
+        the failure map only, the quasi-dynamic model (static stress + radiation damping,
+        ``sbi.QuasiDynamicHistory``), in which the steady pulse of the full problem is not steady.
     history_start : {"steady", "rest"}
         ``"steady"``: the SOE history of a profile that translated at c_p forever. ``"rest"`` (for
         tests and the failure map only): the same periodic slip, but held static before t = 0
@@ -297,9 +301,12 @@ def seed_pulse(pulse: Pulse, params: Parameters, spec: DomainSpec = DomainSpec()
     if rule is None:
         rule = TimeStepRule(kind="adaptive", beta_cfl=0.5)
     law = RateStateInterface(p, pulse.tau_d)
-    st = PredictorCorrector(p, n, lam, law, rule=rule, history="soe",
-                            history_options=dict(SOE_CHEAP if history_options is None
-                                                 else history_options), threads=threads)
+    if history not in ("soe", "quasi_dynamic"):
+        raise ParameterError(f"history={history!r} must be 'soe' or 'quasi_dynamic'")
+    st = PredictorCorrector(p, n, lam, law, rule=rule, history=history,
+                            history_options=(dict(SOE_CHEAP if history_options is None
+                                                  else history_options)
+                                             if history == "soe" else {}), threads=threads)
     xi_shift = x_front - xi_front
     xi_grid = st.x - xi_shift
     V = interpolate_log(pulse.xi, pulse.v, xi_grid)
@@ -502,3 +509,45 @@ def _place_far_field(seed: SeededPulse, x_front: float) -> None:
     a = min(max((x_front - seed.x_front0) / st.dx, 0.0), 1.0)
     ff = seed.tau_ff
     st.law.tau_load = seed.tau_load0 + (1.0 - a) * ff + a * np.roll(ff, 1)
+
+
+def write_seed(path: str, seed: SeededPulse, source: str = "", label: str = "") -> dict:
+    """Write the seeded t = 0 state and its stress mismatch to HDF5 (atomically); returns the mismatch.
+
+    Datasets (SI units as attributes): x, V, phi, delta, tau, tau_steady, tau_load (incl. the
+    far field), tau_ff (if any). Root attributes: the mismatch of :func:`stress_mismatch`
+    (``stress_mismatch``, ``friction_mismatch``, ``stress_mismatch_all``, in units of τ_d), the
+    grid (n, dx, length), the pulse (tau_d_ratio, beta, c_p, L), x_front0, xi_shift, net_slip and
+    the SOE history size.
+    """
+    from .h5io import atomic_update, write_parameters
+
+    mis = stress_mismatch(seed)
+    st, pulse = seed.stepper, seed.pulse
+
+    def fill(h5):
+        for key in list(h5.keys()):
+            del h5[key]
+        write_parameters(h5, seed.params)
+        load = np.broadcast_to(np.asarray(st.law.tau_load, dtype=float), st.V.shape)
+        data = {"x": (st.x, "m"), "V": (st.V, "m/s"), "phi": (st.phi, "s"),
+                "delta": (st.delta, "m"), "tau": (st.tau, "Pa"),
+                "tau_steady": (seed.tau_steady, "Pa"), "tau_load": (load, "Pa")}
+        if seed.tau_ff is not None:
+            data["tau_ff"] = (seed.tau_ff, "Pa")
+        for k, (v, unit) in data.items():
+            h5.create_dataset(k, data=v).attrs["units"] = unit
+        a = h5.attrs
+        a["stress_mismatch"] = mis["stress"]
+        a["friction_mismatch"] = mis["friction"]
+        a["stress_mismatch_all"] = mis["stress_all"]
+        a["mismatch_units"] = "tau_d"
+        a["n"], a["dx"], a["length"] = st.n, st.dx, st.length
+        a["tau_d_ratio"], a["beta"], a["c_p"], a["L"] = (pulse.tau_d_ratio, pulse.beta,
+                                                          pulse.c_p, pulse.L)
+        a["x_front0"], a["xi_shift"], a["net_slip"] = seed.x_front0, seed.xi_shift, seed.net_slip
+        a["history_bytes"] = st.history.nbytes
+        a["steady_file"], a["label"] = source, label
+
+    atomic_update(path, fill)
+    return mis

@@ -312,8 +312,9 @@ class PredictorCorrector:
         δ_k = iV_k/(kc) for k > 0 (the travelling slip; δ_0 kept) and the SOE history filled with
         the steady past (``SOEHistory.prefill_translating``), so τ starts at the steady-state
         stress and no start-up transient is radiated. Requires history policy 'soe'."""
-        if self.history_name != "soe":
-            raise ParameterError("set_translating_past needs history.policy='soe'")
+        if self.history_name not in ("soe", "quasi_dynamic"):
+            raise ParameterError("set_translating_past needs history.policy='soe' "
+                                 "(or 'quasi_dynamic', which has no past)")
         if not c > 0:
             raise ParameterError(f"translation speed c={c!r} must be > 0 (m/s)")
         dk = np.zeros_like(self.V_k)

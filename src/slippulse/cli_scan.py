@@ -1,0 +1,82 @@
+"""``slippulse dynamic scan SCAN.toml [--workers N | --scheduler ADDRESS] [--dry-run] ...``.
+
+Runs the independent simulations of a scan (format and design: :mod:`slippulse.scan`) in local
+worker processes or on an existing Dask cluster, reusing the cases already finished, with a tqdm
+bar over the cases and a one-line summary at the end. Exit codes: 0 all cases fine, 1 some case
+(or the runner's figures) failed, 2 bad input.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+from .cli import UsageError
+
+
+def register(sub) -> None:
+    """Add ``scan`` to the ``slippulse dynamic`` sub-commands ``sub``."""
+    p = sub.add_parser(
+        "scan", help="run the independent simulations of a scan (SCAN.toml), resumable",
+        description="Run every case of SCAN.toml (cartesian product of [grid] over [defaults], "
+                    "then the [[case]] tables) through the scan's runner, one HDF5 file per case "
+                    "in scan.out_dir; finished cases are reused. Writes summary.csv and summary.h5 "
+                    "in scan.out_dir. Format: src/slippulse/scan.py, example: "
+                    "dynamic/scans/example.toml.")
+    p.add_argument("scan", metavar="SCAN.toml", help="scan description (TOML)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="local worker processes (default 1: runs are CPU-bound and may be "
+                        "multi-threaded; keep N x threads per run within the cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="submit the cases to an existing Dask cluster, e.g. tcp://host:8786 "
+                        "(needs the 'dask' extra; --workers is then ignored)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="rerun cases whose output file holds another case (default: refuse)")
+    p.add_argument("--dry-run", action="store_true",
+                   help="list the cases (id, state, output file) and exit")
+    p.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
+    p.set_defaults(func=cmd_scan)
+
+
+_STATE = {"done": "done", "missing": "todo", "incomplete": "todo (incomplete file)",
+          "other": "CLASH (file holds another case; --overwrite)"}
+
+
+def _show(path: str) -> str:
+    rel = os.path.relpath(path)
+    return path if rel.startswith("..") else rel
+
+
+def cmd_scan(args) -> int:
+    from .scan import load_scan, run_scan, scan_states
+
+    scan = load_scan(args.scan)
+    if args.dry_run:
+        states = scan_states(scan)
+        width = max(len(c.id) for c in scan.cases)
+        print(f"scan {scan.name}: {len(scan.cases)} cases, runner {scan.runner}, "
+              f"out_dir {_show(scan.out_dir)}")
+        for c, s in zip(scan.cases, states):
+            print(f"  {c.id:<{width}}  {_STATE[s]:<6}  {_show(scan.out_file(c))}")
+        print(f"{states.count('done')} done, {len(states) - states.count('done')} to run")
+        return 0
+    if args.workers < 1:
+        raise UsageError(f"--workers={args.workers} must be >= 1")
+    executor = "local"
+    if args.scheduler:
+        try:
+            import distributed  # noqa: F401
+        except ImportError:
+            raise UsageError("--scheduler needs dask.distributed: pip install "
+                             "'slippulse[dask]'") from None
+        executor = args.scheduler
+    res = run_scan(scan, executor=executor, workers=args.workers, overwrite=args.overwrite,
+                   progress=not args.no_progress)
+    for row in res.rows:
+        if str(row["status"]).startswith("error"):
+            print(f"scan {scan.name}: case {row['id']}: {row['status']}", file=sys.stderr)
+    if res.figure_error:
+        print(f"scan {scan.name}: scan_figures failed: {res.figure_error}", file=sys.stderr)
+    elif res.figures:
+        print(f"scan {scan.name}: figures: {', '.join(_show(f) for f in res.figures)}")
+    print(res.line(), file=sys.stdout if res.ok else sys.stderr)
+    return 0 if res.ok else 1

@@ -1,0 +1,421 @@
+"""Instability of steady pulses: perturbed runs, growth rate, unstable mode, fate (docs/stability.md).
+
+A run (:func:`run_perturbation`) seeds a steady pulse (``seeding.seed_pulse``) perturbed by a small
+relative amount ε of either sign (``pulse_verify.perturb_seed``: the slip-rate excess scaled by
+1 + ε, or the driving stress raised by ε τ_d), propagates it with ``pulse_verify.verify_pulse`` in
+the frame that follows it, and stops at its fate:
+
+* ``grew``: L > grow_L·L⁰, max V > lost_factor·v_max⁰, or the FWHM no longer closes (crack-like);
+* ``arrested``: max V < v_max⁰/lost_factor, or the FWHM no longer exists with v_max < v_max⁰;
+* ``undecided``: the set distance was reached first.
+
+The deviation from the steady state, d(x) = v_max(x)/v_max⁰ − 1 against the distance x travelled
+(in L⁰), grows as e^{s x} in the linear regime; :func:`fit_growth` fits ln|d| by least squares over
+the regime chosen by the stated rule of its docstring and returns s with an uncertainty, per pulse
+length and per unit time. :func:`mode_shape` extracts the normalised deviation field
+y − y⁰ (y = ln(v/v*+1)) in the co-moving frame over that regime.
+
+:func:`run_case` / :func:`read_row` / :func:`scan_figures` are the runner contract of
+``slippulse dynamic scan`` (scan.py): one flat dict of scalars in, one HDF5 file and one summary row
+out.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+
+import numpy as np
+
+from .params import ParameterError
+
+#: Keys of a scan case (run_case) with their defaults and meaning.
+CASE_DEFAULTS = {
+    "steady": None,          # steady family file (HDF5 pulse schema), required
+    "label": None,           # pulse group, e.g. "td1.0500", required
+    "perturbation": "excess",  # "excess" | "tau_d"
+    "eps": 1e-3,             # relative perturbation (signed); 0: unperturbed
+    "dx": 4e-3,              # SBI grid spacing, m
+    "ahead": 2.0,            # domain ahead of the front, L⁰
+    "behind": 3.0,           # domain behind the front, L⁰
+    "distance": 4.0,         # largest distance travelled, L⁰
+    "samples_per_L": 50,     # measurements per L⁰ travelled
+    "beta_cfl": 0.5,         # adaptive time step: CFL factor
+    "xi_stab": 0.5,          # adaptive time step: friction-stability factor
+    "history": "cheap",      # SOE node set: "cheap" (36 nodes) | "fine" (docs/dynamic.md §3)
+    "grow_L": 3.0,           # fate "grew" when L > grow_L·L⁰
+    "lost_factor": 10.0,     # fate by max V against v_max⁰ (× or ÷ lost_factor)
+    "fit_lo": 1e-3,          # linear regime: |d| from fit_lo ...
+    "fit_hi": 3e-2,          # ... to fit_hi (see fit_growth)
+    "threads": 1,
+}
+HISTORIES = {"cheap": {"x_min": 1e-6, "x_max": 1e6, "h": 0.8},
+             "fine": {"x_min": 1e-8, "x_max": 1e8, "h": 0.5}}
+FATES = ("grew", "arrested", "undecided", "failed")
+
+
+def check_case(case: dict) -> dict:
+    """Case merged over :data:`CASE_DEFAULTS`; unknown keys and bad values are ParameterErrors."""
+    unknown = sorted(set(case) - set(CASE_DEFAULTS))
+    if unknown:
+        raise ParameterError(f"unknown case key(s) {unknown}; valid: {sorted(CASE_DEFAULTS)}")
+    c = dict(CASE_DEFAULTS)
+    c.update(case)
+    for key in ("steady", "label"):
+        if not isinstance(c[key], str) or not c[key]:
+            raise ParameterError(f"case key {key!r} is required (a string)")
+    if c["perturbation"] not in ("excess", "tau_d"):
+        raise ParameterError(f"perturbation={c['perturbation']!r} must be 'excess' or 'tau_d'")
+    if c["history"] not in HISTORIES:
+        raise ParameterError(f"history={c['history']!r} must be one of {sorted(HISTORIES)}")
+    if not abs(float(c["eps"])) < 0.5:
+        raise ParameterError(f"eps={c['eps']!r} must satisfy |eps| < 0.5")
+    for key in ("dx", "ahead", "distance", "beta_cfl", "xi_stab", "fit_lo"):
+        if not float(c[key]) > 0:
+            raise ParameterError(f"{key}={c[key]!r} must be > 0")
+    if not float(c["behind"]) > 1:
+        raise ParameterError(f"behind={c['behind']!r} must be > 1 (pulse lengths)")
+    if not float(c["fit_hi"]) > float(c["fit_lo"]):
+        raise ParameterError("fit_hi must be > fit_lo")
+    if not float(c["grow_L"]) > 1 or not float(c["lost_factor"]) > 1:
+        raise ParameterError("grow_L and lost_factor must be > 1")
+    return c
+
+
+def fit_growth(x, d, lo=1e-3, hi=3e-2, min_points=5):
+    """Exponential growth rate of a deviation d(x): ln|d| = a + s x over the linear regime.
+
+    Rule: let i₁ be the first sample with |d| ≥ hi (else the last sample); the regime is the
+    samples i₀ < i ≤ i₁ after the last sample i₀ < i₁ with |d| < lo, restricted to lo ≤ |d| ≤ hi.
+    Below lo the deviation is mixed with the start-up and discretisation level (≈ 1e-4 at the
+    production resolution, pulse_verify), above hi it saturates (nonlinear). The uncertainty is
+    the larger of the least-squares standard error of s and half the difference between the
+    slopes fitted on the first and second halves of the regime (curvature = not yet/no longer
+    exponential).
+
+    Returns
+    -------
+    dict
+        s, s_err, x0, x1 (the regime), n (samples), sign (of d in the regime); s = NaN when fewer
+        than ``min_points`` samples qualify.
+    """
+    x = np.asarray(x, dtype=float)
+    a = np.abs(np.asarray(d, dtype=float))
+    out = {"s": math.nan, "s_err": math.nan, "x0": math.nan, "x1": math.nan, "n": 0, "sign": 0}
+    ok = np.isfinite(a) & np.isfinite(x)
+    if ok.sum() < min_points:
+        return out
+    above = np.nonzero(ok & (a >= hi))[0]
+    i1 = int(above[0]) if above.size else int(np.nonzero(ok)[0][-1])
+    below = np.nonzero(ok[:i1] & (a[:i1] < lo))[0]
+    i0 = int(below[-1]) if below.size else -1
+    idx = np.arange(i0 + 1, i1 + 1)
+    idx = idx[ok[idx] & (a[idx] >= lo) & (a[idx] <= hi)]
+    if idx.size < min_points:
+        return out
+    X, Y = x[idx], np.log(a[idx])
+    (s, c0), cov = np.polyfit(X, Y, 1, cov=True)
+    se = float(math.sqrt(max(cov[0, 0], 0.0)))
+    h = idx.size // 2
+    halves = []
+    for part in (slice(0, h + 1), slice(h, None)):
+        if X[part].size >= 3:
+            halves.append(np.polyfit(X[part], Y[part], 1)[0])
+    spread = abs(halves[0] - halves[1]) / 2 if len(halves) == 2 else math.nan
+    out.update(s=float(s), s_err=float(max(se, spread)) if np.isfinite(spread) else se,
+               x0=float(X[0]), x1=float(X[-1]), n=int(idx.size),
+               sign=int(np.sign(np.median(np.asarray(d, dtype=float)[idx]))))
+    return out
+
+
+def mode_shape(dev, d, x, fit):
+    """Normalised deviation field over the fitted regime, and how much it changes shape.
+
+    Parameters
+    ----------
+    dev : ndarray (samples, points)
+        y − y⁰ in the co-moving frame (``series["deviation"]``).
+    d, x : ndarray
+        The fitted deviation and the distance (samples).
+    fit : dict
+        :func:`fit_growth` result.
+
+    Returns
+    -------
+    mode : ndarray or None
+        Mean of the regime's rows, each divided by its value of d (so the mode is the deviation
+        field per unit v_max deviation), None if there is no regime.
+    spread : float
+        max over the regime's rows of ‖row/d − mode‖₂/‖mode‖₂: small when one mode dominates.
+    """
+    if not np.isfinite(fit["s"]):
+        return None, math.nan
+    sel = (x >= fit["x0"]) & (x <= fit["x1"]) & np.isfinite(d) & (np.abs(d) > 0)
+    rows = dev[sel] / d[sel][:, None]
+    mode = rows.mean(axis=0)
+    nm = float(np.linalg.norm(mode))
+    spread = float(max(np.linalg.norm(r - mode) for r in rows) / nm) if nm > 0 else math.nan
+    return mode, spread
+
+
+def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.05,
+                start_factor: float = 3.0, span: float = 10.0, min_points: int = 5) -> dict:
+    """Growth rate from a ±ε pair: the antisymmetric response r = (d₊ − d₋)/2.
+
+    d± = v_max/v_max⁰ − 1 of the runs perturbed by +ε and −ε, sampled at nearly the same times
+    (same distance and sampling: ``verify_pulse`` samples at the first step past each time of
+    a fixed grid; the −ε run is interpolated linearly onto the +ε run's times). r cancels the
+    unperturbed seed's own drift (start-up and discretisation error, which excites the same
+    mode) and the quadratic part of the response; q = (d₊ + d₋)/2 holds both.
+
+    Rule for the linear regime: it ends before the first sample i₁ where max(|d₊|, |d₋|) > d_max
+    (beyond, the cubic response shows: the local rate rises); it starts at the first sample
+    where |r| ≥ max(start_factor·|r(0)|, |r(i₁ − 1)|/span): the response has grown past its
+    start-up transient (measured: at 1.2 τ_min the local rate approaches its final value from
+    above, 28 → 24 per L over the first e-fold; at 1.05 τ_min r stays flat for ≈ 1 L before it
+    grows) and the fit covers the last decade before saturation. ln|r| = a + s t by least
+    squares. If |r| never grows past start_factor·|r(0)| (a decaying or neutral response) the fit
+    covers the second half of the run instead (``regime = "late half"``). The uncertainty as in
+    :func:`fit_growth` (the larger of the standard error and half
+    the difference of the slopes of the two half-windows). s is per second; s·L⁰/c_p⁰ per pulse
+    length.
+
+    Parameters
+    ----------
+    plus, minus : dict
+        ``read_series`` of the two runs (t, v_max_error, deviation).
+    eps : float
+        |ε|.
+
+    Returns
+    -------
+    dict
+        s_per_s, s_per_s_err, s_per_L, s_per_L_err, t0, t1, n, sym_ratio (max |q|/|r| in the
+        regime), mode (the antisymmetric deviation field per unit r, averaged over the regime, or
+        None), mode_xi, mode_spread, r, q, t.
+    """
+    tm = minus["t"]
+    n = int(np.searchsorted(plus["t"], tm[-1], side="right"))
+    t = plus["t"][:n]
+    dm = np.interp(t, tm, minus["v_max_error"])       # samples differ by < one time step
+    r = 0.5 * (plus["v_max_error"][:n] - dm)
+    q = 0.5 * (plus["v_max_error"][:n] + dm)
+    a = plus["attrs"]
+    conv = float(a["L"]) / float(a["c_p"])
+    out = {"s_per_s": math.nan, "s_per_s_err": math.nan, "s_per_L": math.nan,
+           "s_per_L_err": math.nan, "t0": math.nan, "t1": math.nan, "n": 0,
+           "sym_ratio": math.nan, "mode": None, "mode_spread": math.nan, "r": r, "q": q, "t": t,
+           "eps": abs(eps), "regime": "none"}
+    ar = np.abs(r)
+    big = np.maximum(np.abs(plus["v_max_error"][:n]), np.abs(dm))
+    bad = np.nonzero((big > d_max) | ~np.isfinite(r))[0]
+    i1 = int(bad[0]) if bad.size else n
+    if i1 < 2:
+        return out
+    thr = max(start_factor * ar[0], ar[i1 - 1] / span)
+    if ar[i1 - 1] >= thr:
+        below = np.nonzero(ar[:i1] < thr)[0]          # the last crossing of thr before i₁
+        idx = np.arange(int(below[-1]) + 1 if below.size else 0, i1)
+        out["regime"] = "growth"
+    else:
+        # no growth past start_factor·|r(0)|: a decaying or neutral response; fit the second
+        # half of the run (after the start-up transient)
+        idx = np.arange(i1 // 2, i1)
+        out["regime"] = "late half"
+    if idx.size < min_points:
+        return out
+    f = fit_growth(t[idx], r[idx], lo=0.0, hi=np.inf, min_points=min_points)
+    out.update(s_per_s=f["s"], s_per_s_err=f["s_err"], s_per_L=f["s"] * conv,
+               s_per_L_err=f["s_err"] * conv, t0=f["x0"], t1=f["x1"], n=f["n"],
+               sym_ratio=float(np.max(np.abs(q[idx]) / ar[idx])))
+    if "deviation" in plus and "deviation" in minus:
+        devm = np.array([np.interp(t, tm, col) for col in minus["deviation"].T]).T
+        dev = 0.5 * (plus["deviation"][:n] - devm)
+        rows = dev[idx] / r[idx][:, None]
+        mode = rows.mean(axis=0)
+        nm = float(np.linalg.norm(mode))
+        out["mode"] = mode
+        out["mode_xi"] = plus.get("deviation_xi")
+        out["mode_spread"] = (float(max(np.linalg.norm(rw - mode) for rw in rows) / nm)
+                              if nm > 0 else math.nan)
+    return out
+
+
+def _fate(status: str) -> str:
+    if status.startswith("failed"):
+        return "failed"
+    if "grew" in status:
+        return "grew"
+    if "arrested" in status:
+        return "arrested"
+    return "undecided"
+
+
+def run_perturbation(case: dict, progress: bool = False):
+    """Run one perturbed pulse to its fate; returns (pulse, params, VerifyResult, analysis dict)."""
+    from .h5io import read_pulse
+    from .pulse_verify import verify_pulse
+    from .seeding import DomainSpec
+    from .stepper import TimeStepRule
+
+    c = check_case(case)
+    pulse, params = read_pulse(c["steady"], c["label"])
+    spec = DomainSpec(dx=float(c["dx"]), ahead=float(c["ahead"]), behind=float(c["behind"]))
+    rule = TimeStepRule(kind="adaptive", beta_cfl=float(c["beta_cfl"]), xi_stab=float(c["xi_stab"]))
+    grow_L = float(c["grow_L"])
+
+    def stop(rows):
+        if rows[-1][2] > grow_L * pulse.L:
+            return f"grew: L > {grow_L:g} L0"
+        return None
+
+    eps = float(c["eps"])
+    res = verify_pulse(pulse, params, float(c["distance"]), spec, rule=rule,
+                       n_samples=max(10, int(round(float(c["distance"]) * float(c["samples_per_L"])))),
+                       n_snapshots=8, progress=progress,
+                       history_options=HISTORIES[c["history"]], threads=int(c["threads"]),
+                       lost_factor=float(c["lost_factor"]),
+                       perturbation=None if eps == 0 else (c["perturbation"], eps),
+                       stop_check=stop)
+    return pulse, params, res, analyse(res, pulse, c)
+
+
+def analyse(res, pulse, c: dict) -> dict:
+    """Fate, growth rates (per L⁰ and per second) and mode-shape spread of a run."""
+    se = res.series
+    x, t, d = se["distance"], res.t, se["v_max_error"]
+    lo, hi = float(c["fit_lo"]), float(c["fit_hi"])
+    fx = fit_growth(x, d, lo, hi)
+    ft = fit_growth(t, d, lo, hi)
+    fl = fit_growth(x, se["L_error"], lo, hi)
+    _, spread = mode_shape(se["deviation"], d, x, fx)
+    status = res.info["status"]
+    return {"fate": _fate(status), "status": status,
+            "s_per_L": fx["s"], "s_per_L_err": fx["s_err"], "s_per_s": ft["s"],
+            "s_per_s_err": ft["s_err"], "fit_x0": fx["x0"], "fit_x1": fx["x1"],
+            "fit_n": fx["n"], "fit_sign": fx["sign"], "s_per_L_from_L": fl["s"],
+            "mode_spread": spread,
+            "travelled": res.info["travelled"], "t_end": res.info["t_end"],
+            "L_end": float(se["L"][-1]), "v_max_end": float(se["v_max"][-1]),
+            "n_steps": res.info["n_steps"], "n_points": res.info["n"],
+            "wall_time": res.info["wall_time"],
+            "tau_d_ratio": pulse.tau_d_ratio, "L0": pulse.L, "c_p0": pulse.c_p,
+            "beta0": pulse.beta, "v_max0": res.info["v_max_ref"]}
+
+
+def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
+    """Scan runner: run one perturbed pulse and write ``out_path`` (HDF5) atomically.
+
+    The file holds the verification output (``pulse_verify.write_result``: errors, series incl.
+    L, c_p, v_max, slip, the deviation field, snapshots) plus the analysis of :func:`analyse` as
+    root attributes, ``case_json`` and ``complete = True``. Returns the summary row.
+    """
+    import h5py
+
+    from .pulse_verify import write_result
+
+    c = check_case(case)
+    wall0 = time.perf_counter()
+    pulse, params, res, row = run_perturbation(c, progress=progress)
+    row["file"] = os.path.abspath(out_path)
+    os.makedirs(os.path.dirname(os.path.abspath(out_path)), exist_ok=True)
+    tmp = out_path + ".part"
+    write_result(tmp, res, params, source=os.path.abspath(c["steady"]), label=c["label"])
+    with h5py.File(tmp, "a") as h5:
+        for k, v in row.items():
+            h5.attrs[k] = v
+        h5.attrs["case_json"] = json.dumps(case, sort_keys=True)
+        h5.attrs["case_resolved_json"] = json.dumps(c, sort_keys=True)
+        h5.attrs["run_wall_time"] = time.perf_counter() - wall0
+        h5.attrs["complete"] = True
+    os.replace(tmp, out_path)
+    return row
+
+
+def read_row(out_path: str) -> dict:
+    """The summary row of a finished :func:`run_case` file."""
+    import h5py
+
+    keys = ("fate", "status", "s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "fit_x0",
+            "fit_x1", "fit_n", "fit_sign", "s_per_L_from_L", "mode_spread", "travelled",
+            "t_end", "L_end", "v_max_end", "n_steps", "n_points", "wall_time", "tau_d_ratio",
+            "L0", "c_p0", "beta0", "v_max0")
+    with h5py.File(out_path, "r") as h5:
+        row = {"file": os.path.abspath(out_path)}
+        for k in keys:
+            v = h5.attrs[k]
+            row[k] = v.item() if hasattr(v, "item") else v
+    return row
+
+
+def read_series(out_path: str) -> dict:
+    """Time series of a run file: t, distance, L, c_p, v_max, slip, the errors, the deviation."""
+    import h5py
+
+    with h5py.File(out_path, "r") as h5:
+        s = {k: h5["series"][k][...] for k in h5["series"]}
+        s["attrs"] = dict(h5.attrs)
+    return s
+
+
+#: Case keys that do not distinguish the two members of a ±ε pair.
+_PAIR_IGNORE = ("eps", "id", "status", "file")
+
+
+def pair_rows(rows: list[dict]) -> list[tuple[dict, dict]]:
+    """Group scan rows into ±ε pairs: same case keys (``CASE_DEFAULTS``) except the sign of ε."""
+    def key(r):
+        return tuple((k, r.get(k)) for k in sorted(CASE_DEFAULTS) if k not in _PAIR_IGNORE) + \
+            (("abs_eps", abs(float(r.get("eps", 0.0)))),)
+    groups: dict = {}
+    for r in rows:
+        if not r.get("file") or float(r.get("eps", 0.0)) == 0.0:
+            continue
+        groups.setdefault(key(r), {})[1 if float(r["eps"]) > 0 else -1] = r
+    return [(g[1], g[-1]) for g in groups.values() if 1 in g and -1 in g]
+
+
+#: Columns of the pair table (growth_pairs.csv).
+PAIR_COLUMNS = ("label", "tau_d_ratio", "eps", "dx", "xi_stab", "ahead", "behind", "history",
+                "perturbation", "s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "t0", "t1",
+                "n", "regime", "sym_ratio", "mode_spread", "fate_plus", "fate_minus",
+                "wall_time")
+
+
+def pair_table(rows: list[dict]) -> list[dict]:
+    """One row per ±ε pair: the case keys, :func:`pair_growth` and the fates of both signs."""
+    out = []
+    for rp, rm in pair_rows(rows):
+        g = pair_growth(read_series(rp["file"]), read_series(rm["file"]), float(rp["eps"]))
+        c = check_case({k: rp[k] for k in CASE_DEFAULTS if k in rp})
+        row = {k: c[k] for k in ("label", "dx", "xi_stab", "ahead", "behind", "history",
+                                 "perturbation")}
+        row["tau_d_ratio"] = rp.get("tau_d_ratio")
+        row["eps"] = abs(float(rp["eps"]))
+        row.update({k: g[k] for k in ("s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "t0",
+                                      "t1", "n", "regime", "sym_ratio", "mode_spread")})
+        row["fate_plus"], row["fate_minus"] = rp.get("fate"), rm.get("fate")
+        row["wall_time"] = float(rp.get("wall_time", math.nan)) + float(rm.get("wall_time", math.nan))
+        row["_growth"] = g
+        out.append(row)
+    return out
+
+
+def scan_figures(rows: list[dict], out_dir: str) -> list[str]:
+    """Scan hook: the pair table (growth_pairs.csv) and the figures of plotting.stability_figures."""
+    import csv
+
+    from .plotting import stability_figures
+    pairs = pair_table(rows)
+    paths = []
+    if pairs:
+        path = os.path.join(out_dir, "growth_pairs.csv")
+        with open(path + ".part", "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(PAIR_COLUMNS), extrasaction="ignore")
+            w.writeheader()
+            for r in pairs:
+                w.writerow(r)
+        os.replace(path + ".part", path)
+        paths.append(path)
+    return paths + stability_figures(rows, pairs, out_dir)

@@ -1,0 +1,173 @@
+"""Instability measurement (stability.py): growth fits on exact exponentials, the ±ε protocol on
+real runs of the unstable 1.2 τ_min pulse, and a real perturbation scan through a Dask LocalCluster.
+
+The 1.2 τ_min pulse of the shared fixture is coarse (steady N = 700, SBI Δx = 8 mm): cheap runs whose
+growth rate is *not* the converged one (docs/stability.md has those); the tests check the protocol:
+both signs depart in opposite directions, to opposite fates, at one rate.
+"""
+import math
+import os
+
+import h5py
+import numpy as np
+import pytest
+
+from slippulse.params import ParameterError
+from slippulse.stability import (check_case, fit_growth, pair_growth, pair_rows, read_row,
+                                 read_series, run_case)
+
+
+def test_fit_growth_recovers_an_exponential_and_its_window():
+    x = np.linspace(0, 1, 201)
+    d = 1e-4 * np.exp(7.0 * x)           # crosses 1e-3 at x = 0.329, 3e-2 at x = 0.815
+    f = fit_growth(x, d, lo=1e-3, hi=3e-2)
+    assert f["s"] == pytest.approx(7.0, rel=1e-10)
+    assert f["x0"] == pytest.approx(0.33, abs=0.006)
+    assert f["x1"] <= 0.815 + 1e-12
+    assert f["s_err"] < 1e-8
+    assert f["sign"] == 1
+    # a negative deviation grows the same way
+    assert fit_growth(x, -d)["s"] == pytest.approx(7.0, rel=1e-10)
+    # a bent curve (rate rising from 5 to 9) reports the bend in its uncertainty
+    bent = 1e-4 * np.exp(5 * x + 2 * x ** 2)
+    fb = fit_growth(x, bent, lo=1e-3, hi=3e-2)
+    assert fb["s_err"] > 0.3
+
+
+def test_fit_growth_without_a_regime_is_nan():
+    x = np.linspace(0, 1, 50)
+    assert math.isnan(fit_growth(x, np.full(50, 1e-5))["s"])
+
+
+def _series(t, d, L=1.0, c=1.0):
+    return {"t": t, "v_max_error": d, "attrs": {"L": L, "c_p": c}}
+
+
+def test_pair_growth_cancels_baseline_and_quadratic_terms():
+    """d± = b(t) ± εA e^{st} + (εA e^{st})² : the antisymmetric part is exactly εA e^{st}."""
+    t = np.linspace(0, 1, 400)
+    s, eps = 6.0, 1e-3
+    lin = eps * 2.0 * np.exp(s * t)
+    base = 3e-4 * np.exp(s * t)                       # the unperturbed seed's own drift
+    plus = _series(t, base + lin + 40 * lin ** 2)
+    minus = _series(t + 1e-6, base - lin + 40 * lin ** 2)   # sampled slightly later
+    g = pair_growth(plus, minus, eps)
+    assert g["regime"] == "growth"
+    assert g["s_per_s"] == pytest.approx(s, rel=2e-3)
+    assert g["s_per_L"] == pytest.approx(s, rel=2e-3)   # L/c_p = 1
+    # the window ends before max |d±| exceeds 0.05
+    end = np.searchsorted(t, g["t1"])
+    assert max(abs(plus["v_max_error"][end]), abs(minus["v_max_error"][end])) <= 0.05
+
+
+def test_pair_growth_of_a_decaying_response_uses_the_late_half():
+    t = np.linspace(0, 2, 300)
+    r = 1e-3 * np.exp(-1.5 * t)
+    g = pair_growth(_series(t, r), _series(t, -r), 1e-3)
+    assert g["regime"] == "late half"
+    assert g["s_per_s"] == pytest.approx(-1.5, rel=1e-6)
+
+
+def test_case_validation_names_the_key():
+    with pytest.raises(ParameterError, match="unknown case key"):
+        check_case({"steady": "f.h5", "label": "td1.2000", "epsilon": 1e-3})
+    with pytest.raises(ParameterError, match="eps"):
+        check_case({"steady": "f.h5", "label": "td1.2000", "eps": 0.7})
+    with pytest.raises(ParameterError, match="history"):
+        check_case({"steady": "f.h5", "label": "td1.2000", "history": "window"})
+    with pytest.raises(ParameterError, match="label"):
+        check_case({"steady": "f.h5"})
+
+
+@pytest.fixture(scope="module")
+def steady12(pulse12, params, tmp_path_factory):
+    from slippulse.h5io import write_pulse
+    path = str(tmp_path_factory.mktemp("st") / "fam.h5")
+    write_pulse(path, pulse12.to_pulse(), params)
+    return path
+
+
+TINY = {"dx": 8e-3, "ahead": 1.5, "behind": 2.0, "distance": 0.5, "samples_per_L": 400,
+        "xi_stab": 0.5}
+
+
+@pytest.fixture(scope="module")
+def pair12(steady12, tmp_path_factory):
+    d = tmp_path_factory.mktemp("pair")
+    rows = []
+    for eps in (3e-3, -3e-3):
+        case = dict(TINY, steady=steady12, label="td1.2000", eps=eps)
+        out = str(d / f"eps{eps}.h5")
+        rows.append(dict(case, **run_case(case, out)))
+    return rows
+
+
+def test_perturbed_pair_departs_both_ways_at_one_rate(pair12):
+    plus, minus = pair12
+    sp, sm = read_series(plus["file"]), read_series(minus["file"])
+    # opposite signs from the start, opposite fates
+    assert plus["fate"] == "grew" and minus["fate"] in ("arrested", "undecided")
+    k = np.searchsorted(sp["distance"], 0.1)
+    assert sp["v_max_error"][k] > 3e-3 and sm["v_max_error"][k] < -3e-3
+    g = pair_growth(sp, sm, 3e-3)
+    assert g["regime"] == "growth" and g["n"] >= 5
+    assert 10 < g["s_per_L"] < 40           # coarse grid; converged value 24 per L (docs)
+    # the single-run fits agree with the pair within their scatter
+    assert plus["s_per_L"] == pytest.approx(g["s_per_L"], rel=0.3)
+    # the file carries the case, completion and units
+    with h5py.File(plus["file"]) as h5:
+        assert h5.attrs["complete"]
+        assert "eps" in h5.attrs["case_json"]
+        assert h5["series/L"].attrs["units"] == "m"
+        assert h5["series/deviation"].shape[1] == h5["series/deviation_xi"].size
+    assert read_row(plus["file"])["fate"] == plus["fate"]
+    assert len(pair_rows(pair12)) == 1
+
+
+def test_tau_d_perturbation_changes_the_load_only(steady12):
+    from slippulse.h5io import read_pulse
+    from slippulse.pulse_verify import perturb_seed
+    from slippulse.seeding import DomainSpec, seed_pulse
+    pulse, params = read_pulse(steady12, "td1.2000")
+    seed = seed_pulse(pulse, params, DomainSpec(dx=8e-3, ahead=1.5, behind=2.0))
+    load0, V0 = np.array(seed.stepper.law.tau_load, copy=True), seed.stepper.V.copy()
+    perturb_seed(seed, pulse, "tau_d", 2e-3)
+    assert np.allclose(seed.stepper.law.tau_load - load0, 2e-3 * pulse.tau_d)
+    assert np.array_equal(seed.stepper.V, V0)
+
+
+def test_real_scan_through_dask_localcluster_resumes(steady12, tmp_path):
+    """≥ 4 real perturbation runs (tiny settings) through a Dask LocalCluster; a rerun redoes none."""
+    distributed = pytest.importorskip("distributed")
+    from slippulse.scan import load_scan, run_scan
+    toml = tmp_path / "scan.toml"
+    toml.write_text(f"""
+[scan]
+name = "tiny"
+out_dir = "{tmp_path / 'out'}"
+[defaults]
+steady = "{steady12}"
+label = "td1.2000"
+dx = 0.016
+ahead = 1.5
+behind = 2.0
+distance = 0.1
+samples_per_L = 100
+[grid]
+eps = [1e-3, -1e-3, 3e-3, -3e-3]
+""")
+    scan = load_scan(str(toml))
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        res = run_scan(scan, executor=client, progress=False)
+        assert res.ok and res.n_run == 4 and res.n_reused == 0
+        mtimes = {p: os.path.getmtime(p) for p in (scan.out_file(c) for c in scan.cases)}
+        again = run_scan(scan, executor=client, progress=False)
+    assert again.n_run == 0 and again.n_reused == 4
+    assert {p: os.path.getmtime(p) for p in mtimes} == mtimes
+    assert os.path.exists(tmp_path / "out" / "summary.csv")
+    assert os.path.exists(tmp_path / "out" / "growth_pairs.csv")
+    rows = [r for r in res.rows]
+    assert {round(float(r["eps"]), 6) for r in rows} == {1e-3, -1e-3, 3e-3, -3e-3}
+    assert all(r["fate"] in ("grew", "arrested", "undecided") for r in rows)
