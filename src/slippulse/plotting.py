@@ -499,6 +499,7 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_"):
         ax.plot([s["attrs"]["L"]], [s["attrs"]["beta"]], "o", ms=4,
                 color=colour[round(float(r["tau_d_ratio"]), 6)])
     ax.set_xscale("log")
+    ax.set_yscale("log")
     ax.set_xlabel("pulse length L (m)")
     ax.set_ylabel("c_p / c_s")
     ax.legend(fontsize=7, loc="lower right")

@@ -171,6 +171,11 @@ def deviation_field(st, x_front, steady_y, xi_front, rel, v_star):
     return y - steady_y(xi_front + rel)
 
 
+def _lost_how(st, pulse) -> str:
+    """'grew' or 'arrested': the direction in which a pulse whose FWHM cannot be measured left."""
+    return "grew" if float(st.V.max()) > pulse.v_max else "arrested"
+
+
 def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec(),
                  rule: TimeStepRule | None = None, far_field: str = "steady", follow: bool = True,
                  n_samples: int = 100, n_snapshots: int = 6, progress: bool = True,
@@ -278,7 +283,10 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
             dt = st.step()        # adaptive Δt; samples are taken at the first step past t_j
             bar.update(min(dt, max(t_end - bar.n, 0.0)))
             if follow and st.nstep % track_every == 0:
-                xr, _, _ = front_position(st.x, st.V, p.v_star)
+                try:
+                    xr, _, _ = front_position(st.x, st.V, p.v_star)
+                except ValueError as exc:
+                    raise PulseLost(f"{_lost_how(st, pulse)}: {exc} at t = {st.t:.4g} s") from None
                 follow_pulse(seed, xr)
             vtop = float(st.V.max())
             if vtop > lost_factor * pulse.v_max:
@@ -290,8 +298,7 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
                     record(j)
                 except ValueError as exc:
                     # the FWHM no longer exists on both sides of the maximum
-                    how = "grew" if float(st.V.max()) > pulse.v_max else "arrested"
-                    raise PulseLost(f"{how}: {exc} at t = {st.t:.4g} s") from None
+                    raise PulseLost(f"{_lost_how(st, pulse)}: {exc} at t = {st.t:.4g} s") from None
                 if stop_check is not None:
                     why = stop_check(rows)
                     if why:

@@ -159,8 +159,51 @@ def mode_shape(dev, d, x, fit):
     return mode, spread
 
 
-def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.05,
-                start_factor: float = 3.0, span: float = 10.0, min_points: int = 5) -> dict:
+def _plateau(t, lr, tol, efold):
+    """Indices of the final stretch where the local growth rate is constant, and its spread.
+
+    The local rate ℓ_i is the least-squares slope of ln|r| over the samples within ±w/2 of t_i,
+    w = efold/|s₀| (s₀: the slope over the second half of the samples, so w spans ``efold``
+    e-folds of the response). Going back from the last sample whose window fits, the stretch
+    grows while every ℓ in it lies within ±tol of the stretch's median. Returns (indices of the
+    samples from the stretch's first window start to the end, half the range of ℓ over the
+    stretch), or (None, nan) when the run changes by less than one e-fold (s₀·T < 1) or has too
+    few samples.
+    """
+    n = t.size
+    if n < 8:
+        return None, math.nan
+    h = n // 2
+    s0 = np.polyfit(t[h:], lr[h:], 1)[0]
+    if not np.isfinite(s0) or abs(s0) * (t[-1] - t[0]) < 1.0 or s0 <= 0:
+        return None, math.nan
+    w = efold / abs(s0)
+    rates, centres = [], []
+    for i in range(n):
+        if t[i] - w / 2 < t[0] or t[i] + w / 2 > t[-1]:
+            continue
+        sel = np.abs(t - t[i]) <= w / 2
+        if sel.sum() >= 3:
+            rates.append(np.polyfit(t[sel], lr[sel], 1)[0])
+            centres.append(i)
+    if len(rates) < 2:
+        return None, math.nan
+    rates = np.array(rates)
+    j = len(rates) - 1
+    while j > 0:
+        seg = rates[j - 1:]
+        med = np.median(seg)
+        if np.all(np.abs(seg - med) <= tol * abs(med)):
+            j -= 1
+        else:
+            break
+    seg = rates[j:]
+    first = int(np.searchsorted(t, t[centres[j]] - w / 2))
+    return np.arange(first, n), float(0.5 * (seg.max() - seg.min()))
+
+
+def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: float = 0.05,
+                efold: float = 0.5, min_points: int = 5) -> dict:
     """Growth rate from a ±ε pair: the antisymmetric response r = (d₊ − d₋)/2.
 
     d± = v_max/v_max⁰ − 1 of the runs perturbed by +ε and −ε, sampled at nearly the same times
@@ -169,17 +212,17 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.05,
     unperturbed seed's own drift (start-up and discretisation error, which excites the same
     mode) and the quadratic part of the response; q = (d₊ + d₋)/2 holds both.
 
-    Rule for the linear regime: it ends before the first sample i₁ where max(|d₊|, |d₋|) > d_max
-    (beyond, the cubic response shows: the local rate rises); it starts at the first sample
-    where |r| ≥ max(start_factor·|r(0)|, |r(i₁ − 1)|/span): the response has grown past its
-    start-up transient (measured: at 1.2 τ_min the local rate approaches its final value from
-    above, 28 → 24 per L over the first e-fold; at 1.05 τ_min r stays flat for ≈ 1 L before it
-    grows) and the fit covers the last decade before saturation. ln|r| = a + s t by least
-    squares. If |r| never grows past start_factor·|r(0)| (a decaying or neutral response) the fit
-    covers the second half of the run instead (``regime = "late half"``). The uncertainty as in
-    :func:`fit_growth` (the larger of the standard error and half
-    the difference of the slopes of the two half-windows). s is per second; s·L⁰/c_p⁰ per pulse
-    length.
+    Rule for the linear regime: it ends before the first sample where max(|d₊|, |d₋|) > d_max
+    (beyond, the cubic response shows: the local rate rises). Before that, the local growth
+    rate ℓ (slope of ln|r| over a sliding window of ``efold`` e-folds) approaches a constant
+    after the start-up transient of the other modes the perturbation excites (measured at
+    1.2 τ_min: ℓ = 34, 26, 23.4, 23.1 per L at 0, 0.05, 0.1, 0.15 L); the regime is the longest
+    final stretch over which ℓ stays within ±tol of its median (:func:`_plateau`). s is the
+    least-squares slope of ln|r| against t over the regime; its uncertainty the largest of the
+    standard error, half the range of ℓ over the regime and half the difference of the slopes of
+    the two half-windows. If the response changes by less than one e-fold over the run (decaying
+    or neutral), the fit covers the second half of the run instead (``regime = "late half"``).
+    s is per second; s·L⁰/c_p⁰ per pulse length.
 
     Parameters
     ----------
@@ -213,21 +256,18 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.05,
     i1 = int(bad[0]) if bad.size else n
     if i1 < 2:
         return out
-    thr = max(start_factor * ar[0], ar[i1 - 1] / span)
-    if ar[i1 - 1] >= thr:
-        below = np.nonzero(ar[:i1] < thr)[0]          # the last crossing of thr before i₁
-        idx = np.arange(int(below[-1]) + 1 if below.size else 0, i1)
-        out["regime"] = "growth"
-    else:
-        # no growth past start_factor·|r(0)|: a decaying or neutral response; fit the second
+    idx, spread = _plateau(t[:i1], np.log(np.maximum(ar[:i1], 1e-300)), tol, efold)
+    out["regime"] = "growth" if idx is not None else "late half"
+    if idx is None:
+        # less than one e-fold over the run: a decaying or neutral response; fit the second
         # half of the run (after the start-up transient)
         idx = np.arange(i1 // 2, i1)
-        out["regime"] = "late half"
     if idx.size < min_points:
         return out
     f = fit_growth(t[idx], r[idx], lo=0.0, hi=np.inf, min_points=min_points)
-    out.update(s_per_s=f["s"], s_per_s_err=f["s_err"], s_per_L=f["s"] * conv,
-               s_per_L_err=f["s_err"] * conv, t0=f["x0"], t1=f["x1"], n=f["n"],
+    err = max(f["s_err"], spread) if np.isfinite(spread) else f["s_err"]
+    out.update(s_per_s=f["s"], s_per_s_err=err, s_per_L=f["s"] * conv,
+               s_per_L_err=err * conv, t0=f["x0"], t1=f["x1"], n=f["n"],
                sym_ratio=float(np.max(np.abs(q[idx]) / ar[idx])))
     if "deviation" in plus and "deviation" in minus:
         devm = np.array([np.interp(t, tm, col) for col in minus["deviation"].T]).T
@@ -391,7 +431,9 @@ def pair_table(rows: list[dict]) -> list[dict]:
         c = check_case({k: rp[k] for k in CASE_DEFAULTS if k in rp})
         row = {k: c[k] for k in ("label", "dx", "xi_stab", "ahead", "behind", "history",
                                  "perturbation")}
-        row["tau_d_ratio"] = rp.get("tau_d_ratio")
+        for k in ("dx", "xi_stab", "ahead", "behind"):
+            row[k] = float(row[k])
+        row["tau_d_ratio"] = float(rp.get("tau_d_ratio"))
         row["eps"] = abs(float(rp["eps"]))
         row.update({k: g[k] for k in ("s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "t0",
                                       "t1", "n", "regime", "sym_ratio", "mode_spread")})
@@ -407,6 +449,7 @@ def scan_figures(rows: list[dict], out_dir: str) -> list[str]:
     import csv
 
     from .plotting import stability_figures
+    os.makedirs(out_dir, exist_ok=True)
     pairs = pair_table(rows)
     paths = []
     if pairs:
@@ -419,3 +462,33 @@ def scan_figures(rows: list[dict], out_dir: str) -> list[str]:
         os.replace(path + ".part", path)
         paths.append(path)
     return paths + stability_figures(rows, pairs, out_dir)
+
+
+def steady_curve(*paths) -> np.ndarray:
+    """(L, c_p, τ_d/τ_min) of every pulse in the steady family files, sorted by L (m, m/s)."""
+    from .h5io import list_pulses, read_pulse
+    pts = {}
+    for path in paths:
+        for lab in list_pulses(path):
+            pu = read_pulse(path, lab)[0]
+            pts[round(pu.tau_d_ratio, 6)] = (pu.L, pu.c_p, pu.tau_d_ratio)
+    return np.array(sorted(pts.values()))
+
+
+def line_deviation(L, c_p, curve: np.ndarray) -> np.ndarray:
+    """Relative distance of (L, c_p) points from the steady line: c_p/c_p⁰(L) − 1.
+
+    c_p⁰(L) interpolates the steady family (``steady_curve``) linearly in ln L – ln c_p on its
+    monotone branch containing most points (the steady L(τ_d) has a minimum near 1.29 τ_min, so
+    the line turns back there; only the branch L ≥ L_min is used). NaN outside the branch's L range.
+    """
+    L = np.asarray(L, dtype=float)
+    c = np.asarray(c_p, dtype=float)
+    imin = int(np.argmin(curve[:, 0]))
+    br = curve[np.argsort(curve[:, 2])]            # by τ_d ascending: L descending to the minimum
+    br = br[br[:, 2] <= curve[imin, 2] + 1e-12]
+    br = br[np.argsort(br[:, 0])]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lnc = np.interp(np.log(L), np.log(br[:, 0]), np.log(br[:, 1]), left=np.nan,
+                        right=np.nan)
+        return c / np.exp(lnc) - 1.0
