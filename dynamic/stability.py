@@ -2,7 +2,8 @@
 
 Run (from the repository root)::
 
-    python dynamic/stability.py family     # runs/family_stab.h5: 1.2 → 1.03 τ_min, N = 3000 (~1 min)
+    python dynamic/stability.py family     # runs/family_stab.h5: 1.2 → 1.03 τ_min, N = 3000 (~1 min),
+                                           # runs/family_up.h5: 1.3 → 1.2 (the steady line's other end)
     slippulse dynamic scan dynamic/scans/growth_td1.20.toml    # one command per row of the table
     slippulse dynamic scan dynamic/scans/growth_td1.10.toml
     slippulse dynamic scan dynamic/scans/growth_td1.05.toml
@@ -16,7 +17,6 @@ docs/figures/stability_{growth,trajectories,modes,deviation}.png.
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import os
 import sys
@@ -24,6 +24,7 @@ import sys
 import numpy as np
 
 FAMILY = "runs/family_stab.h5"
+UPPER = "runs/family_up.h5"          # the branch 1.3 → 1.2 τ_min (L has its minimum near 1.29)
 SCANS = ("growth_td1.20", "growth_td1.10", "growth_td1.05", "growth_td1.03")
 FIG_DIR = "docs/figures"
 
@@ -31,27 +32,26 @@ FIG_DIR = "docs/figures"
 def family():
     from slippulse.continuation import run_family
     from slippulse.params import DEFAULT
-    rep = run_family(DEFAULT, FAMILY, start=1.2, stop=1.03, step=0.005, n_points=3000)
-    print(rep)
+    print(run_family(DEFAULT, FAMILY, start=1.2, stop=1.03, step=0.005, n_points=3000))
+    print(run_family(DEFAULT, UPPER, start=1.3, stop=1.2, step=0.01, n_points=3000))
 
 
 def _rows(name):
-    path = os.path.join("runs", "scans", name, "summary.csv")
-    if not os.path.exists(path):
-        return []
-    with open(path) as fh:
-        rows = list(csv.DictReader(fh))
+    """Rows of the finished cases of scan ``name`` (case keys + ``stability.read_row``), in case
+    order; unfinished cases are skipped, so a report can be drawn while a scan runs."""
+    from slippulse.scan import case_state, load_scan
+    from slippulse.stability import read_row
+
+    scan = load_scan(os.path.join("dynamic", "scans", name + ".toml"))
     out = []
-    for r in rows:
-        if not r.get("file") or not os.path.exists(r["file"]):
+    for c in scan.cases:
+        path = scan.out_file(c)
+        if case_state(path, c) != "done":
             continue
-        for k, v in list(r.items()):
-            try:
-                r[k] = float(v) if k not in ("label", "history", "perturbation", "steady", "file",
-                                             "id", "status", "fate") else v
-            except (TypeError, ValueError):
-                pass
-        out.append(r)
+        row = dict(c.params)
+        row.update(read_row(path))
+        row["id"] = c.id
+        out.append(row)
     return out
 
 
@@ -110,8 +110,37 @@ def report():
         dev = {p["variant"]: (p["s_per_L"] / b - 1) for p in sel[1:]}
         print(f"{name}: s = {b:.4g}/L (base); relative changes: "
               + ", ".join(f"{k}: {v:+.1%}" for k, v in dev.items()))
+    # how closely the runs of each base pair follow the steady line c_p⁰(L)
+    from slippulse.stability import line_deviation, read_series, steady_curve
+    curve = steady_curve(*[f for f in (FAMILY, UPPER) if os.path.exists(f)])
+    print("\n| τ_d/τ_min | run | fate | L range (m) | c_p/c_s range | median |c_p/c_p⁰(L) − 1| | "
+          "max | fraction of samples in the line's L range |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in SCANS:
+        sel = [p for p in table if p["scan"] == name]
+        if not sel:
+            continue
+        for tag, key in (("+ε", "_file_plus"), ("−ε", "_file_minus")):
+            for p in sel[:1] + [q for q in sel if q["variant"].startswith("ε = ") and
+                                q["eps"] >= 0.01 - 1e-12]:
+                s = read_series(p[key])
+                cs = float(s["attrs"]["c_p"]) / float(s["attrs"]["beta"])
+                cp = np.convolve(np.nan_to_num(s["c_p"], nan=float(s["attrs"]["c_p"])),
+                                 np.ones(5) / 5, mode="same")
+                keep = (s["distance"] >= 0.1) & (np.arange(cp.size) >= 2) & \
+                    (np.arange(cp.size) < cp.size - 2)
+                dev = line_deviation(s["L"][keep], cp[keep], curve)
+                ok = np.isfinite(dev)
+                print(f"| {p['tau_d_ratio']:.4g} | {tag}, ε = {p['eps']:g} | "
+                      f"{p['fate_plus' if tag == '+ε' else 'fate_minus']} | "
+                      f"{s['L'][keep].min():.3g}–{s['L'][keep].max():.3g} | "
+                      f"{cp[keep].min() / cs:.3g}–{cp[keep].max() / cs:.3g} | "
+                      f"{np.median(np.abs(dev[ok])) if ok.any() else math.nan:.2g} | "
+                      f"{np.max(np.abs(dev[ok])) if ok.any() else math.nan:.2g} | "
+                      f"{ok.mean():.2f} |")
     os.makedirs(FIG_DIR, exist_ok=True)
-    paths = stability_figures(all_rows, table, FIG_DIR, prefix="stability_")
+    paths = stability_figures(all_rows, table, FIG_DIR, prefix="stability_",
+                              extra_steady=(UPPER,) if os.path.exists(UPPER) else ())
     paths.append(growth_figure(table))
     print("figures:", ", ".join(paths))
 

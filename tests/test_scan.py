@@ -289,3 +289,62 @@ def test_example_scan_parses():
     scan = load_scan(os.path.join(root, "dynamic", "scans", "example.toml"))
     assert scan.runner == "slippulse.stability:run_case" and len(scan.cases) >= 4
     assert all(isinstance(c, Case) for c in scan.cases)
+
+
+def test_sigterm_stops_the_workers(tmp_path):
+    """Killing `slippulse dynamic scan` (SIGTERM) stops its worker processes too: none keeps
+    running its case and no output file of an unfinished case appears."""
+    import signal
+    import subprocess
+    import sys
+    import time
+    log = tmp_path / "calls.log"
+    toml = tmp_path / "slow.toml"
+    toml.write_text(f"""
+[scan]
+name = "slow"
+out_dir = "{tmp_path / 'out'}"
+runner = "scan_fake_runner:run_case"
+runner_path = ["{os.path.dirname(os.path.abspath(__file__))}"]
+[defaults]
+sleep = 30.0
+log = "{log}"
+[grid]
+eps = [1e-3, -1e-3, 2e-3]
+""")
+    proc = subprocess.Popen([sys.executable, "-m", "slippulse.cli", "dynamic", "scan", str(toml),
+                             "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.time() + 60
+    while time.time() < deadline and not _children(proc.pid):
+        time.sleep(0.2)
+    kids = _children(proc.pid)
+    assert kids, "the scan started no worker"
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    proc.wait(timeout=30)
+    assert proc.returncode != 0
+    time.sleep(0.5)
+    alive = [k for k in kids if _alive(k)]
+    assert not alive, f"workers still running after SIGTERM: {alive}"
+    assert not list((tmp_path / "out").glob("*.h5"))
+
+
+def _children(pid):
+    try:
+        out = subprocess_check(["ps", "-o", "pid=", "--ppid", str(pid)])
+    except Exception:
+        return []
+    return [int(x) for x in out.split() if x.strip()]
+
+
+def _alive(pid):
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().split()[2] != "Z"
+    except OSError:
+        return False
+
+
+def subprocess_check(cmd):
+    import subprocess
+    return subprocess.run(cmd, capture_output=True, text=True).stdout

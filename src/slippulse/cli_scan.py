@@ -69,8 +69,17 @@ def cmd_scan(args) -> int:
             raise UsageError("--scheduler needs dask.distributed: pip install "
                              "'slippulse[dask]'") from None
         executor = args.scheduler
-    res = run_scan(scan, executor=executor, workers=args.workers, overwrite=args.overwrite,
-                   progress=not args.no_progress)
+    import signal
+
+    def _terminate(signum, frame):          # a kill stops the workers too (scan._run_local)
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        res = run_scan(scan, executor=executor, workers=args.workers, overwrite=args.overwrite,
+                       progress=not args.no_progress)
+    finally:
+        signal.signal(signal.SIGTERM, old)
     for row in res.rows:
         if str(row["status"]).startswith("error"):
             print(f"scan {scan.name}: case {row['id']}: {row['status']}", file=sys.stderr)

@@ -429,7 +429,7 @@ def save_all(data, outdir, formats=("png", "pdf"), dpi=150):
 # Instability study (stability.py, ``slippulse dynamic scan``)
 
 def _steady_curve(path):
-    """(L, β) of every pulse of a steady family file, sorted by L."""
+    """(L, β, τ_d/τ_min) of every pulse of a steady family file, sorted by L."""
     pts = []
     for lab in h5io.list_pulses(path):
         pu = h5io.read_pulse(path, lab)[0]
@@ -437,7 +437,7 @@ def _steady_curve(path):
     return np.array(sorted(pts))
 
 
-def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_"):
+def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_steady=()):
     """Figures of a perturbation scan; returns the paths.
 
     File names start with ``prefix``:
@@ -482,11 +482,10 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_"):
 
     fig = Figure(figsize=(6.4, 4.6))
     ax = fig.add_subplot()
-    steady_files = sorted({str(r["steady"]) for r in runs if r.get("steady")})
-    for path in steady_files:
-        if os.path.exists(path):
-            cur = _steady_curve(path)
-            ax.plot(cur[:, 0], cur[:, 1], "k-", lw=3, alpha=0.3, label="steady pulses β(L)")
+    steady_files = sorted({str(r["steady"]) for r in runs if r.get("steady")} | set(extra_steady))
+    cur = np.vstack([_steady_curve(p) for p in steady_files if os.path.exists(p)])
+    cur = cur[np.argsort(cur[:, 2])]                  # along the family (τ_d), not by L
+    ax.plot(cur[:, 0], cur[:, 1], "k-", lw=3, alpha=0.3, label="steady pulses β(L)")
     for r in runs:
         s = series[r["file"]]
         cs = float(s["attrs"]["c_p"]) / float(s["attrs"]["beta"])
@@ -509,15 +508,21 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_"):
 
     modes = [p for p in pairs if p["_growth"].get("mode") is not None]
     if modes:
-        fig = Figure(figsize=(6.4, 4.2))
-        ax = fig.add_subplot()
-        for p in modes:
-            g = p["_growth"]
-            ax.plot(g["mode_xi"], g["mode"], lw=1,
-                    label=f"{p['tau_d_ratio']:.4g} τ_min, ε={p['eps']:g}, Δx={1e3 * float(p['dx']):g} mm")
-        ax.set_xlabel("(ξ − ξ_front)/L⁰")
-        ax.set_ylabel("δ ln(v/v*+1) per unit δv_max/v_max")
-        ax.legend(fontsize=6)
+        taus = sorted({round(float(p["tau_d_ratio"]), 6) for p in modes}, reverse=True)
+        fig = Figure(figsize=(3.2 * len(taus) + 0.6, 3.8))
+        axes = np.atleast_1d(fig.subplots(1, len(taus), sharey=False))
+        for ax, q in zip(axes, taus):
+            for p in modes:
+                if round(float(p["tau_d_ratio"]), 6) != q:
+                    continue
+                g = p["_growth"]
+                ax.plot(g["mode_xi"], g["mode"], lw=1,
+                        label=f"ε={p['eps']:g}, Δx={1e3 * float(p['dx']):g} mm, "
+                              f"{float(p['behind']):g}+{float(p['ahead']):g} L, {p['history']}")
+            ax.set_title(f"τ_d = {q:.4g} τ_min", fontsize=9)
+            ax.set_xlabel("(ξ − ξ_front)/L⁰")
+            ax.legend(fontsize=5)
+        axes[0].set_ylabel("δ ln(v/v*+1) per unit δv_max/v_max")
         fig.tight_layout()
         written.append(os.path.join(out_dir, f"{prefix}modes.png"))
         fig.savefig(written[-1], dpi=dpi)

@@ -441,8 +441,15 @@ def _run_local(todo, scan: Scan, workers: int):
             except Exception as exc:                           # noqa: BLE001 - e.g. worker died
                 outcome = ("error", _one_line(exc))
             yield futs[fut], outcome
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+    except BaseException:
+        # interrupted (Ctrl-C, SIGTERM via the CLI, the consumer stopped): stop the workers now —
+        # a worker left alone would finish its case and the cases already queued to it. Their
+        # files are written atomically (temp + rename), so a killed case leaves no output.
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            proc.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _run_dask(todo, scan: Scan, client):

@@ -440,6 +440,7 @@ def pair_table(rows: list[dict]) -> list[dict]:
         row["fate_plus"], row["fate_minus"] = rp.get("fate"), rm.get("fate")
         row["wall_time"] = float(rp.get("wall_time", math.nan)) + float(rm.get("wall_time", math.nan))
         row["_growth"] = g
+        row["_file_plus"], row["_file_minus"] = rp["file"], rm["file"]
         out.append(row)
     return out
 
