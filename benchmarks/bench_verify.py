@@ -228,6 +228,47 @@ def plot_convergence(rows):
     return paths
 
 
+def _failure_label(r):
+    sw = r["sweep"]
+    if sw in ("xi_stab", "xi_stab_1.2"):
+        return f"{r['label'][2:6]}: ξ_s = {r['xi_stab']:g}"
+    if sw == "fixed_dt":
+        return f"{r['label'][2:6]}: fixed Δt, β_cfl = {r['beta_cfl']:g}"
+    if sw == "coarse_dx":
+        return f"{r['label'][2:6]}: Δx = {r['dx'] * 1e3:g} mm"
+    if sw == "short_history":
+        return f"{r['label'][2:6]}: SOE x_max = {r['soe_x_max']:g}"
+    return f"{r['label'][2:6]}: {sw.replace('_1.2', '').replace('_', ' ')}"
+
+
+def plot_failure(rows):
+    """Failure map: the worst error of each case (log scale), lost pulses marked."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7.5, 0.28 * len(rows) + 1.2))
+    ax = fig.add_subplot()
+    y = np.arange(len(rows))[::-1]
+    for yi, r in zip(y, rows):
+        vals = [abs(r[k]) for k in ("c_p_mean_error", "v_max_error", "L_error", "lnv_error")
+                if r.get(k) is not None and math.isfinite(r[k])]
+        lost = r["status"].startswith("pulse lost")
+        err = max(vals) if vals and not lost else 1.0
+        base = "baseline" in r["sweep"]
+        ax.barh(yi, err, color="0.5" if base else ("C3" if lost or err > 1e-2 else "C0"))
+        note = r["status"].split(":")[1].strip() if lost else f"{err:.1e}"
+        ax.text(err * 1.15, yi, note + f"  (after {r['travelled']:.3g} L)", va="center", fontsize=6)
+    ax.set_yticks(y, [_failure_label(r) for r in rows], fontsize=7)
+    ax.set_xscale("log")
+    ax.set_xlim(1e-5, 1e3)
+    ax.axvline(1e-2, color="k", lw=0.6, ls=":")
+    ax.set_xlabel("worst of |c_p|, |v_max|, |L|, ln v errors (red: > 1e-2 or pulse lost; grey: "
+                  "baselines — at 1.2 τ_min over 0.3 L the unstable mode)", fontsize=7)
+    fig.tight_layout()
+    p = os.path.join(FIGURES, "verify_failure.png")
+    fig.savefig(p, dpi=120)
+    return p
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("what", choices=("convergence", "failure", "plot"))
@@ -240,13 +281,11 @@ def main():
             if os.path.exists(p):
                 rows = json.load(open(p))
                 table(rows, what)
-                if what == "convergence":
-                    print(plot_convergence(rows))
+                print(plot_convergence(rows) if what == "convergence" else plot_failure(rows))
         return 0
     rows = run_all(a.what)
     table(rows, a.what)
-    if a.what == "convergence":
-        print(plot_convergence(rows))
+    print(plot_convergence(rows) if a.what == "convergence" else plot_failure(rows))
     return 0
 
 
