@@ -185,3 +185,27 @@ eps = [1e-3, -1e-3, 3e-3, -3e-3]
     rows = [r for r in res.rows]
     assert {round(float(r["eps"]), 6) for r in rows} == {1e-3, -1e-3, 3e-3, -3e-3}
     assert all(r["fate"] in ("grew", "arrested", "undecided") for r in rows)
+
+
+@pytest.mark.slow
+def test_growth_rate_at_1_2_converges_under_refinement(params, tmp_path):
+    """The ±ε protocol at 1.2 τ_min, steady N = 3000: s at (Δx, ξ_s) = (2 mm, 0.5) and (1 mm, 0.25)
+    agree within 5 % (docs/stability.md: 23.5 and 23.4 per L). ~4 min."""
+    from slippulse.h5io import write_pulse
+    from slippulse.solver import solve_pulse
+    steady = str(tmp_path / "st.h5")
+    write_pulse(steady, solve_pulse(params, 1.2, n_points=3000).to_pulse(), params)
+    rates = []
+    for dx, xs in ((2e-3, 0.5), (1e-3, 0.25)):
+        series = []
+        for eps in (3e-4, -3e-4):
+            case = dict(steady=steady, label="td1.2000", eps=eps, dx=dx, xi_stab=xs, ahead=2.0,
+                        behind=3.0, distance=0.4, samples_per_L=400)
+            out = str(tmp_path / f"r{dx}_{eps}.h5")
+            run_case(case, out)
+            series.append(read_series(out))
+        g = pair_growth(series[0], series[1], 3e-4)
+        assert g["regime"] == "growth"
+        rates.append(g["s_per_L"])
+    assert 20 < rates[0] < 27
+    assert abs(rates[1] / rates[0] - 1) < 0.05

@@ -494,6 +494,21 @@ class SOEHistory(HistoryPolicy):
         self.Y[self.omega == 0.0] = 0.0
         self._next_dt = None
 
+    def shift(self, theta: np.ndarray) -> None:
+        """Relabel the ring by a spatial shift: V_k ← V_k e^{iθ_k} for the whole past.
+
+        The u and w accumulators hold the real and imaginary parts of V_k's past, so they rotate:
+        (Y⁽ᵘ⁾, Y⁽ʷ⁾) ← (cos θ Y⁽ᵘ⁾ − sin θ Y⁽ʷ⁾, sin θ Y⁽ᵘ⁾ + cos θ Y⁽ʷ⁾). Exact (the convolution is
+        linear and translation invariant); the pre-summed past of the next step is recomputed.
+        """
+        c = np.cos(theta)[:, None]
+        sn = np.sin(theta)[:, None]
+        yu = self.Y[:, :, 0].copy()
+        yw = self.Y[:, :, 1]
+        self.Y[:, :, 0] = c * yu - sn * yw
+        self.Y[:, :, 1] = sn * yu + c * yw
+        self._next_dt = None
+
     def value(self) -> np.ndarray:
         """H_k at the current time from the accumulators alone: Re Σ a Y⁽ᵘ⁾ + i Re Σ a Y⁽ʷ⁾."""
         aY = np.einsum("j,kjc->kc", self.C, self.Y)
@@ -537,6 +552,9 @@ class QuasiDynamicHistory(HistoryPolicy):
         pass
 
     def prefill_translating(self, vhat_k, kabs, c):
+        pass
+
+    def shift(self, theta):
         pass
 
     def value(self) -> np.ndarray:

@@ -436,16 +436,6 @@ def stress_mismatch(seed: SeededPulse, window: tuple[float, float] = (-2.0, 1.0)
             "stress_all": float(dtau.max())}
 
 
-def _rotate_history(Y, theta):
-    """Rotate SOE accumulators (u, w parts of V_k) by the phase e^{iθ_k} of a spatial shift."""
-    c = np.cos(theta)[:, None]
-    s = np.sin(theta)[:, None]
-    yu = Y[:, :, 0].copy()
-    yw = Y[:, :, 1]
-    Y[:, :, 0] = c * yu - s * yw
-    Y[:, :, 1] = s * yu + c * yw
-
-
 def follow_pulse(seed: SeededPulse, x_front: float) -> int:
     """Shift the periodic frame by whole cells so that the front returns to ``seed.x_front0``.
 
@@ -488,8 +478,7 @@ def follow_pulse(seed: SeededPulse, x_front: float) -> int:
     st.phi[-m:] = law.phi_rest
     st.delta_k = st.delta_k * ph
     st.V_k = st.fft.forward(st.V).copy()
-    _rotate_history(st.history.Y, theta)
-    st.history._next_dt = None                 # the pre-summed past is stale
+    st.history.shift(theta)                    # SOE accumulators rotate (sbi.SOEHistory.shift)
     seed.shift_cells += m
     _place_far_field(seed, x_front - m * st.dx)
     return m
