@@ -113,7 +113,7 @@ def report():
     # how closely the runs of each base pair follow the steady line c_p⁰(L)
     from slippulse.stability import line_deviation, read_series, steady_curve
     curve = steady_curve(*[f for f in (FAMILY, UPPER) if os.path.exists(f)])
-    print("\n| τ_d/τ_min | run | fate | L range (m) | c_p/c_s range | median |c_p/c_p⁰(L) − 1| | "
+    print("\n| τ_d/τ_min | run | fate | L range (m) | c_p/c_s range | median of abs(c_p/c_p⁰(L) − 1) | "
           "max | fraction of samples in the line's L range |")
     print("|---|---|---|---|---|---|---|---|")
     for name in SCANS:

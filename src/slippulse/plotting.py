@@ -497,6 +497,10 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_stead
                 color=colour[round(float(r["tau_d_ratio"]), 6)])
         ax.plot([s["attrs"]["L"]], [s["attrs"]["beta"]], "o", ms=4,
                 color=colour[round(float(r["tau_d_ratio"]), 6)])
+    for q in ratios:
+        ax.plot([], [], color=colour[q], label=f"τ_d = {q:.4g} τ_min (dot: the steady pulse)")
+    ax.plot([], [], "k-", lw=1, label="+ε")
+    ax.plot([], [], "k--", lw=1, label="−ε")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("pulse length L (m)")
