@@ -9,10 +9,10 @@ Run (from the repository root)::
    (``slippulse.continuation.run_family``, ~70 s).
 2. Runs ``slippulse dynamic verify`` for each case (outputs runs/verify_<label>_dx<mm>.h5 + .png) and
    prints a markdown table of the end-of-run errors, the growth rate of |v_max − v_max⁰| per pulse
-   length and the wall time (the table in benchmarks/verify_results.md comes from this script).
+   length and the wall time (the table in BENCHMARKS.md, "Seeded steady pulses" §1, comes from this script).
 
 Wall times measured (2-core machine, one run at a time): 1.2 τ_min 1 mm 81 s and 2 mm 26 s (both stop
-at ≈ 0.5 L, "pulse lost": an unstable mode, see benchmarks/verify_results.md); 1.1 τ_min 2 mm 81 s,
+at ≈ 0.5 L, "pulse lost": an unstable mode, see BENCHMARKS.md ("Seeded steady pulses")); 1.1 τ_min 2 mm 81 s,
 4 mm 20 s; 1.05 τ_min 2 mm 158 s, 4 mm 39 s. Total ≈ 7 min.
 """
 import argparse

@@ -22,7 +22,7 @@ L error 8.6e-2 and ln v error 5.5e-2 at 0.5 L (both tested below).
 
 At 1.2 τ_min the same machinery shows an exponentially growing deviation (e-folding every
 0.045 L, independent of Δx, Δt, domain and SOE kernel: an unstable mode of the pulse, see
-benchmarks/verify_results.md), so 1.2 τ_min cannot be "preserved" over 0.5 L; the slow test
+BENCHMARKS.md ("Seeded steady pulses")), so 1.2 τ_min cannot be "preserved" over 0.5 L; the slow test
 ``test_unstable_mode_growth_rate_is_converged`` checks that growth rate.
 """
 import numpy as np
