@@ -67,6 +67,8 @@ def _variant(p, base):
         diffs.append(f"domain {float(p['behind']):g}+{float(p['ahead']):g} L")
     if p["history"] != base["history"]:
         diffs.append(f"history {p['history']}")
+    if p.get("perturbation") != base.get("perturbation"):
+        diffs.append(f"perturbation {p['perturbation']}")
     return "; ".join(diffs) or "base"
 
 

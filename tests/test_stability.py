@@ -209,3 +209,14 @@ def test_growth_rate_at_1_2_converges_under_refinement(params, tmp_path):
         rates.append(g["s_per_L"])
     assert 20 < rates[0] < 27
     assert abs(rates[1] / rates[0] - 1) < 0.05
+
+
+def test_pair_growth_refuses_a_window_shorter_than_half_an_e_fold():
+    """A response that saturates (|d| > 0.03) right after its start-up jump gives no rate."""
+    t = np.linspace(0, 1, 1000)
+    # a start-up jump by 3 e-folds in 0.1, then growth at rate 8 that passes |d| = 0.03 after
+    # 0.4 more e-folds (what a τ_d change of 1e-3 does at 1.05 τ_min)
+    r = np.where(t < 0.1, 1e-3 * np.exp(30 * t), 1e-3 * np.exp(3.0) * np.exp(8 * (t - 0.1)))
+    g = pair_growth(_series(t, r), _series(t, -r), 1e-3)
+    assert g["regime"].startswith("too short")
+    assert math.isnan(g["s_per_s"])

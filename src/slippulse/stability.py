@@ -203,7 +203,7 @@ def _plateau(t, lr, tol, efold):
 
 
 def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: float = 0.05,
-                efold: float = 0.5, min_points: int = 5) -> dict:
+                efold: float = 0.5, min_points: int = 5, min_efolds: float = 0.5) -> dict:
     """Growth rate from a ±ε pair: the antisymmetric response r = (d₊ − d₋)/2.
 
     d± = v_max/v_max⁰ − 1 of the runs perturbed by +ε and −ε, sampled at nearly the same times
@@ -222,7 +222,9 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: f
     standard error, half the range of ℓ over the regime and half the difference of the slopes of
     the two half-windows. If the response changes by less than one e-fold over the run (decaying
     or neutral), the fit covers the second half of the run instead (``regime = "late half"``).
-    s is per second; s·L⁰/c_p⁰ per pulse length.
+    s is per second; s·L⁰/c_p⁰ per pulse length. A regime covering less than ``min_efolds``
+    e-folds of r gives no rate (``regime = "too short ..."``): the response left the linear
+    regime before the transient died (e.g. τ_d changed by 1e−3 at 1.05 τ_min).
 
     Parameters
     ----------
@@ -258,6 +260,10 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: f
         return out
     idx, spread = _plateau(t[:i1], np.log(np.maximum(ar[:i1], 1e-300)), tol, efold)
     out["regime"] = "growth" if idx is not None else "late half"
+    if idx is None and i1 < n:
+        # saturated (|d±| > d_max) before any plateau of the local rate: no rate
+        out["regime"] = "too short (saturated before a plateau)"
+        return out
     if idx is None:
         # less than one e-fold over the run: a decaying or neutral response; fit the second
         # half of the run (after the start-up transient)
@@ -265,6 +271,11 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: f
     if idx.size < min_points:
         return out
     f = fit_growth(t[idx], r[idx], lo=0.0, hi=np.inf, min_points=min_points)
+    if out["regime"] == "growth" and abs(f["s"]) * (f["x1"] - f["x0"]) < min_efolds:
+        # the plateau covers less than min_efolds e-folds of r: the response left the linear
+        # regime (d_max) before the start-up transient had died — no rate
+        out["regime"] = f"too short ({abs(f['s']) * (f['x1'] - f['x0']):.2f} e-folds)"
+        return out
     err = max(f["s_err"], spread) if np.isfinite(spread) else f["s_err"]
     out.update(s_per_s=f["s"], s_per_s_err=err, s_per_L=f["s"] * conv,
                s_per_L_err=err * conv, t0=f["x0"], t1=f["x1"], n=f["n"],
