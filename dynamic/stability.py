@@ -113,7 +113,7 @@ def report():
         print(f"{name}: s = {b:.4g}/L (base); relative changes: "
               + ", ".join(f"{k}: {v:+.1%}" for k, v in dev.items()))
     # how closely the runs of each base pair follow the steady line c_p⁰(L)
-    from slippulse.stability import line_deviation, read_series, steady_curve
+    from slippulse.stability import line_deviation, read_series, smoothed_c_p, steady_curve
     curve = steady_curve(*[f for f in (FAMILY, UPPER) if os.path.exists(f)])
     print("\n| τ_d/τ_min | run | fate | L range (m) | c_p/c_s range | median of abs(c_p/c_p⁰(L) − 1) | "
           "max | fraction of samples in the line's L range |")
@@ -127,8 +127,7 @@ def report():
                                 q["eps"] >= 0.01 - 1e-12]:
                 s = read_series(p[key])
                 cs = float(s["attrs"]["c_p"]) / float(s["attrs"]["beta"])
-                cp = np.convolve(np.nan_to_num(s["c_p"], nan=float(s["attrs"]["c_p"])),
-                                 np.ones(5) / 5, mode="same")
+                cp = smoothed_c_p(s)
                 keep = (s["distance"] >= 0.1) & (np.arange(cp.size) >= 2) & \
                     (np.arange(cp.size) < cp.size - 2)
                 dev = line_deviation(s["L"][keep], cp[keep], curve)

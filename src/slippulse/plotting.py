@@ -428,15 +428,6 @@ def save_all(data, outdir, formats=("png", "pdf"), dpi=150):
 # --------------------------------------------------------------------------------------------
 # Instability study (stability.py, ``slippulse dynamic scan``)
 
-def _steady_curve(path):
-    """(L, β, τ_d/τ_min) of every pulse of a steady family file, sorted by L."""
-    pts = []
-    for lab in h5io.list_pulses(path):
-        pu = h5io.read_pulse(path, lab)[0]
-        pts.append((pu.L, pu.beta, pu.tau_d_ratio))
-    return np.array(sorted(pts))
-
-
 def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_steady=()):
     """Figures of a perturbation scan; returns the paths.
 
@@ -449,7 +440,7 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_stead
     * ``stab_modes.png``: the unstable mode of each ±ε pair (antisymmetric deviation of
       ln(v/v*+1) per unit v_max deviation, co-moving frame), ``stability.pair_growth``.
     """
-    from .stability import read_series
+    from .stability import read_series, smoothed_c_p, steady_curve
 
     os.makedirs(out_dir, exist_ok=True)
     runs = [r for r in rows if r.get("file") and os.path.exists(str(r["file"]))]
@@ -483,15 +474,13 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_stead
     fig = Figure(figsize=(6.4, 4.6))
     ax = fig.add_subplot()
     steady_files = sorted({str(r["steady"]) for r in runs if r.get("steady")} | set(extra_steady))
-    cur = np.vstack([_steady_curve(p) for p in steady_files if os.path.exists(p)])
+    cur = steady_curve(*[p for p in steady_files if os.path.exists(p)])
     cur = cur[np.argsort(cur[:, 2])]                  # along the family (τ_d), not by L
-    ax.plot(cur[:, 0], cur[:, 1], "k-", lw=3, alpha=0.3, label="steady pulses β(L)")
+    ax.plot(cur[:, 0], cur[:, 3], "k-", lw=3, alpha=0.3, label="steady pulses β(L)")
     for r in runs:
         s = series[r["file"]]
         cs = float(s["attrs"]["c_p"]) / float(s["attrs"]["beta"])
-        # c_p from the front positions, smoothed over 5 samples (sampling noise of Δx/Δt)
-        cp = np.convolve(np.nan_to_num(s["c_p"], nan=float(s["attrs"]["c_p"])),
-                         np.ones(5) / 5, mode="same")
+        cp = smoothed_c_p(s)
         ls = "-" if float(r["eps"]) > 0 else "--"
         ax.plot(s["L"][2:-2], cp[2:-2] / cs, ls=ls, lw=1,
                 color=colour[round(float(r["tau_d_ratio"]), 6)])

@@ -158,7 +158,7 @@ def slip_across(st, x_front, L):
     return float(d[0] - d[1])
 
 
-def steady_slip(pulse, params, xi_front):
+def steady_slip(pulse, xi_front):
     """The same slip for the isolated steady pulse: ∫(v − v_stick)dξ/c_p over [ξ_R − 1.5L, ξ_R + 0.5L]."""
     sel = (pulse.xi >= xi_front - 1.5 * pulse.L) & (pulse.xi <= xi_front + 0.5 * pulse.L)
     return float(np.trapezoid(pulse.v[sel] - pulse.v_stick, pulse.xi[sel]) / pulse.c_p)
@@ -264,11 +264,10 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
         xr = X - seed.shift_cells * st.dx
         raw = slip_across(st, xr, pulse.L)
         if j == 0:      # the periodic slip's uniform gradient (seeding.periodic_slip) is constant
-            slip_fix[0] = steady_slip(pulse, params, xi_front) - raw
+            slip_fix[0] = steady_slip(pulse, xi_front) - raw
         rows.append((st.t, X, L, vmax, err, raw + slip_fix[0]))
         devs.append(deviation_field(st, xr, steady_y, xi_front, rel_dev, p.v_star))
         if j in t_snap:
-            xr = X - seed.shift_cells * st.dx
             seed_snap.append((st.t, st.x - xr, st.V.copy()))
 
     seed_snap = []

@@ -21,7 +21,6 @@ out.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
@@ -152,11 +151,22 @@ def mode_shape(dev, d, x, fit):
     if not np.isfinite(fit["s"]):
         return None, math.nan
     sel = (x >= fit["x0"]) & (x <= fit["x1"]) & np.isfinite(d) & (np.abs(d) > 0)
-    rows = dev[sel] / d[sel][:, None]
+    return _mode(dev[sel] / d[sel][:, None])
+
+
+def _mode(rows):
+    """Mean of normalised deviation rows and max‖row − mean‖₂/‖mean‖₂ (nan for a zero mean)."""
     mode = rows.mean(axis=0)
     nm = float(np.linalg.norm(mode))
     spread = float(max(np.linalg.norm(r - mode) for r in rows) / nm) if nm > 0 else math.nan
     return mode, spread
+
+
+def smoothed_c_p(series: dict) -> np.ndarray:
+    """c_p(t) of a run (``read_series``) smoothed over 5 samples, the first sample (NaN) set to
+    the steady c_p⁰: the front speed ΔX/Δt between samples carries sub-cell position noise."""
+    c0 = float(series["attrs"]["c_p"])
+    return np.convolve(np.nan_to_num(series["c_p"], nan=c0), np.ones(5) / 5, mode="same")
 
 
 def _plateau(t, lr, tol, efold):
@@ -283,13 +293,8 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: f
     if "deviation" in plus and "deviation" in minus:
         devm = np.array([np.interp(t, tm, col) for col in minus["deviation"].T]).T
         dev = 0.5 * (plus["deviation"][:n] - devm)
-        rows = dev[idx] / r[idx][:, None]
-        mode = rows.mean(axis=0)
-        nm = float(np.linalg.norm(mode))
-        out["mode"] = mode
+        out["mode"], out["mode_spread"] = _mode(dev[idx] / r[idx][:, None])
         out["mode_xi"] = plus.get("deviation_xi")
-        out["mode_spread"] = (float(max(np.linalg.norm(rw - mode) for rw in rows) / nm)
-                              if nm > 0 else math.nan)
     return out
 
 
@@ -365,6 +370,7 @@ def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
     import h5py
 
     from .pulse_verify import write_result
+    from .scan import case_json
 
     c = check_case(case)
     wall0 = time.perf_counter()
@@ -376,8 +382,8 @@ def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
     with h5py.File(tmp, "a") as h5:
         for k, v in row.items():
             h5.attrs[k] = v
-        h5.attrs["case_json"] = json.dumps(case, sort_keys=True)
-        h5.attrs["case_resolved_json"] = json.dumps(c, sort_keys=True)
+        h5.attrs["case_json"] = case_json(case)
+        h5.attrs["case_resolved_json"] = case_json(c)
         h5.attrs["run_wall_time"] = time.perf_counter() - wall0
         h5.attrs["complete"] = True
     os.replace(tmp, out_path)
@@ -477,13 +483,14 @@ def scan_figures(rows: list[dict], out_dir: str) -> list[str]:
 
 
 def steady_curve(*paths) -> np.ndarray:
-    """(L, c_p, τ_d/τ_min) of every pulse in the steady family files, sorted by L (m, m/s)."""
+    """(L, c_p, τ_d/τ_min, β) of every pulse in the steady family files (one per τ_d), sorted by
+    L (m, m/s)."""
     from .h5io import list_pulses, read_pulse
     pts = {}
     for path in paths:
         for lab in list_pulses(path):
             pu = read_pulse(path, lab)[0]
-            pts[round(pu.tau_d_ratio, 6)] = (pu.L, pu.c_p, pu.tau_d_ratio)
+            pts[round(pu.tau_d_ratio, 6)] = (pu.L, pu.c_p, pu.tau_d_ratio, pu.beta)
     return np.array(sorted(pts.values()))
 
 
