@@ -96,6 +96,55 @@ def cmd_family(args) -> int:
     return 0 if ok else 1
 
 
+def spectrum_line(label, res) -> str:
+    """One line per pulse: leading σ (in c_p/L and 1/s), number unstable, neutral check, cost."""
+    if res.status != "converged":
+        return f"{label}: EIGEN-SOLVE FAILED ({res.message}); nothing stored"
+    if res.sigmas.size == 0:
+        lead = "no eigenvalue with Re sigma > 0.001 c_p/L (stable or below resolution)"
+    else:
+        s = res.leading
+        kind = "real" if abs(s.imag) <= 1e-8 * abs(s) else f"complex, Im {s.imag / res.rate_unit:.4g}"
+        lead = (f"s = {s.real / res.rate_unit:.5g} c_p/L = {s.real:.5g} 1/s ({kind}), "
+                f"{res.n_unstable} unstable")
+    return (f"{label}: {lead}; translation sigma_t = {res.neutral[1].real / res.rate_unit:.1e} c_p/L;"
+            f" N={res.n_points}, {res.wall_time:.1f} s")
+
+
+def cmd_stability(args) -> int:
+    from .spectrum import check_family_file, run_spectrum
+    labels = args.labels or None
+    chosen, _ = check_family_file(args.file, labels)      # bad input fails here, before any work
+    bar = tqdm(total=len(chosen), desc="spectrum", unit="pulse", disable=args.quiet,
+               file=sys.stderr)
+
+    def progress(label, res, stored):
+        if res is not None:
+            tqdm.write(spectrum_line(label, res), file=sys.stdout)
+        else:
+            tqdm.write(f"{label}: stored spectrum kept (s = {stored['leading_s_per_L']:.5g} c_p/L)",
+                       file=sys.stdout)
+        bar.set_postfix_str(label)
+        bar.update(1)
+
+    rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
+                       progress=progress)
+    bar.close()
+    done = [r for r in rep.results if r.status == "converged"]
+    lead = [(r.label, r.leading.real / r.rate_unit) for r in done if r.sigmas.size]
+    span = (f"leading s from {lead[0][1]:.4g} ({lead[0][0]}) to {lead[-1][1]:.4g} c_p/L "
+            f"({lead[-1][0]})" if lead else "no unstable eigenvalue found")
+    n_unst = sorted({r.n_unstable for r in done})
+    print(f"stability {args.file}: {len(done)} pulses solved, {len(rep.skipped)} kept, "
+          f"{len(rep.failed)} failed; {span}; unstable modes per pulse: {n_unst}; "
+          f"wall={rep.wall_time:.1f} s")
+    if args.figure:
+        from .spectrum_plots import plot_family_spectrum
+        plot_family_spectrum(args.file, args.figure)
+        print(f"figure: {args.figure}")
+    return 1 if rep.failed else 0
+
+
 def register(sub) -> None:
     p_steady = sub.add_parser("steady", help="steady pulse solutions",
                               description="Steady self-healing pulses (mode III).")
@@ -125,6 +174,23 @@ def register(sub) -> None:
     p.add_argument("--out", default=None, help="output HDF5 (default runs/steady/family.h5)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_family)
+
+    p = ss.add_parser("stability", help="linear stability spectrum of the pulses of a file",
+                      description="Eigenvalues sigma (perturbations ~ exp(sigma t) in the co-moving "
+                                  "frame) and modes of each converged pulse, from the steady "
+                                  "solution alone (nonlinear eigenproblem on the pulse's grid, "
+                                  "docs/stability.md section 8). Results go into each pulse's "
+                                  "group ('spectrum'); rerunning resumes.")
+    p.add_argument("file", metavar="FILE", help="HDF5 pulse or family file")
+    p.add_argument("--labels", nargs="+", default=None, metavar="LABEL",
+                   help="pulses to analyse, e.g. td1.2000 td1.0500 (default: all converged)")
+    p.add_argument("--overwrite", action="store_true", help="recompute stored spectra")
+    p.add_argument("--no-extra", action="store_true",
+                   help="only the leading eigenvalue (skip the search below it)")
+    p.add_argument("--figure", default=None, metavar="PNG",
+                   help="also draw s(tau_d) and the leading modes into this file")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_stability)
 
     from .analysis import cmd_analyse
     p = ss.add_parser("analyse", help="analyse a pulse family file",

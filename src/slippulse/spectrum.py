@@ -1,0 +1,657 @@
+"""Linear stability spectrum of steady pulses on the steady solver's grid (docs/stability.md §8).
+
+A perturbation ∝ e^{σt} at fixed ξ = x − c_p t of a steady pulse (v₀, φ₀, β) obeys
+
+    V₁ = σ δ₁ − c δ₁′                                      (slip rate; c = β c_s)
+    (σ − c ∂_ξ) φ₁ = −w φ₁ − w_v φ₀ V₁                      (ageing law g = 1 − w φ, linearised)
+    σ_n (f_v V₁ + f_φ φ₁) = K_σ[δ₁]                         (friction = elastodynamics)
+
+with K_σ of symbol −(μ/2)√(k² + (σ − ikc)²/c_s²) (Re √ > 0). On the grid, δ₁ is the unknown (its
+cubic spline gives δ₁′), φ₁ = Φ(σ) V₁ by the exponential state recursion, and the problem is the
+nonlinear eigenproblem
+
+    M(σ) δ = 0,   M(σ) = [σ_n (diag f_v + diag f_φ Φ(σ)) (σ I − c S) − K_σ] / τ_d,
+
+S the spline-slope matrix. M is analytic for Re σ > 0 (the imaginary axis carries the continuous
+spectrum of radiated waves and of the rest state behind the pulse), and at σ = 0 it is the steady
+problem linearised: uniform slip (δ = 1) is an exact null vector, translation (δ = δ₀′) one up to
+the discretisation. Eigenvalues are found by shift-invert Arnoldi on the linearisation
+M(σ_a) + (σ − σ_a) M′(σ_a) and refined by Newton on the bordered system (nonlinear inverse
+iteration with the exact M′).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import lu_factor, lu_solve, solve_banded
+
+from . import friction as fr
+from .hilbert import _spline_system, _tail_columns, hilbert_matrix
+from .spectrum_kernels import (KernelTables, assemble_w, slip_coefficients, state_rows,
+                               times_D)
+
+
+# ----------------------------------------------------------------------- spline helpers
+def _times_slopes(B, xi):
+    """B S for the spline-slope matrix S = T⁻¹ R (natural cubic spline), in O(N²): X = B T⁻¹ by a
+    banded solve (Tᵀ Xᵀ = Bᵀ), then X R with R tridiagonal."""
+    T, (lo, di, up) = _spline_system(xi)
+    Tt = np.zeros_like(T)
+    Tt[1] = T[1]
+    Tt[0, 1:] = T[2, :-1]
+    Tt[2, :-1] = T[0, 1:]
+    X = solve_banded((1, 1), Tt, B.T, check_finite=False).T
+    out = X * di
+    out[:, :-1] += X[:, 1:] * lo[1:]
+    out[:, 1:] += X[:, :-1] * up[:-1]
+    return out
+
+
+def slope_matrix(xi):
+    """Dense S with S u = slopes of the natural cubic spline through (ξ, u)."""
+    return _times_slopes(np.eye(xi.size), xi)
+
+
+# ------------------------------------------------------------------- elastic operator
+class ElasticOperator:
+    """K_σ on a fixed grid: τ₁ = K_σ δ₁ for the two identical half-spaces (mode III).
+
+    K_σ = (λ/π) H S + (λγ/π) H₀ + λ 𝒲̃(σ),  λ = μ√(1−β²)/2,  γ = βσ/(c_s(1−β²)),
+
+    H: PV Hilbert matrix of the cubic spline with the algebraic far-field tails (the steady
+    solver's operator), H₀: the same without tails, 𝒲̃: product integration of the kernel W̃
+    (:mod:`slippulse.spectrum_kernels`). At σ = 0, K_0 = (λ/π) H S is the steady operator acting on
+    V = −c δ′.
+    """
+
+    def __init__(self, xi, beta, c_s, mu, center=None, H=None):
+        self.xi = np.ascontiguousarray(xi, dtype=float)
+        self.beta = float(beta)
+        self.c_s = float(c_s)
+        self.mu = float(mu)
+        if center is None:
+            center = 0.0 if self.xi[0] < 0.0 < self.xi[-1] else 0.5 * (self.xi[0] + self.xi[-1])
+        self.center = center
+        H = hilbert_matrix(self.xi, center=center) if H is None else H
+        self.H = H
+        behind, ahead = _tail_columns(self.xi, center)
+        self.H0 = H.copy()
+        self.H0[:, 0] -= behind
+        self.H0[:, -1] -= ahead
+        self.HS = _times_slopes(H, self.xi)
+        self.lam = self.mu * math.sqrt(1.0 - self.beta ** 2) / 2.0
+        h = np.diff(self.xi)
+        self.r_min = 0.005 * h.min()
+        self.r_max = 1.01 * (self.xi[-1] - self.xi[0])
+
+    def gamma(self, sigma):
+        return self.beta * sigma / (self.c_s * (1.0 - self.beta ** 2))
+
+    def matrices(self, sigma, deriv=True):
+        """(K_σ, ∂K_σ/∂σ) as complex N×N arrays (∂K only if deriv)."""
+        sigma = complex(sigma)
+        n = self.xi.size
+        lam = self.lam
+        g_over_s = self.beta / (self.c_s * (1.0 - self.beta ** 2))
+        K = (lam / math.pi) * self.HS.astype(complex)
+        dK = (lam * g_over_s / math.pi) * self.H0.astype(complex) if deriv else None
+        if sigma == 0.0:
+            return K, dK
+        K += (lam * self.gamma(sigma) / math.pi) * self.H0
+        W, dW = self.kernel_matrices(sigma, deriv)
+        K += lam * W
+        if deriv:
+            dK += lam * dW
+        return K, dK
+
+    def kernel_matrices(self, sigma, deriv=True):
+        """(𝒲̃(σ), ∂_σ𝒲̃(σ)): ∫ δ(z) W̃(ξ_i − z) dz for the cubic spline of δ, and its σ-derivative."""
+        n = self.xi.size
+        tab = KernelTables(sigma, self.beta, self.c_s, self.r_min, self.r_max)
+        AW = np.zeros((n, n), complex)
+        BW = np.zeros((n, n), complex)
+        AS = np.zeros((n, n), complex)
+        BS = np.zeros((n, n), complex)
+        assemble_w(self.xi, *tab.args(), AW, BW, AS, BS)
+        W = AW + _times_slopes(BW, self.xi)
+        dW = AS + _times_slopes(BS, self.xi) if deriv else None
+        return W, dW
+
+    def apply(self, sigma, delta):
+        """K_σ δ (for tests)."""
+        return self.matrices(sigma, deriv=False)[0] @ delta
+
+
+def symbol(k, sigma, beta, c_s, mu):
+    """Fourier symbol −(μ/2)√(k² + (σ − ikc)²/c_s²), principal root (Re ≥ 0); e^{ikξ} convention."""
+    c = beta * c_s
+    return -(mu / 2.0) * np.sqrt(k * k + (sigma - 1j * k * c) ** 2 / c_s ** 2 + 0j)
+
+
+# ------------------------------------------------------------------ full stability operator
+class StabilityOperator:
+    """M(σ) for one steady pulse on its own grid (see module notes)."""
+
+    def __init__(self, pulse, params):
+        p = params
+        self.params = p
+        self.pulse = pulse
+        self.xi = np.ascontiguousarray(pulse.xi, dtype=float)
+        self.n = self.xi.size
+        self.beta = float(pulse.beta)
+        self.c = self.beta * p.c_s
+        self.tau_d = float(pulse.tau_d)
+        v, phi = np.asarray(pulse.v, float), np.asarray(pulse.phi, float)
+        self.v0, self.phi0 = v, phi
+        la = p.law_args
+        self.fv = p.sigma * fr.df_dv(v, phi, *la)
+        self.fphi = p.sigma * fr.df_dphi(v, phi, *la)
+        self.w = fr.heal_rate(v, p.v_star, p.D)
+        self.src = v / (p.D * p.D * self.w) * phi                # w_v φ₀ = −∂g/∂v
+        self.elastic = ElasticOperator(self.xi, self.beta, p.c_s, p.mu)
+        self.S = slope_matrix(self.xi)
+        # Φ(σ) is the exponential recursion for (σ − c∂_ξ + w) φ₁ = −w_v φ₀ V₁; it is corrected by
+        # the σ-independent O(h²) difference that makes Φ(0) the exact derivative ∂φ/∂v of the steady
+        # solver's discrete state map, so that M(0) is exactly the linearised discrete steady
+        # problem (measured at 1.05 τ_min, N = 2000: the translation eigenvalue drops 3×).
+        from .steady import SteadyProblem
+        probe = SteadyProblem(p, pulse.tau_d_ratio, self.xi, 0, 0.0, H=np.zeros((1, 1)))
+        P = probe.state(v, self.beta)[1] / v[None, :]
+        Phi0 = np.empty((self.n, self.n), complex)
+        state_rows(self.xi, self.c, self.w, self.src, 0j, np.eye(self.n, dtype=complex), Phi0,
+                   np.empty((1, 1), complex), False, False)
+        self.phi_correction = (self.fphi[:, None] * (P - Phi0)).real
+        self.length = float(pulse.L)
+        self.rate_unit = self.c / self.length                      # c_p / L, 1/s
+
+    def matrices(self, sigma, deriv=True):
+        """(M(σ), M′(σ)) acting on the slip-rate perturbation V₁ (rows divided by τ_d).
+
+        δ₁ = D(σ) V₁ integrates (σ − c∂_ξ) δ₁ = V₁ from δ₁ = 0 far ahead (bounded ahead; behind it
+        decays as e^{σξ/c}), φ₁ = Φ(σ) V₁, and with δ₁′ = (σ δ₁ − V₁)/c the elastic stress is
+        K_σ δ₁ = X(σ) D(σ) V₁ − (λ/(πc)) H V₁,  X = (λσ/(πc)) H + (λγ/π) H₀ + λ 𝒲̃(σ).
+        At σ = 0: M(0) = [σ_n (f_v + f_φ Φ(0)) + μF(β) H]/τ_d, the steady problem linearised in v.
+        """
+        sigma = complex(sigma)
+        n = self.n
+        el = self.elastic
+        lam, c = el.lam, self.c
+        eye = np.eye(n, dtype=complex)
+        Phi = np.empty((n, n), complex)
+        dPhi = np.empty((n, n) if deriv else (1, 1), complex)
+        state_rows(self.xi, c, self.w, self.src, sigma, eye, Phi, dPhi, deriv, False)
+        M = self.fphi[:, None] * Phi
+        M += self.phi_correction
+        M[np.diag_indices(n)] += self.fv
+        M += (lam / (math.pi * c)) * el.H
+        dM = self.fphi[:, None] * dPhi if deriv else None
+        if sigma != 0.0:
+            W, dW = el.kernel_matrices(sigma, deriv)
+            X = lam * W
+            X += (lam * sigma / (math.pi * c)) * el.H
+            X += (lam * el.gamma(sigma) / math.pi) * el.H0
+        else:
+            X = np.zeros((n, n), complex)
+            dW = np.zeros((n, n), complex) if deriv else None
+        if deriv:
+            dX = lam * dW
+            dX += (lam / (math.pi * c)) * el.H
+            dX += (lam * el.gamma(1.0) / math.pi) * el.H0
+        else:
+            dX = np.empty((1, 1), complex)
+        coef = slip_coefficients(self.xi, c, sigma)
+        XD = np.empty((n, n), complex)
+        dXD = np.empty((n, n) if deriv else (1, 1), complex)
+        times_D(X, dX, *coef, XD, dXD, deriv)
+        M -= XD
+        M /= self.tau_d
+        if deriv:
+            dM -= dXD
+            dM /= self.tau_d
+        return M, dM
+
+    def slip(self, sigma, V):
+        """δ₁ = D(σ) V₁ (the recursion of :func:`slip_coefficients` applied to a vector)."""
+        a, b, bp = slip_coefficients(self.xi, self.c, complex(sigma))[:3]
+        d = np.zeros(self.n, complex)
+        for i in range(self.n - 2, -1, -1):
+            d[i] = a[i] * d[i + 1] + b[i] * V[i + 1] + bp[i] * V[i]
+        return d
+
+    def state(self, sigma, V):
+        """φ₁ = Φ(σ) V₁."""
+        Y = np.empty((self.n, 1), complex)
+        state_rows(self.xi, self.c, self.w, self.src, complex(sigma),
+                   np.ascontiguousarray(np.asarray(V, complex)[:, None]), Y,
+                   np.empty((1, 1), complex), False, False)
+        return Y[:, 0]
+
+    def fields(self, sigma, V):
+        """Mode fields from the slip-rate perturbation V₁: δ₁, V₁, φ₁ and the perturbation of
+        ln(v/v* + 1) = V₁/(v₀ + v*), scaled so that the last has modulus 1 and phase 0 at its
+        largest modulus."""
+        V = np.asarray(V, complex)
+        lnv = V / (self.v0 + self.params.v_star)
+        k = int(np.argmax(np.abs(lnv)))
+        scale = 1.0 / lnv[k]
+        V = V * scale
+        return {"delta": self.slip(sigma, V), "V": V, "phi": self.state(sigma, V),
+                "lnv": lnv * scale}
+
+    def matrices_delta(self, sigma):
+        """M(σ) acting on δ₁ with δ₁′ from its cubic spline (the form in which uniform slip,
+        δ₁ = 1, is an exact null vector at σ = 0). Used to check that neutral mode."""
+        sigma = complex(sigma)
+        n = self.n
+        Vm = -self.c * self.S.astype(complex)
+        Vm[np.diag_indices(n)] += sigma
+        Y = np.empty((n, n), complex)
+        state_rows(self.xi, self.c, self.w, self.src, sigma, Vm, Y, np.empty((1, 1), complex),
+                   False)
+        K = self.elastic.matrices(sigma, deriv=False)[0]
+        return (self.fv[:, None] * Vm + self.fphi[:, None] * Y - K) / self.tau_d
+
+
+# ------------------------------------------------------------------------------ eigen-solvers
+@dataclass
+class Eigen:
+    """One eigenvalue σ (1/s) with its mode δ (normalised: e·δ = 1) and how it was obtained."""
+
+    sigma: complex
+    delta: np.ndarray
+    converged: bool
+    iterations: int
+    residual: float
+    message: str = ""
+    history: list = field(default_factory=list)
+
+
+def _relres(M, x):
+    """Componentwise backward error max_i |M x|_i / (|M| |x|)_i (the rows of M span many decades:
+    the leading edge is resolved with cells 10⁴× finer than the body)."""
+    return float(np.max(np.abs(M @ x) / (np.abs(M) @ np.abs(x))))
+
+
+def newton_eigen(op, sigma0, x0, tol=1e-10, max_iter=12, min_re=None, res_tol=1e-6):
+    """Newton on the bordered system M(σ) x = 0, eᴴx = 1 (nonlinear inverse iteration with M′).
+
+    u = M(σ_k)⁻¹ M′(σ_k) x_k,  σ_{k+1} = σ_k − 1/(eᴴu),  x_{k+1} = u/(eᴴu);  quadratic.
+    Converged when |σ_{k+1} − σ_k| ≤ tol·max(|σ_k|, c/L) and the componentwise backward error of
+    M(σ_k) x_k is below res_tol. Leaving the analytic half-plane (Re σ ≤ min_re) is a failure.
+    """
+    scale = op.rate_unit
+    min_re = 1e-4 * scale if min_re is None else min_re
+    x = np.asarray(x0, complex)
+    e = x / np.vdot(x, x)                  # eᴴ x0 = 1, e fixed
+    x = x / np.vdot(e, x)
+    sigma = complex(sigma0)
+    hist = []
+    res = float("nan")
+    for it in range(1, max_iter + 1):
+        if not sigma.real > min_re:
+            return Eigen(sigma, x, False, it, res,
+                         f"left the half-plane Re sigma > {min_re / scale:.0e} c/L "
+                         f"(sigma L/c = {sigma / scale:.4g})", hist)
+        M, dM = op.matrices(sigma)
+        res = _relres(M, x)
+        lu = lu_factor(M, check_finite=False)
+        u = lu_solve(lu, dM @ x, check_finite=False)
+        eu = np.vdot(e, u)
+        step = 1.0 / eu
+        sigma_new = sigma - step
+        x = u / eu
+        hist.append(complex(sigma_new))
+        if abs(step) <= tol * max(abs(sigma), scale):
+            ok = res < res_tol
+            return Eigen(sigma_new, x, ok, it, res,
+                         "converged" if ok else f"step converged but residual {res:.1e}", hist)
+        sigma = sigma_new
+    return Eigen(sigma, x, False, max_iter, res,
+                 f"no convergence in {max_iter} Newton iterations", hist)
+
+
+def _arnoldi(matvec, n, k, tol=1e-8, maxiter=60):
+    """k largest-modulus eigenpairs by ARPACK; those converged when ARPACK stops early (the
+    continuum-like cluster near the imaginary axis converges slowly and is not wanted)."""
+    from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
+    A = LinearOperator((n, n), matvec=matvec, dtype=complex)
+    try:
+        return eigs(A, k=min(k, n - 2), which="LM", ncv=max(2 * k + 1, 20), tol=tol,
+                    maxiter=maxiter)
+    except ArpackNoConvergence as exc:
+        return exc.eigenvalues, exc.eigenvectors
+
+
+def linearised_candidates(op, sigma_a, k=1):
+    """Eigenvalues of the pencil M(σ_a) + (σ − σ_a) M′(σ_a) nearest σ_a, with vectors.
+
+    Shift-invert: M(σ_a)⁻¹ M′(σ_a) x = ν x  ⇒  σ = σ_a − 1/ν; the k largest |ν| by ARPACK.
+    """
+    M, dM = op.matrices(sigma_a)
+    lu = lu_factor(M, check_finite=False)
+    nu, vecs = _arnoldi(lambda v: lu_solve(lu, dM @ v, check_finite=False), op.n, k)
+    sig = complex(sigma_a) - 1.0 / nu
+    order = np.argsort(np.abs(sig - sigma_a))
+    return sig[order], vecs[:, order]
+
+
+def neutral_modes(op, k=2):
+    """The pencil M(0) + σ M′(0⁺) near σ = 0, whose smallest eigenvalue is translation
+    (V₁ = v₀′, exact in the continuum; here up to the discretisation). M′(0⁺) omits the
+    O(σ ln σ) part of the kernel, which vanishes at 0. Returns (sigmas, vectors) by |σ|."""
+    M0, dM0 = op.matrices(0.0)
+    shift = 1e-3 * op.rate_unit
+    A0 = M0 + shift * dM0                   # shifted so that the factorisation is regular
+    lu = lu_factor(A0, check_finite=False)
+    nu, vecs = _arnoldi(lambda v: lu_solve(lu, dM0 @ v, check_finite=False), op.n, k, tol=1e-10,
+                        maxiter=100)
+    sig = shift - 1.0 / nu
+    order = np.argsort(np.abs(sig))
+    return sig[order], vecs[:, order]
+
+
+# ------------------------------------------------------------------------ one pulse, a family
+DEFAULT_SHIFTS = (25.0, 8.0, 2.0, 0.5)     # first search shifts, in units of c_p/L
+MIN_RE = 1e-3                              # eigenvalues with Re σ < MIN_RE c/L are not sought
+
+
+@dataclass
+class PulseSpectrum:
+    """Eigenvalues of one pulse (sorted by decreasing Re σ), their modes, the neutral pair."""
+
+    label: str
+    sigmas: np.ndarray            # complex, 1/s
+    modes: list                   # dicts of fields per eigenvalue (see StabilityOperator.fields)
+    neutral: np.ndarray           # σ of uniform slip and translation (1/s)
+    translation_error: float      # relative distance of the translation mode from δ₀′ (in V₁)
+    rate_unit: float              # c_p / L, 1/s
+    n_points: int
+    status: str
+    message: str
+    wall_time: float
+    newton_iterations: int = 0
+    failures: list = field(default_factory=list)
+    stage_times: dict = field(default_factory=dict)
+
+    @property
+    def n_unstable(self):
+        return int(np.sum(self.sigmas.real > 0))
+
+    @property
+    def leading(self):
+        return complex(self.sigmas[0]) if self.sigmas.size else complex("nan")
+
+
+def _translation_check(op, sigs, vecs):
+    """Pick the translation mode among the near-zero pencil modes: the one whose V₁ is closest
+    to v₀′ (δ₁ = δ₀′ ⇒ V₁ = −c δ₀″ = v₀′). Returns (σ_t, relative distance, index)."""
+    vp = op.S @ op.v0                                   # v₀′ on the grid (spline slopes)
+    best = (complex("nan"), np.inf, -1)
+    for j in range(len(sigs)):
+        V = vecs[:, j]
+        nv = np.linalg.norm(V)
+        if nv == 0.0:
+            continue
+        a = np.vdot(vp, V) / np.vdot(vp, vp)
+        d = float(np.linalg.norm(V - a * vp) / np.linalg.norm(a * vp))
+        if d < best[1]:
+            best = (complex(sigs[j]), d, j)
+    return best
+
+
+def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-10, label=""):
+    """Leading eigenvalues and modes of one pulse.
+
+    guesses : σ values (1/s) to start from (e.g. the neighbouring pulse's eigenvalues, rescaled);
+        without them, shifts DEFAULT_SHIFTS·c/L are tried.
+    extra : after the leading eigenvalue, search below it (shift at 0.4 Re σ₁, 3 candidates).
+    """
+    t0 = time.perf_counter()
+    op = StabilityOperator(pulse, params)
+    unit = op.rate_unit
+    found, failures, iters = [], [], 0
+
+    def add(cand_sig, cand_vec, max_iter=12):
+        nonlocal iters
+        if not cand_sig.real > MIN_RE * unit:
+            return
+        if any(abs(cand_sig - f.sigma) < 1e-3 * max(abs(f.sigma), unit) for f in found):
+            return
+        eig = newton_eigen(op, cand_sig, cand_vec, tol=tol, min_re=MIN_RE * unit,
+                           max_iter=max_iter)
+        iters += eig.iterations
+        if not eig.converged:
+            failures.append(f"from {cand_sig / unit:.4g} c/L: {eig.message}")
+            return
+        if eig.sigma.real > MIN_RE * unit and not any(
+                abs(eig.sigma - f.sigma) < 1e-6 * max(abs(f.sigma), unit) for f in found):
+            found.append(eig)
+
+    shifts = [complex(g) for g in guesses] or [complex(q * unit) for q in DEFAULT_SHIFTS]
+    for sa in shifts:
+        if not sa.real > MIN_RE * unit:
+            continue
+        sig, vec = linearised_candidates(op, sa, k=1)
+        for j in range(len(sig)):
+            add(complex(sig[j]), vec[:, j])
+        if found:
+            break
+    t1 = time.perf_counter()
+    if found and extra:
+        lead = max(f.sigma.real for f in found)
+        sig, vec = linearised_candidates(op, 0.4 * lead, k=2)
+        for j in range(len(sig)):
+            add(complex(sig[j]), vec[:, j], max_iter=8)
+    # complex eigenvalues come in conjugate pairs (M(σ̄) = conj M(σ)): add the partner
+    for f in list(found):
+        if abs(f.sigma.imag) > 1e-8 * abs(f.sigma) and not any(
+                abs(g.sigma - f.sigma.conjugate()) < 1e-6 * abs(f.sigma) for g in found):
+            found.append(Eigen(f.sigma.conjugate(), f.delta.conj(), True, 0, f.residual,
+                               "conjugate"))
+    found.sort(key=lambda f: -f.sigma.real)
+    t2 = time.perf_counter()
+    nsig, nvec = neutral_modes(op)
+    sig_t, terr, _ = _translation_check(op, nsig, nvec)
+    # uniform slip (δ₁ = 1, V₁ = 0) is outside the V₁ form; in the δ₁ form it is exact at σ = 0:
+    uniform = float(np.max(np.abs(op.matrices_delta(0.0) @ np.ones(op.n))))
+    neutral = np.array([uniform, sig_t])
+    modes = [op.fields(f.sigma, f.delta) for f in found]
+    if found:
+        status, msg = "converged", f"{len(found)} eigenvalue(s) with Re sigma > {MIN_RE:g} c/L"
+    elif failures:
+        status, msg = "failed", "; ".join(failures[:3])
+    else:
+        status, msg = "converged", f"no eigenvalue with Re sigma > {MIN_RE:g} c/L found"
+    t3 = time.perf_counter()
+    return PulseSpectrum(label or pulse.label, np.array([f.sigma for f in found], complex), modes,
+                         neutral, terr, unit, op.n, status, msg, t3 - t0, iters, failures,
+                         {"leading": t1 - t0, "extra": t2 - t1, "neutral": t3 - t2})
+
+
+def _fallback_search(pulse, params, guesses, extra, tol, label):
+    """Tracked start first; if it finds nothing, the default shifts."""
+    res = pulse_spectrum(pulse, params, guesses=guesses, extra=extra, tol=tol, label=label)
+    if guesses and res.sigmas.size == 0:
+        res2 = pulse_spectrum(pulse, params, guesses=(), extra=extra, tol=tol, label=label)
+        res2.failures = res.failures + res2.failures
+        res2.wall_time += res.wall_time
+        res2.newton_iterations += res.newton_iterations
+        return res2
+    return res
+
+
+# ------------------------------------------------------------------------------- storage
+SPECTRUM_GROUP = "spectrum"
+MODE_FIELDS = {"delta": ("m", "slip perturbation delta_1 (mode normalised: max |lnv_1| = 1)"),
+               "V": ("m/s", "slip-rate perturbation V_1"),
+               "phi": ("s", "state perturbation phi_1"),
+               "lnv": ("1", "perturbation of ln(v/v* + 1)")}
+
+
+def write_spectrum(path, res: PulseSpectrum, settings: dict):
+    """Store `res` as /pulses/<label>/spectrum (replacing an earlier one), atomically."""
+    from .h5io import atomic_update
+
+    def fill(h5):
+        grp_p = h5["pulses"][res.label]
+        if SPECTRUM_GROUP in grp_p:
+            del grp_p[SPECTRUM_GROUP]
+        g = grp_p.create_group(SPECTRUM_GROUP)
+        g.attrs["status"] = res.status
+        g.attrs["message"] = res.message
+        g.attrs["n_eigenvalues"] = int(res.sigmas.size)
+        g.attrs["n_unstable"] = res.n_unstable
+        lead = res.leading
+        g.attrs["leading_sigma_real"] = lead.real
+        g.attrs["leading_sigma_imag"] = lead.imag
+        g.attrs["leading_s_per_L"] = lead.real / res.rate_unit
+        g.attrs["rate_unit_c_over_L"] = res.rate_unit
+        g.attrs["uniform_slip_backward_error"] = float(res.neutral[0].real)
+        g.attrs["translation_sigma"] = float(res.neutral[1].real)
+        g.attrs["translation_s_per_L"] = float(res.neutral[1].real / res.rate_unit)
+        g.attrs["translation_mode_error"] = float(res.translation_error)
+        g.attrs["n_points"] = res.n_points
+        g.attrs["wall_time"] = res.wall_time
+        g.attrs["newton_iterations"] = res.newton_iterations
+        g.attrs["failures"] = "; ".join(res.failures)
+        for k, v in settings.items():
+            g.attrs[f"setting_{k}"] = v
+        units = {"leading_sigma_real": "1/s", "leading_sigma_imag": "1/s",
+                 "rate_unit_c_over_L": "1/s", "translation_sigma": "1/s", "wall_time": "s"}
+        for k, u in units.items():
+            g.attrs[f"{k}_units"] = u
+        for part in ("real", "imag"):
+            ds = g.create_dataset(f"sigma_{part}", data=getattr(res.sigmas, part))
+            ds.attrs["units"] = "1/s"
+            ds.attrs["long_name"] = f"eigenvalue sigma ({part} part), perturbations ~ exp(sigma t)"
+            ds = g.create_dataset(f"s_per_L_{part}", data=getattr(res.sigmas, part) / res.rate_unit)
+            ds.attrs["units"] = "1"
+            ds.attrs["long_name"] = f"sigma L / c_p ({part} part): growth per pulse length travelled"
+        nm = len(res.modes)
+        for name, (unit, long) in MODE_FIELDS.items():
+            arr = (np.stack([m[name] for m in res.modes]) if nm
+                   else np.zeros((0, res.n_points), complex))
+            for part in ("real", "imag"):
+                ds = g.create_dataset(f"{name}_{part}", data=getattr(arr, part))
+                ds.attrs["units"] = unit
+                ds.attrs["long_name"] = f"{long} ({part} part), one row per eigenvalue"
+
+    atomic_update(path, fill)
+
+
+def read_spectrum(path, label):
+    """The stored spectrum of a pulse as a dict (attrs + arrays), or None if there is none."""
+    import h5py
+    with h5py.File(path, "r") as h5:
+        grp = h5["pulses"].get(label)
+        if grp is None or SPECTRUM_GROUP not in grp:
+            return None
+        g = grp[SPECTRUM_GROUP]
+        out = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
+        out["sigma"] = g["sigma_real"][...] + 1j * g["sigma_imag"][...]
+        for name in MODE_FIELDS:
+            out[name] = g[f"{name}_real"][...] + 1j * g[f"{name}_imag"][...]
+        out["xi"] = grp["xi"][...]
+        out["tau_d_ratio"] = float(grp.attrs["tau_d_ratio"])
+        out["L"] = float(grp.attrs["L"])
+        out["c_p"] = float(grp.attrs["c_p"])
+    return out
+
+
+# ------------------------------------------------------------------------------- a family
+@dataclass
+class SpectrumReport:
+    results: list = field(default_factory=list)     # PulseSpectrum, in the order computed
+    skipped: list = field(default_factory=list)     # labels with a stored converged spectrum
+    failed: list = field(default_factory=list)
+    wall_time: float = 0.0
+
+
+def check_family_file(path, labels=None):
+    """Labels to analyse (decreasing τ_d), after checking the file: readable HDF5 with slippulse
+    parameters and converged mode-III pulses. Raises SchemaError naming the problem."""
+    import h5py
+
+    from .h5io import SchemaError, read_parameters
+    try:
+        h5 = h5py.File(path, "r")
+    except (OSError, FileNotFoundError) as exc:
+        raise SchemaError(f"{path}: not a readable HDF5 file ({exc})") from None
+    with h5:
+        try:
+            params = read_parameters(h5)
+        except SchemaError as exc:
+            raise SchemaError(f"{path}: not a slippulse pulse file ({exc})") from None
+        if "pulses" not in h5 or len(h5["pulses"]) == 0:
+            raise SchemaError(f"{path}: holds no pulses")
+        grp = h5["pulses"]
+        present = sorted(grp.keys(), key=lambda s: -float(s[2:]) if s[2:].replace(".", "", 1)
+                         .isdigit() else 0.0)
+        if labels:
+            missing = [lab for lab in labels if lab not in grp]
+            if missing:
+                raise SchemaError(f"{path}: no pulse {missing[0]!r}; present: "
+                                  f"{present[0]} ... {present[-1]} ({len(present)} pulses)")
+            chosen = [lab for lab in present if lab in set(labels)]
+        else:
+            chosen = present
+        good = []
+        for lab in chosen:
+            a = grp[lab].attrs
+            if not bool(a.get("converged", False)):
+                if labels:
+                    raise SchemaError(f"{path}: pulse {lab} did not converge (status "
+                                      f"{a.get('status', '?')!r}); its spectrum is meaningless")
+                continue
+            if str(a.get("mode", "III")) != "III":
+                raise SchemaError(f"{path}: pulse {lab} is a mode-{a.get('mode')} pulse; the "
+                                  f"spectrum is for mode III")
+            good.append(lab)
+        if not good:
+            raise SchemaError(f"{path}: holds no converged pulse")
+    return good, params
+
+
+def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-10, progress=None):
+    """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
+
+    Pulses are taken by decreasing τ_d; each starts from its neighbour's eigenvalues at equal
+    σL/c (tracking), else from the default shifts. A stored converged spectrum with the same
+    settings is kept (resume) unless `overwrite`. A failed eigen-solve stores its status and
+    message and no eigenvalues. progress(label, result or None, stored dict or None).
+    """
+    from .h5io import read_pulse
+    t0 = time.perf_counter()
+    chosen, params = check_family_file(path, labels)
+    settings = {"tol": tol, "extra": int(bool(extra)), "min_re_c_over_L": MIN_RE}
+    rep = SpectrumReport()
+    prev = None                                          # (σ array, c/L) of the last pulse
+    for lab in chosen:
+        stored = None if overwrite else read_spectrum(path, lab)
+        if stored is not None and stored.get("status") == "converged" and all(
+                stored.get(f"setting_{k}") == v for k, v in settings.items()):
+            rep.skipped.append(lab)
+            prev = (stored["sigma"], float(stored["rate_unit_c_over_L"]))
+            if progress:
+                progress(lab, None, stored)
+            continue
+        pulse, _ = read_pulse(path, lab)
+        unit = pulse.c_p / pulse.L
+        guesses = []
+        if prev is not None and prev[0].size:
+            s0 = prev[0][0]
+            guesses = [complex(s0.real, abs(s0.imag)) * unit / prev[1]]
+        res = _fallback_search(pulse, params, guesses, extra, tol, lab)
+        write_spectrum(path, res, settings)
+        rep.results.append(res)
+        if res.status != "converged":
+            rep.failed.append(lab)
+        else:
+            prev = (res.sigmas, res.rate_unit)
+        if progress:
+            progress(lab, res, None)
+    rep.wall_time = time.perf_counter() - t0
+    return rep

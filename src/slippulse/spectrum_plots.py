@@ -1,0 +1,89 @@
+"""Figures of the stability spectrum: s(τ_d) over a family, the spectrum, the leading modes."""
+from __future__ import annotations
+
+import h5py
+import numpy as np
+
+
+def family_spectra(path):
+    """Stored spectra of a file, by decreasing τ_d: list of dicts (see spectrum.read_spectrum)."""
+    from .spectrum import read_spectrum
+    with h5py.File(path, "r") as h5:
+        labels = [k for k in h5["pulses"] if "spectrum" in h5["pulses"][k]]
+    out = [read_spectrum(path, lab) for lab in labels]
+    out = [o for o in out if o is not None and o.get("status") == "converged"]
+    for o, lab in zip(out, labels):
+        o["label"] = lab
+    return sorted(out, key=lambda o: -o["tau_d_ratio"])
+
+
+def front_position(xi, lnv0):
+    """Leading edge: the first point ahead of the maximum where ln(v/v*+1) falls to half."""
+    k = int(np.argmax(lnv0))
+    half = 0.5 * lnv0[k]
+    ahead = np.nonzero((np.arange(xi.size) > k) & (lnv0 < half))[0]
+    return float(xi[ahead[0]]) if ahead.size else float(xi[k])
+
+
+def plot_family_spectrum(path, out, mode_labels=None):
+    """Four panels: s L/c_p and σ (1/s) against τ_d/τ_min (with the translation eigenvalue, the
+    discretisation's error indicator), the eigenvalues in the complex plane, the leading modes."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .h5io import read_pulse
+    sp = family_spectra(path)
+    if not sp:
+        raise ValueError(f"{path}: no stored converged spectrum (run 'slippulse steady stability')")
+    q = np.array([o["tau_d_ratio"] for o in sp])
+    lead = np.array([o["sigma"][0] if o["sigma"].size else np.nan for o in sp])
+    unit = np.array([o["rate_unit_c_over_L"] for o in sp])
+    st = np.array([abs(o["translation_sigma"]) for o in sp])
+    fig, ax = plt.subplots(2, 2, figsize=(11, 8))
+    a = ax[0, 0]
+    a.plot(q - 1, lead.real / unit, "o-", ms=3, label="leading eigenvalue, s L/c_p")
+    a.plot(q - 1, st / unit, "x", ms=4, color="0.5",
+           label="|translation eigenvalue| (exact 0: error indicator)")
+    a.set_xscale("log")
+    a.set_yscale("log")
+    a.set_xlabel(r"$\tau_d/\tau_{min} - 1$")
+    a.set_ylabel(r"$s\,L/c_p$ (e-folds per pulse length)")
+    a.legend(fontsize=8)
+    a.grid(alpha=0.3, which="both")
+    a = ax[0, 1]
+    a.plot(q, lead.real, "o-", ms=3)
+    a.set_xlabel(r"$\tau_d/\tau_{min}$")
+    a.set_ylabel(r"$s$ (1/s)")
+    a.grid(alpha=0.3)
+    a = ax[1, 0]
+    picks = mode_labels or [sp[i]["label"] for i in
+                            np.unique(np.linspace(0, len(sp) - 1, 5).round().astype(int))]
+    for o in sp:
+        if o["label"] in picks and o["sigma"].size:
+            s = o["sigma"] / o["rate_unit_c_over_L"]
+            a.plot(s.real, s.imag, "o", ms=5, label=o["label"])
+    a.axvline(0, color="k", lw=0.8)
+    a.set_xlabel(r"Re $\sigma L/c_p$")
+    a.set_ylabel(r"Im $\sigma L/c_p$")
+    a.set_title("eigenvalues found (Re σ > 0); the imaginary axis is a continuum", fontsize=9)
+    a.legend(fontsize=8)
+    a.grid(alpha=0.3)
+    a = ax[1, 1]
+    for o in sp:
+        if o["label"] in picks and o["sigma"].size:
+            pulse, params = read_pulse(path, o["label"])
+            y0 = np.log(pulse.v / params.v_star + 1.0)
+            xf = front_position(pulse.xi, y0)
+            x = (pulse.xi - xf) / pulse.L
+            sel = (x > -1.6) & (x < 0.6)
+            a.plot(x[sel], o["lnv"][0].real[sel], lw=1.2, label=o["label"])
+    a.set_xlabel(r"$(\xi - \xi_{front})/L$")
+    a.set_ylabel(r"leading mode: $\delta\ln(v/v_*+1)$ (max 1)")
+    a.grid(alpha=0.3)
+    a.legend(fontsize=8)
+    fig.suptitle(f"Linear stability spectrum of the steady pulses ({path})", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out

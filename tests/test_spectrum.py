@@ -1,0 +1,212 @@
+"""The linear stability spectrum (slippulse.spectrum): operator against exact transforms, the
+neutral modes, the eigen-solver's convergence, the command and its bad-input errors."""
+import math
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+from scipy.special import erfc, kv
+
+from slippulse.grid import build_grid
+from slippulse.spectrum import (ElasticOperator, StabilityOperator, neutral_modes, pulse_spectrum,
+                                symbol, _translation_check)
+from slippulse.spectrum_kernels import KernelTables, kernel_series, slip_coefficients, times_D
+
+BETA, CS, MU = 0.6, 1.0, 2.0
+
+
+def _graded_grid(n, core=4.0, h0=0.01, R=200.0):
+    xs = np.sinh(np.linspace(-np.arcsinh(R), np.arcsinh(R), 4001))   # samples dense near 0
+    hs = h0 + 0.06 * np.maximum(np.abs(xs) - core, 0.0)
+    return build_grid(xs, hs, n, gamma=0.06, lo=-R, hi=R)
+
+
+def _fourier(k_hat, sigma, x):
+    """(1/2π) ∫ S(k) f̂(k) e^{ikx} dk by composite Gauss–Legendre on each half-line (the
+    transform of the Lorentzian has a kink at k = 0)."""
+    g, w = np.polynomial.legendre.leggauss(40)
+    edges = np.arange(0.0, 46.0, 0.5)
+    k = np.concatenate([(a + 0.25 * (g + 1.0)) for a in edges[:-1]])
+    wk = np.tile(0.25 * w, edges.size - 1)
+    out = np.zeros(x.size, complex)
+    for sgn in (1.0, -1.0):
+        kk = sgn * k
+        f = symbol(kk, sigma, BETA, CS, MU) * k_hat(kk) * wk
+        out += np.exp(1j * np.outer(x, kk)) @ f
+    return out / (2.0 * math.pi)
+
+
+@pytest.fixture(scope="module")
+def gauss_operator():
+    return ElasticOperator(_graded_grid(1600), BETA, CS, MU, center=0.0)
+
+
+@pytest.mark.parametrize("sigma", [0.7, 0.4 + 0.9j, 3.0])
+def test_elastic_operator_matches_symbol_gaussian(gauss_operator, sigma):
+    op = gauss_operator
+    d = np.exp(-op.xi ** 2)
+    got = op.apply(sigma, d)
+    sel = np.abs(op.xi) < 4.0
+    ref = _fourier(lambda k: math.sqrt(math.pi) * np.exp(-k * k / 4.0), sigma, op.xi[sel])
+    assert np.abs(got[sel] - ref).max() / np.abs(ref).max() < 1e-8
+
+
+@pytest.mark.parametrize("sigma", [0.5, 0.3 - 0.6j])
+def test_elastic_operator_matches_symbol_lorentzian(sigma):
+    # δ = 1/(1+z²) decays slowly: a long graded domain; δ̂ = π e^{−|k|}
+    op = ElasticOperator(_graded_grid(1600, core=3.0, h0=0.008, R=2e5), BETA, CS, MU, center=0.0)
+    d = 1.0 / (1.0 + op.xi ** 2)
+    got = op.apply(sigma, d)
+    sel = np.abs(op.xi) < 3.0
+    ref = _fourier(lambda k: math.pi * np.exp(-np.abs(k)), sigma, op.xi[sel])
+    assert np.abs(got[sel] - ref).max() / np.abs(ref).max() < 1e-8
+
+
+def test_kernel_series_and_tables_against_bessel():
+    for sigma in (0.7, 0.5 + 0.8j):
+        kap = sigma / (CS * (1 - BETA ** 2))
+        r = np.array([0.05, 0.3, 1.0, 2.5, -0.05, -0.3, -1.0, -2.5, 5, -5, 20, -20, 100, -100])
+        s = np.sign(r)
+        x = kap * np.abs(r)
+        direct = (np.exp(-s * BETA * x) * x * kv(1, x) - 1 + s * BETA * x) / (math.pi * r * r)
+        w, _ = KernelTables(sigma, BETA, CS, 1e-6, 1e3).evaluate(r)
+        assert np.max(np.abs(w - direct) / np.abs(direct)) < 1e-8
+        small = np.abs(x) <= 2
+        g, _ = kernel_series(r[small], kap, BETA, sigma)
+        lam0 = kap ** 2 / (2 * math.pi)
+        ser = g + lam0 * np.log(np.abs(r[small]))
+        assert np.max(np.abs(ser - direct[small]) / np.abs(direct[small])) < 1e-12
+
+
+def test_kernel_sigma_derivative_matches_finite_difference():
+    r = np.array([0.01, 0.4, 3.0, 40.0, -0.01, -0.4, -3.0, -40.0])
+    for sigma in (0.9, 0.6 + 0.5j):
+        _, ws = KernelTables(sigma, BETA, CS, 1e-5, 1e3).evaluate(r)
+        h = 1e-5 * abs(sigma)
+        wp, _ = KernelTables(sigma + h, BETA, CS, 1e-5, 1e3).evaluate(r)
+        wm, _ = KernelTables(sigma - h, BETA, CS, 1e-5, 1e3).evaluate(r)
+        fd = (wp - wm) / (2 * h)
+        assert np.max(np.abs(ws - fd) / np.abs(ws)) < 1e-6
+
+
+def test_slip_from_slip_rate_second_order():
+    """(σ − c∂_ξ) δ = V, δ bounded ahead, against the closed form for a Gaussian V."""
+    c, sigma = 0.8, 0.5 + 0.3j
+    errs = []
+    for n in (400, 800):
+        xi = np.linspace(-8.0, 8.0, n)
+        a, b, bp = slip_coefficients(xi, c, sigma)[:3]
+        V = np.exp(-xi ** 2)
+        d = np.zeros(n, complex)
+        for i in range(n - 2, -1, -1):
+            d[i] = a[i] * d[i + 1] + b[i] * V[i + 1] + bp[i] * V[i]
+        # δ(ξ) = (1/c) ∫_ξ^∞ e^{−σ(z−ξ)/c} e^{−z²} dz
+        q = sigma / c
+        exact = (math.sqrt(math.pi) / (2 * c)) * np.exp(q * xi + q * q / 4) * erfc(xi + q / 2)
+        errs.append(np.abs(d - exact).max())
+    assert errs[1] < errs[0] / 3.8
+
+
+def test_times_D_matches_dense_product_and_derivative():
+    rng = np.random.default_rng(1)
+    n, c = 30, 1.3
+    xi = np.sort(rng.uniform(-3, 3, n))
+    X = rng.normal(size=(n, n)) + 1j * rng.normal(size=(n, n))
+    dX = rng.normal(size=(n, n)) + 0j
+
+    def dense_D(sigma):
+        a, b, bp = slip_coefficients(xi, c, sigma)[:3]
+        D = np.zeros((n, n), complex)
+        for col in range(n):
+            V = np.zeros(n)
+            V[col] = 1.0
+            for i in range(n - 2, -1, -1):
+                D[i, col] = a[i] * D[i + 1, col] + b[i] * V[i + 1] + bp[i] * V[i]
+        return D
+
+    sigma = 0.7 + 0.2j
+    XD = np.empty((n, n), complex)
+    dXD = np.empty((n, n), complex)
+    times_D(X, dX, *slip_coefficients(xi, c, sigma), XD, dXD, True)
+    assert np.allclose(XD, X @ dense_D(sigma), rtol=1e-13, atol=1e-12)
+    h = 1e-6
+    fd = (dense_D(sigma + h) - dense_D(sigma - h)) / (2 * h)
+    assert np.allclose(dXD, dX @ dense_D(sigma) + X @ fd, rtol=1e-7, atol=1e-8)
+
+
+@pytest.fixture(scope="module")
+def op12(pulse12, params):
+    return StabilityOperator(pulse12.to_pulse(), params)
+
+
+def test_operator_sigma_derivative_matches_finite_difference(op12):
+    sigma = 20.0 * op12.rate_unit
+    M, dM = op12.matrices(sigma)
+    h = 1e-6 * abs(sigma)
+    fd = (op12.matrices(sigma + h, False)[0] - op12.matrices(sigma - h, False)[0]) / (2 * h)
+    x = np.random.default_rng(0).normal(size=op12.n)
+    assert np.linalg.norm((dM - fd) @ x) / np.linalg.norm(dM @ x) < 1e-6
+
+
+def test_uniform_slip_is_an_exact_neutral_mode(op12):
+    M = op12.matrices_delta(0.0)
+    one = np.ones(op12.n)
+    assert np.max(np.abs(M @ one) / (np.abs(M) @ one)) < 1e-13
+    # and only at σ = 0: uniform slip growing as e^{σt} radiates, τ₁ = −(μ/2c_s) σ δ₁
+    M1 = op12.matrices_delta(5.0 * op12.rate_unit)
+    assert np.max(np.abs(M1 @ one) / (np.abs(M1) @ one)) > 1e-3
+
+
+def test_translation_mode_and_leading_eigenvalue_at_1p2(op12):
+    sig, vec = neutral_modes(op12)
+    sig_t, dist, _ = _translation_check(op12, sig, vec)
+    res = pulse_spectrum(op12.pulse, op12.params, extra=False)
+    assert res.status == "converged" and res.sigmas.size == 1
+    lead = res.leading
+    assert abs(lead.imag) < 1e-8 * abs(lead)
+    assert 20.0 < lead.real / op12.rate_unit < 25.0           # SBI ±ε pairs: 22.4–23.5 per L
+    assert abs(sig_t) < 1e-4 * abs(lead)                       # N = 700; shrinks as N⁻² (docs)
+    assert dist < 5e-2          # vs the spline slope of v₀, itself O(1e-2) at the N = 700 front
+
+
+def test_cli_bad_input(tmp_path, pulse12, params):
+    from slippulse.h5io import write_pulse
+    junk = tmp_path / "junk.h5"
+    junk.write_text("not hdf5")
+    foreign = tmp_path / "foreign.h5"
+    with h5py.File(foreign, "w") as h5:
+        h5.create_group("pulses").create_group("td1.2000").create_dataset("xi", data=[0.0, 1.0])
+    good = tmp_path / "one.h5"
+    write_pulse(str(good), pulse12.to_pulse(), params)
+    failed = tmp_path / "failed.h5"
+    p = pulse12.to_pulse()
+    p.converged = False
+    write_pulse(str(failed), p, params)
+    cases = [([str(junk)], "not a readable HDF5"), ([str(foreign)], "not a slippulse pulse file"),
+             ([str(good), "--labels", "td1.1000"], "no pulse 'td1.1000'"),
+             ([str(failed)], "no converged pulse"),
+             ([str(tmp_path / "missing.h5")], "not a readable HDF5")]
+    for args, msg in cases:
+        r = subprocess.run([sys.executable, "-m", "slippulse.cli", "steady", "stability", *args,
+                            "-q"], capture_output=True, text=True)
+        assert r.returncode == 2, (args, r.stderr)
+        assert msg in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_cli_stores_and_resumes(tmp_path, pulse12, params):
+    from slippulse.h5io import write_pulse
+    from slippulse.spectrum import read_spectrum
+    f = tmp_path / "one.h5"
+    write_pulse(str(f), pulse12.to_pulse(), params)
+    cmd = [sys.executable, "-m", "slippulse.cli", "steady", "stability", str(f), "-q", "--no-extra"]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    st = read_spectrum(str(f), "td1.2000")
+    assert st["status"] == "converged" and st["n_unstable"] == 1
+    assert st["lnv"].shape == (1, pulse12.problem.n)
+    assert abs(st["lnv"][0]).max() == pytest.approx(1.0)
+    r2 = subprocess.run(cmd, capture_output=True, text=True)
+    assert r2.returncode == 0 and "stored spectrum kept" in r2.stdout
+    assert "0 pulses solved, 1 kept" in r2.stdout
