@@ -354,7 +354,7 @@ def neutral_modes(op, k=2):
 
 
 # ------------------------------------------------------------------------ one pulse, a family
-DEFAULT_SHIFTS = (25.0, 8.0, 2.0, 0.5)     # first search shifts, in units of c_p/L
+DEFAULT_SHIFTS = (25.0, 8.0, 2.0, 0.5, 0.15, 0.05)   # first search shifts, in units of c_p/L
 MIN_RE = 1e-3                              # eigenvalues with Re σ < MIN_RE c/L are not sought
 
 

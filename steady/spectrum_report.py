@@ -1,0 +1,198 @@
+"""Report of the stability spectrum study (docs/stability.md §9): table, fits, comparison figures.
+
+    slippulse steady stability runs/steady/family_spectrum.h5          # the family (≈ 30 s/pulse)
+    python steady/spectrum_convergence.py runs/steady/family.h5 td1.1000 td1.0500 ... --nested 1 \
+        --out runs/steady/spectrum_nested.json                          # refined values
+    python steady/spectrum_report.py runs/steady/family_spectrum.h5 \
+        --nested runs/steady/spectrum_nested.json                       # seconds
+
+Prints the markdown table of s(τ_d), the fits of s L/c_p near τ_min, the side-by-side comparison
+with the SBI ±ε rates, and writes docs/figures/spectrum_growth.png and (when the SBI scans of
+dynamic/scans/eigen_modes.toml are present) docs/figures/stability_modes.png.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+
+import numpy as np
+from scipy.optimize import curve_fit
+
+# The SBI ±ε growth rates of docs/stability.md §3 (measured by dynamic/scans/growth_td*.toml, base
+# pairs, s per pulse length, plateau rule; "period" is the SBI domain behind + ahead in L).
+SBI_TABLE = [
+    (1.20, 23.5, 0.8, "3+2 L"), (1.10, 8.0, 0.2, "3+2 L"),
+    (1.05, 0.61, 0.02, "3+2 L"), (1.05, 0.654, 0.03, "4+4 L"), (1.05, 0.685, 0.03, "6+6 L"),
+    (1.05, 0.71, 0.03, "9+9 L"), (1.03, 0.02, 0.05, "3+2 L, 3 mm"),
+    (1.03, -0.024, 0.008, "3+2 L, 2 mm"),
+]
+
+
+def scan_pairs(name):
+    """Pairs (τ_d, s per L, err, domain, mode, mode_xi) of a scan under runs/scans, if present."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    sys_path = os.path.join(here, "..", "dynamic")
+    import sys
+    if sys_path not in sys.path:
+        sys.path.insert(0, sys_path)
+    try:
+        from stability import _rows  # dynamic/stability.py
+    except Exception:
+        return []
+    from slippulse.stability import pair_growth, pair_rows, read_series
+    from slippulse.scan import load_scan
+    try:
+        rows = _rows(name)
+    except Exception:
+        return []
+    scan = load_scan(os.path.join("dynamic", "scans", name + ".toml"))
+    paths = {c.id: scan.out_file(c) for c in scan.cases}
+    out = []
+    for plus, minus in pair_rows(rows):
+        g = pair_growth(read_series(paths[plus["id"]]), read_series(paths[minus["id"]]),
+                        abs(plus["eps"]))
+        if not np.isfinite(g.get("s_per_L", np.nan)):
+            continue
+        label = plus.get("label", "")
+        out.append(dict(tau=float(label[2:]), s=g["s_per_L"], err=g["s_per_L_err"],
+                        domain=f"{plus.get('behind', 3.0):g}+{plus.get('ahead', 2.0):g} L",
+                        mode=g.get("mode"), mode_xi=g.get("mode_xi")))
+    return out
+
+
+def power_fit(q, s, q0):
+    """s L/c = A (q − q0)^p by least squares in log space; (A, p, cov)."""
+    x = np.log(q - q0)
+    y = np.log(s)
+    (p, lnA), cov = np.polyfit(x, y, 1, cov=True)
+    return float(np.exp(lnA)), float(p), cov
+
+
+def main(argv=None):
+    from slippulse.spectrum_plots import family_spectra
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("file")
+    ap.add_argument("--nested", default=None, help="JSON of spectrum_convergence.py --nested")
+    ap.add_argument("--figdir", default="docs/figures")
+    args = ap.parse_args(argv)
+    sp = family_spectra(args.file)
+    q = np.array([o["tau_d_ratio"] for o in sp])
+    lead = np.array([o["sigma"][0] if o["sigma"].size else np.nan for o in sp])
+    unit = np.array([o["rate_unit_c_over_L"] for o in sp])
+    sl = lead.real / unit
+    st = np.array([o["translation_s_per_L"] for o in sp])
+    nun = np.array([o["n_unstable"] for o in sp])
+    print("| τ_d/τ_min | β | L (m) | s L/c_p | s (1/s) | Im s L/c_p | unstable | σ_t L/c_p |")
+    print("|---|---|---|---|---|---|---|---|")
+    for o, a, b, c, d, n in zip(sp, sl, lead, st, unit, nun):
+        print(f"| {o['tau_d_ratio']:.4f} | {o['c_p'] / 2739.0:.5f} | {o['L']:.4g} | {a:.4f} | "
+              f"{b.real:.4g} | {b.imag / d:.1e} | {n} | {c:.1e} |")
+    nested = []
+    if args.nested and os.path.exists(args.nested):
+        rows = json.load(open(args.nested))
+        nested = [r for r in rows if "extrapolated" in r]
+        print("\nNested refinement (Richardson):")
+        for r in nested:
+            print(f"  {r['label']}: {r['extrapolated']:.4f} ± {r['uncertainty']:.1e} "
+                  f"(finest N = {r['N']}, order {r['order']:.2f})")
+    # fits near τ_min: s L/c against q − 1 (power law) over windows
+    print("\nFits s L/c_p = A (τ_d/τ_min − q0)^p:")
+    for lo, hi in [(1.0, 1.03), (1.0, 1.025), (1.0, 1.02), (1.015, 1.04)]:
+        sel = (q > lo) & (q <= hi) & (sl > 0)
+        if sel.sum() < 4:
+            continue
+        for q0 in (1.0,):
+            A, p, cov = power_fit(q[sel], sl[sel], q0)
+            print(f"  window ({lo}, {hi}], q0 = {q0}: A = {A:.3g}, p = {p:.3f} ± "
+                  f"{np.sqrt(cov[0, 0]):.3f} ({sel.sum()} pulses)")
+        try:
+            f = lambda x, A, p, q0: A * np.clip(x - q0, 1e-12, None) ** p
+            popt, pcov = curve_fit(f, q[sel], sl[sel], p0=(1e3, 2.0, 1.005), maxfev=20000)
+            perr = np.sqrt(np.diag(pcov))
+            print(f"  window ({lo}, {hi}], q0 free: A = {popt[0]:.3g}, p = {popt[1]:.3f} ± "
+                  f"{perr[1]:.3f}, q0 = {popt[2]:.5f} ± {perr[2]:.5f}")
+        except Exception as exc:               # noqa: BLE001 — report and go on
+            print(f"  window ({lo}, {hi}], q0 free: no fit ({exc})")
+    # figures
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    os.makedirs(args.figdir, exist_ok=True)
+    new = scan_pairs("growth_td1.04") + scan_pairs("eigen_modes")
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.3))
+    for a, logy in zip(ax, (False, True)):
+        a.plot(q, sl, "-", color="C0", lw=1.5, label="eigenvalue, family grids (N = 2000)")
+        a.plot(q, np.abs(st), ":", color="0.5", lw=1,
+               label="|translation eigenvalue| (error indicator)")
+        if nested:
+            a.errorbar([float(r["label"][2:]) for r in nested],
+                       [r["extrapolated"] for r in nested],
+                       yerr=[max(r["uncertainty"], 1e-4) for r in nested], fmt="s", color="C0",
+                       ms=5, capsize=3, label="eigenvalue, nested refinement (extrapolated)")
+        for t, s, e, dom in SBI_TABLE:
+            a.errorbar([t], [s if not logy else max(s, 1e-3)], yerr=[e], fmt="o", color="C3",
+                       ms=4, capsize=2, mfc="none")
+        a.plot([], [], "o", color="C3", mfc="none", label="SBI ±ε pairs (docs §3; periods 5–18 L)")
+        for r in new:
+            a.errorbar([r["tau"]], [r["s"]], yerr=[r["err"]], fmt="D", color="C2", ms=5,
+                       capsize=2)
+        if new:
+            a.plot([], [], "D", color="C2", label="SBI ±ε pairs, this study")
+        a.set_xlabel(r"$\tau_d/\tau_{min}$")
+        a.set_ylabel(r"$s\,L/c_p$ (e-folds per pulse length)")
+        a.grid(alpha=0.3, which="both")
+        if logy:
+            a.set_yscale("log")
+            a.set_xscale("log")
+            a.set_xlim(1.009, 1.22)
+            a.set_ylim(1e-4, 50)
+        else:
+            a.legend(fontsize=7)
+    fig.tight_layout()
+    out = os.path.join(args.figdir, "spectrum_growth.png")
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    print(f"\nwrote {out}")
+    modes = [r for r in new if r.get("mode") is not None]
+    if modes:
+        plot_modes(args.file, sp, modes, os.path.join(args.figdir, "stability_modes.png"))
+
+
+def plot_modes(path, sp, modes, out):
+    """SBI mode shapes (antisymmetric deviation of ln(v/v*+1) per unit v_max deviation, docs §4)
+    with the eigenmode of the same pulse drawn over them, both scaled to unit maximum modulus."""
+    import matplotlib.pyplot as plt
+
+    from slippulse.h5io import read_pulse
+    from slippulse.spectrum_plots import front_position
+    by = {round(o["tau_d_ratio"], 4): o for o in sp}
+    taus = sorted({r["tau"] for r in modes}, reverse=True)
+    fig, ax = plt.subplots(1, len(taus), figsize=(4.2 * len(taus), 3.6), squeeze=False)
+    for a, t in zip(ax[0], taus):
+        for r in [m for m in modes if m["tau"] == t]:
+            m = np.asarray(r["mode"])
+            a.plot(r["mode_xi"], m / np.abs(m).max(), color="C3", lw=2.5, alpha=0.6,
+                   label=f"SBI pair ({r['domain']})")
+        o = by.get(round(t, 4))
+        if o is not None and o["sigma"].size:
+            pulse, params = read_pulse(path, o["label"])
+            y0 = np.log(pulse.v / params.v_star + 1.0)
+            x = (pulse.xi - front_position(pulse.xi, y0)) / pulse.L
+            e = o["lnv"][0].real
+            sel = (x > -1.6) & (x < 0.6)
+            a.plot(x[sel], e[sel] / np.abs(e[sel]).max(), color="k", lw=1,
+                   label=f"eigenmode, s L/c = {o['leading_s_per_L']:.3g}")
+        a.set_title(f"τ_d = {t:.2f} τ_min", fontsize=10)
+        a.set_xlabel(r"$(\xi - \xi_{front})/L$")
+        a.grid(alpha=0.3)
+        a.legend(fontsize=7)
+    ax[0, 0].set_ylabel(r"mode of $\ln(v/v_*+1)$ (max |.| = 1)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
