@@ -167,6 +167,7 @@ def test_version1_dynamic_run_resumes(tmp_path):
     assert main(["dynamic", "run", str(cfg), "--out", old, "--no-progress", "--resume"]) == 0
     a, b = _tree(ref), _tree(old)
     assert b.attrs["format_version"] == 2
+    assert b["checkpoint"]["V"].dims == ("x",) and b["snapshots"]["V"].dims == ("t", "x")
     for g in ("snapshots", "scalars", "checkpoint"):
         for name, da in a[g].to_dataset().data_vars.items():
             assert np.array_equal(da.values, b[g][name].values), (g, name)

@@ -46,7 +46,8 @@ def register(subparsers) -> None:
     v.add_argument("--distance", type=float, default=1.0, metavar="D",
                    help="distance to travel, in pulse lengths (default 1)")
     v.add_argument("--out", metavar="FILE", help="output HDF5 (default verify_<label>.h5); a PNG "
-                                                  "of v(xi) at several times is written beside it")
+                                                  "(profiles, deviation, v_max drift against the "
+                                                  "unstable mode's growth) is written beside it")
     v.add_argument("--points", type=int, default=None, metavar="N",
                    help="grid points; sets dx = (ahead + behind)·L/N (default: --dx)")
     v.add_argument("--dx", type=float, default=2e-3, help="grid spacing, m (default 2e-3)")

@@ -94,29 +94,57 @@ def upgrade_v1(h5) -> None:
             if name != "t":
                 describe(ds, ds.attrs.get("units", "1"), LONG_NAMES.get(name, name),
                          dims=(t, x)[:ds.ndim])
-    if "checkpoint" in h5:
+    if "checkpoint" in h5:                      # v1 datasets carry no scales: recreate them
         policy = h5["checkpoint"].attrs.get("history_policy")
-        _write_checkpoint(h5, read_checkpoint(h5), policy)
+        state = read_checkpoint(h5)
+        del h5["checkpoint"]
+        _write_checkpoint(h5, state, policy)
     stamp_format(h5, "dynamic")
 
 
+def _drop(ds) -> None:
+    """Delete a dataset, detaching its dimension scales first (no dangling references)."""
+    for axis in range(ds.ndim):
+        for scale in list(ds.dims[axis].values()):
+            ds.dims[axis].detach_scale(scale)
+    del ds.parent[ds.name.rsplit("/", 1)[-1]]
+
+
 def _write_checkpoint(h5, state: dict, history_policy) -> None:
-    """(Re)write the group /checkpoint from a state dict (``stepper.state()``)."""
-    if "checkpoint" in h5:
-        del h5["checkpoint"]
-    g = h5.create_group("checkpoint")
+    """Write the group /checkpoint from a state dict (``stepper.state()``).
+
+    Datasets whose shape and type are unchanged are overwritten in place (a new dataset per
+    checkpoint would leave the old one's space unused in the file); the others are replaced.
+    """
+    g = h5.require_group("checkpoint")
     x = h5["x"]
     n = x.shape[0]
+    stale = []
+    g.visititems(lambda name, obj: stale.append(name) if isinstance(obj, h5py.Dataset)
+                 and not obj.is_scale and name not in state else None)
+    for name in stale:
+        _drop(g[name])
     for key, val in state.items():
         arr = np.asarray(val)
-        ds = g.create_dataset(key, data=arr)     # 0-d datasets for scalars: exact
+        old = g.get(key)
+        if isinstance(old, h5py.Dataset) and old.shape == arr.shape and old.dtype == arr.dtype:
+            old[()] = arr                        # 0-d datasets for scalars: exact
+            continue
+        if old is not None:
+            _drop(old)
+        ds = g.create_dataset(key, data=arr)
         leaf = key.rsplit("/", 1)[-1]
         dims = []
         for axis, size in enumerate(arr.shape):
-            if size == n and axis == arr.ndim - 1 and arr.ndim == 1:
+            if arr.ndim == 1 and size == n:
                 dims.append(x)
-            else:
-                dims.append(dimension(ds.parent, f"dim_{leaf}_{axis}", size))
+                continue
+            name = f"dim_{leaf}_{axis}"
+            dim = ds.parent.get(name)
+            if dim is not None and dim.shape != (size,):
+                del ds.parent[name]              # its only user was the dataset dropped above
+                dim = None
+            dims.append(dim if dim is not None else dimension(ds.parent, name, size))
         describe(ds, _STATE_UNITS.get(key, "1"), f"solver state: {key}", dims=dims)
     if history_policy is not None:
         g.attrs["history_policy"] = history_policy

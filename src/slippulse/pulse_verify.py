@@ -482,10 +482,9 @@ def write_result(path: str, res: VerifyResult, params, source: str = "", label: 
         if "deviation" in res.series:
             L0 = float(res.info["L"])
             rel = np.asarray(res.series["deviation_xi"], dtype=float)
-            xd = coordinate(ts, "xi_dev", rel * L0, units="m",
-                            long_name="xi - xi_front (distance behind the front is negative)")
+            xd = coordinate(ts, "xi_dev", rel * L0, units="m", long_name="xi - xi_front")
             dv = describe(ts.create_dataset("deviation", data=res.series["deviation"]), "1",
-                          "ln(v/v*+1) - its steady value at the same xi - xi_front", dims=(t, xd))
+                          "ln(v/v*+1) - steady", dims=(t, xd))
             dv.attrs["definition"] = "ln(v/v*+1) - steady, rows: samples t, columns: xi_dev"
             describe(ts.create_dataset("deviation_xi", data=rel), "L0",
                      "(xi - xi_front)/L0", dims=(xd,))
