@@ -58,6 +58,11 @@ def test_drift_verdict():
     ok, text = drift_verdict(_result(1.05, 0.7))
     assert ok is None and "grows by only" in text
     assert "drift: " in summary(_result(1.2, 23.5))
+    # a run lost before its third measurement is not judged
+    lost = _result(1.2, 23.5, n=2)
+    lost.info["status"] = "pulse lost: grew"
+    ok, text = drift_verdict(lost)
+    assert ok is None and "ended after 2 measurement(s) (pulse lost: grew)" in text
 
 
 def test_plot_result_writes_three_panels(tmp_path, monkeypatch):

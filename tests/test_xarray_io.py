@@ -217,3 +217,17 @@ def test_scan_summary_opens_with_xarray(tmp_path):
     rows = read_summary_h5(res.summary_h5)      # the package's reader sees the id column too
     assert [r["id"] for r in rows] == [r["id"] for r in res.rows]
     assert [r["growth"] for r in rows] == [r["growth"] for r in res.rows]
+
+
+def test_seed_file_opens_with_xarray(tmp_path, pulse12):
+    from slippulse.seeding import DomainSpec, seed_pulse, write_seed
+
+    seed = seed_pulse(pulse12.to_pulse(), P, DomainSpec(dx=1e-2, ahead=2.0, behind=2.0))
+    path = str(tmp_path / "seed.h5")
+    write_seed(path, seed)
+    ds = xr.open_dataset(path, engine="h5netcdf")
+    assert ds.attrs["format"] == "slippulse-seed"
+    assert ds["V"].dims == ("x",) and _units(ds["x"]) == ("m", True)
+    assert _units(ds["tau_load"]) == ("Pa", True)
+    assert np.array_equal(ds["V"].values, seed.stepper.V)
+    ds.close()

@@ -180,15 +180,26 @@ class Pulse:
         return pulse_label(self.tau_d_ratio)
 
 
-def atomic_update(path: str, fill) -> None:
-    """Copy `path` (if it exists) to a temporary file, apply `fill(h5file)`, then replace `path`."""
+def atomic_update(path: str, fill, replace: bool = False) -> None:
+    """Copy `path` (if it exists) to a temporary file, apply `fill(h5file)`, then replace `path`.
+
+    ``replace``: start from an empty file instead (the writer replaces the whole content). An
+    existing `path` that is not a readable HDF5 file is refused (:class:`SchemaError` naming it)
+    unless ``replace``.
+    """
+    shown = path
     path = os.path.abspath(path)
     d = os.path.dirname(path)
+    if os.path.exists(d) and not os.path.isdir(d):
+        raise SchemaError(f"{shown}: cannot write there, {d} is a file, not a directory")
     os.makedirs(d, exist_ok=True)
+    if os.path.exists(path) and not replace:
+        with open_h5(shown, "output"):         # an existing target must be a readable HDF5 file
+            pass
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".h5", dir=d)
     os.close(fd)
     try:
-        if os.path.exists(path):
+        if os.path.exists(path) and not replace:
             shutil.copyfile(path, tmp)
             mode = "r+"
         else:
@@ -300,6 +311,16 @@ def open_h5(path: str, what: str = "file") -> h5py.File:
         reason = str(exc).split("(")[0].strip().rstrip(",")
         raise SchemaError(f"{what}={path!r}: not a readable HDF5 file ({reason}; truncated, "
                           "or not HDF5)") from None
+
+
+def check_writable(path: str, what: str = "out") -> None:
+    """Refuse (:class:`SchemaError`) an output path whose nearest existing parent is not a
+    directory, before any work is done."""
+    d = os.path.dirname(os.path.abspath(path))
+    while not os.path.exists(d):
+        d = os.path.dirname(d)
+    if not os.path.isdir(d):
+        raise SchemaError(f"{what}={path!r}: cannot write there, {d} is a file, not a directory")
 
 
 def _labels(h5, path: str) -> list[str]:

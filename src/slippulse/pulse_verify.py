@@ -391,7 +391,8 @@ def drift_verdict(res: VerifyResult):
     Returns ``(verdict, text)``: verdict True (the measured growth rate of |v_max error| per L⁰,
     :func:`growth_rate`, is within :data:`GROWTH_TOLERANCE` of the mode's s, :func:`mode_growth`,
     and the mode grows by more than e over the run), False (it is not), or None (s unknown at
-    this τ_d, the mode grows by less than e over the run, or too few samples to fit a rate).
+    this τ_d, the mode grows by less than e over the run, too few samples to fit a rate, or a run
+    that ended before its third measurement).
     ``text`` says which, in one clause.
     """
     i = res.info
@@ -403,6 +404,9 @@ def drift_verdict(res: VerifyResult):
     sv, err, how = known
     efolds = sv * i["travelled"]
     mode = f"unstable mode s = {sv:.3g} ± {err:.2g} per L ({how}, docs/stability.md)"
+    if i["status"] != "finished" and res.t.size < 3:
+        return None, (f"the run ended after {res.t.size} measurement(s) ({i['status']}): too "
+                      f"few to compare with the {mode}")
     if efolds < 1.0:
         return None, (f"the {mode} grows by only e^{efolds:.2f} over {i['travelled']:.3g} L: "
                       "the drift is not its growth (start-up transient or discretisation)")
@@ -508,7 +512,7 @@ def write_result(path: str, res: VerifyResult, params, source: str = "", label: 
                                        chunks=(64,)),
                      "m", "front position on the grid x", dims=(tc,))
 
-    atomic_update(path, fill)
+    atomic_update(path, fill, replace=True)
 
 
 def plot_result(path_png: str, res: VerifyResult, pulse, params) -> None:

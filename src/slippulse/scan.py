@@ -570,7 +570,7 @@ def write_summary_h5(path: str, rows: list[dict], scan: Scan) -> None:
         h5.attrs["runner"] = scan.runner
         h5.attrs["n_cases"] = len(rows)
 
-    atomic_update(path, fill)
+    atomic_update(path, fill, replace=True)
 
 
 def read_summary_h5(path: str) -> list[dict]:
