@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 
+import h5py
 import numpy as np
 from scipy.optimize import brentq, least_squares, minimize_scalar
 
@@ -643,6 +644,16 @@ FAMILY_ARRAYS = {
 }
 
 
+FAMILY_LONG_NAMES = {
+    "beta": "beta = c_p/c_s", "c_p": "pulse speed", "L": "pulse length (FWHM of ln(v/v*+1))",
+    "L_tilde": "dimensionless pulse length tau_min^2 L/(mu G_c*)", "v_max": "peak slip rate",
+    "tau_max": "peak shear stress", "tau_m_pulse": "minimum shear stress",
+    "total_slip": "slip across the pulse", "G_bar_max": "breakdown energy at the tail",
+    "zeta": "edge singularity exponent", "zeta_err": "uncertainty of zeta",
+    "max_residual": "max |residual|",
+}
+
+
 def _atomic_update(path, fill):
     upd = h5io.atomic_update
     upd(path, fill)
@@ -744,11 +755,19 @@ def _write_family(path, rows, fam, scaling_window, gc_window):
                 grp.attrs[name] = float(r[key])
         if "family" in h5:
             del h5["family"]
+        h5io.upgrade_steady(h5)
         g = h5.create_group("family")
+        # dimension tau_d_ratio (one entry per pulse, decreasing): the coordinate of every array
+        dim = h5io.coordinate(g, "tau_d_ratio", np.array([r["tau_d_ratio"] for r in rows]),
+                              units="1", long_name="tau_d/tau_min")
         for name, unit in FAMILY_ARRAYS.items():
-            ds = g.create_dataset(name, data=np.array([r[name] for r in rows], dtype=float))
-            ds.attrs["units"] = unit
-        g.create_dataset("label", data=np.array([r["label"] for r in rows], dtype="S"))
+            if name != "tau_d_ratio":
+                h5io.describe(g.create_dataset(name, data=np.array([r[name] for r in rows],
+                                                                   dtype=float)),
+                              unit, FAMILY_LONG_NAMES.get(name, name), dims=(dim,))
+        h5io.describe(g.create_dataset("label", data=[r["label"] for r in rows],
+                                       dtype=h5py.string_dtype()),
+                      "1", "pulse group name (pulses/<label>)", dims=(dim,))
         g.attrs["tau_m"] = fam["tau_m"]
         g.attrs["tau_m_units"] = "Pa"
         g.attrs["scaling_window"] = np.array(scaling_window, dtype=float)
@@ -784,9 +803,10 @@ def _write_family(path, rows, fam, scaling_window, gc_window):
         for k, d in fam["mode_ii"].items():
             sub = m2.create_group(f"cd_over_cs_{k:.4f}")
             sub.attrs["cd_over_cs"] = k
-            sub.create_dataset("beta", data=d["beta"])
-            ds = sub.create_dataset("L", data=d["L"])
-            ds.attrs["units"] = "m"
+            h5io.describe(sub.create_dataset("beta", data=d["beta"]), "1",
+                          "beta = c_p/c_s of the mode-II pulse", dims=(dim,))
+            h5io.describe(sub.create_dataset("L", data=d["L"]), "m",
+                          "pulse length of the mode-II pulse", dims=(dim,))
 
     _atomic_update(path, fill)
 

@@ -45,10 +45,17 @@ def main(argv: list[str] | None = None) -> int:
     except (ParameterError, SchemaError, UsageError) as exc:
         print(f"slippulse: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:          # a path that cannot be read or written (named by the OS error)
+        where = f": {exc.filename!r}" if exc.filename else ""
+        print(f"slippulse: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("slippulse: interrupted", file=sys.stderr)
         return 130
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # run the package's module, not this copy named __main__: the sub-commands raise
+    # slippulse.cli.UsageError, which must be the class main() catches
+    from slippulse.cli import main as _main
+    sys.exit(_main())

@@ -7,6 +7,7 @@ last checkpoint, bit-identically to an uninterrupted run.
 """
 from __future__ import annotations
 
+import math
 import os
 import sys
 import time
@@ -16,6 +17,7 @@ import numpy as np
 from .cli import UsageError
 from .dynconfig import RESUME_MUTABLE, build_stepper, diff_keys, load_config
 from .dynio import RunFile
+from .stepper import MAX_GRID_POINTS
 
 
 def register(subparsers) -> None:
@@ -46,7 +48,8 @@ def register(subparsers) -> None:
     v.add_argument("--distance", type=float, default=1.0, metavar="D",
                    help="distance to travel, in pulse lengths (default 1)")
     v.add_argument("--out", metavar="FILE", help="output HDF5 (default verify_<label>.h5); a PNG "
-                                                  "of v(xi) at several times is written beside it")
+                                                  "(profiles, deviation, v_max drift against the "
+                                                  "unstable mode's growth) is written beside it")
     v.add_argument("--points", type=int, default=None, metavar="N",
                    help="grid points; sets dx = (ahead + behind)·L/N (default: --dx)")
     v.add_argument("--dx", type=float, default=2e-3, help="grid spacing, m (default 2e-3)")
@@ -161,9 +164,21 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
     return rc
 
 
+def _check_grid(dx: float, ahead: float, behind: float, L: float) -> None:
+    """Refuse a seeded grid that is not finite or has more than MAX_GRID_POINTS points, before
+    anything is allocated (``seeding.DomainSpec`` checks the signs)."""
+    for name, val in (("dx", dx), ("ahead", ahead), ("behind", behind)):
+        if not (math.isfinite(val) and val > 0):
+            raise UsageError(f"--{name}={val!r} must be a finite number > 0")
+    n = (ahead + behind) * L / dx
+    if n > MAX_GRID_POINTS:
+        raise UsageError(f"--dx={dx:g} m gives {n:.3g} grid points over ({ahead:g} + {behind:g}) "
+                         f"L = {(ahead + behind) * L:.4g} m; at most {MAX_GRID_POINTS}")
+
+
 def cmd_verify(args) -> int:
     """``slippulse dynamic verify``: seed, propagate, measure, write HDF5 + PNG, print one line."""
-    from .h5io import SchemaError, read_pulse
+    from .h5io import SchemaError, check_writable, read_pulse
     from .params import ParameterError
     from .pulse_verify import plot_result, summary, verify_pulse, write_result
     from .seeding import DomainSpec
@@ -177,13 +192,17 @@ def cmd_verify(args) -> int:
     out = args.out or f"verify_{label}.h5"
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
+    check_writable(out, "--out")
     if not args.distance > 0:
         raise UsageError(f"--distance={args.distance} must be > 0 (pulse lengths)")
     dx = args.dx
     if args.points is not None:
-        if args.points < 16:
-            raise UsageError(f"--points={args.points} must be >= 16")
+        if not 16 <= args.points <= MAX_GRID_POINTS:
+            raise UsageError(f"--points={args.points} must be in [16, {MAX_GRID_POINTS}]")
         dx = (args.ahead + args.behind) * pulse.L / args.points
+    _check_grid(dx, args.ahead, args.behind, pulse.L)
+    if not 2 <= args.samples <= 100_000:
+        raise UsageError(f"--samples={args.samples} must be in [2, 100000]")
     try:
         spec = DomainSpec(dx=dx, ahead=args.ahead, behind=args.behind)
         rule = TimeStepRule(kind="adaptive", xi_stab=args.xi_stab)
@@ -212,6 +231,7 @@ def cmd_seed(args) -> int:
     out = args.out or f"seed_{pulse.label}.h5"
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
+    _check_grid(args.dx, args.ahead, args.behind, pulse.L)
     try:
         seed = seed_pulse(pulse, params, DomainSpec(dx=args.dx, ahead=args.ahead,
                                                     behind=args.behind),

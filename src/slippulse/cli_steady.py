@@ -36,12 +36,27 @@ def _ratio(text: str) -> float:
     return val
 
 
+def _check_out(out: str) -> None:
+    """Refuse, before solving, an --out that could not take a pulse (not a directory, not an
+    HDF5 steady file, a newer format version)."""
+    from .h5io import check_writable, format_version, open_h5
+
+    check_writable(out, "out")
+    if os.path.exists(out):
+        with open_h5(out, "out") as h5:
+            format_version(h5, out)
+
+
 def cmd_solve(args) -> int:
     params = DEFAULT
     ratio = _ratio(args.tau_d)
     params.check_tau_d(ratio * params.tau_min)
     check_points(args.points)
+    if not (math.isfinite(args.tol) and args.tol > 0):
+        raise ParameterError(f"tol={args.tol!r} is invalid: must be a finite number > 0 "
+                             "(max |residual| target)")
     out = args.out or os.path.join("runs", "steady", f"{pulse_label(ratio)}.h5")
+    _check_out(out)
     bar = tqdm(total=3, desc=f"steady {pulse_label(ratio)}", unit="pass", disable=args.quiet,
                file=sys.stderr)
 

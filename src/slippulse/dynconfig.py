@@ -104,7 +104,7 @@ def load_config(path: str | None = None, sets: list[str] | tuple = ()) -> dict:
                 data = tomllib.load(fh)
         except OSError as exc:
             raise UsageError(f"cannot read config {path}: {exc.strerror}")
-        except tomllib.TOMLDecodeError as exc:
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise UsageError(f"config {path} is not valid TOML: {exc}")
         cfg = merge(cfg, data, path)
     for item in sets:

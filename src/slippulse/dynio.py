@@ -1,20 +1,33 @@
 """HDF5 output of dynamic runs: snapshots, per-step scalars, checkpoints, bit-exact resume.
 
-Layout::
+Layout (format version 2, netCDF-4 conventions: ``xarray.open_datatree(FILE, engine="h5netcdf")``
+reads it with named dimensions and coordinates)::
 
-    /                 attrs: slippulse_version, created, kind="dynamic", status, message
+    /                 attrs: slippulse_version, created, kind="dynamic", format="slippulse-dynamic",
+                      format_version=2, status, message
+    /x                (x,) m: grid coordinate (dimension scale)
     /parameters       attrs: the Table-I parameters (SI) + units_<name>
     /config           attrs: toml-like "section.key" = value (the resolved config), json (all of it)
-    /grid/x           (N,) m
-    /snapshots/step   (nt,)        resizable time axis; V (nt, N) m/s, phi s, tau Pa, delta m, t s
-    /scalars/step     (ns,)        per step: t (s), dt (s), v_max (m/s), x_vmax (m), iters (1)
-    /checkpoint       the full solver state at the last checkpoint (arrays and attrs t, nstep)
+    /snapshots/t      (t,) s, resizable time axis (dimension scale); step (t,);
+                      V, phi, tau, delta: (t, x), one resizable dataset per field
+    /scalars/t        (t,) s, one entry per step (dimension scale); step, dt (s), v_max (m/s),
+                      x_vmax (m), iters (1): (t,)
+    /checkpoint       the full solver state at the last checkpoint (0-d datasets for t, nstep,
+                      dt_prev; arrays on x or on dimensions ``dim_<name>_<axis>``)
 
-Crash safety: the run writes into ``FILE.partial``; at each checkpoint that file is closed, copied
-to ``FILE.tmp`` and renamed over ``FILE`` (``os.replace`` is atomic). ``FILE`` is therefore always
-a complete file as of the last checkpoint, whatever happens to the process. ``--resume`` copies
-``FILE`` back to ``FILE.partial`` and continues from its checkpoint; the results are bit-identical
-to an uninterrupted run because the checkpoint holds every array the next step reads.
+Every dataset has ``units`` and ``long_name``. Version 1 files (no ``format_version``; the grid in
+``/grid/x`` and no dimension scales) are still read and resumed: ``--resume`` upgrades the copy it
+continues. Files of a newer version are refused with a message naming it.
+
+Crash safety (a kill at any moment leaves FILE complete as of the last checkpoint): the run writes
+into ``FILE.partial``. At a checkpoint that file is closed and renamed over ``FILE`` (``os.replace``
+is atomic); the previous ``FILE`` (kept by a hard link) becomes the next ``FILE.partial`` and is
+brought up to date by appending what it lacks — the snapshot and scalar rows of the last interval,
+read back from ``FILE``, and the checkpoint state. A checkpoint therefore costs the data of one
+interval, not a copy of the whole file (benchmarks/bench_checkpoint.py, BENCHMARKS.md). Where hard
+links are not available the previous FILE is copied instead. ``--resume`` copies ``FILE`` to
+``FILE.partial`` once and continues from its checkpoint; the results are bit-identical to an
+uninterrupted run because the checkpoint holds every array the next step reads.
 """
 from __future__ import annotations
 
@@ -27,10 +40,114 @@ import h5py
 import numpy as np
 
 from . import __version__
+from .h5io import SchemaError, coordinate, describe, dimension, format_version, stamp_format
 from .params import Parameters
 
 SNAP_FIELDS = {"V": "m/s", "phi": "s", "tau": "Pa", "delta": "m"}
 SCALARS = {"t": "s", "dt": "s", "v_max": "m/s", "x_vmax": "m", "iters": "1"}
+LONG_NAMES = {"x": "position along the interface", "t": "time",
+              "step": "time step number", "V": "slip rate", "phi": "state variable",
+              "tau": "shear stress", "delta": "slip", "dt": "time step",
+              "v_max": "maximum slip rate", "x_vmax": "position of the maximum slip rate",
+              "iters": "friction-solver iterations (max of the step's two solves)"}
+#: Units of the checkpoint arrays (the rest are 1).
+_STATE_UNITS = {"t": "s", "dt_prev": "s", "delta": "m", "V": "m/s", "phi": "s", "tau": "Pa",
+                "delta_k": "m", "V_k": "m/s"}
+
+
+def _create_series(h5, n: int) -> None:
+    """The v2 groups snapshots (t, x) and scalars (t), empty and resizable."""
+    x = h5["x"]
+    gs = h5.create_group("snapshots")
+    t = coordinate(gs, "t", units="s", long_name="time of the snapshot", unlimited=True,
+                   chunks=(256,))
+    describe(gs.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8", chunks=(256,)),
+             "1", LONG_NAMES["step"], dims=(t,))
+    for name, unit in SNAP_FIELDS.items():
+        describe(gs.create_dataset(name, shape=(0, n), maxshape=(None, n), dtype="f8",
+                                   chunks=(1, n)), unit, LONG_NAMES[name], dims=(t, x))
+    gsc = h5.create_group("scalars")
+    t = coordinate(gsc, "t", units="s", long_name="time at the end of the step", unlimited=True,
+                   chunks=(4096,))
+    describe(gsc.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8", chunks=(4096,)),
+             "1", LONG_NAMES["step"], dims=(t,))
+    for name, unit in SCALARS.items():
+        if name != "t":
+            describe(gsc.create_dataset(name, shape=(0,), maxshape=(None,),
+                                        dtype="i8" if name == "iters" else "f8", chunks=(4096,)),
+                     unit, LONG_NAMES[name], dims=(t,))
+
+
+def upgrade_v1(h5) -> None:
+    """Bring an open version-1 run file to version 2 in place (same data, dimension scales added;
+    the grid moves from /grid/x to /x)."""
+    if format_version(h5) >= 2:
+        return
+    x = coordinate(h5, "x", h5["grid/x"][...], units="m", long_name=LONG_NAMES["x"])
+    del h5["grid"]
+    for gname in ("snapshots", "scalars"):
+        g = h5[gname]
+        t = g["t"]
+        t.make_scale("t")
+        describe(t, "s", LONG_NAMES["t"])
+        for name, ds in g.items():
+            if name != "t":
+                describe(ds, ds.attrs.get("units", "1"), LONG_NAMES.get(name, name),
+                         dims=(t, x)[:ds.ndim])
+    if "checkpoint" in h5:                      # v1 datasets carry no scales: recreate them
+        policy = h5["checkpoint"].attrs.get("history_policy")
+        state = read_checkpoint(h5)
+        del h5["checkpoint"]
+        _write_checkpoint(h5, state, policy)
+    stamp_format(h5, "dynamic")
+
+
+def _drop(ds) -> None:
+    """Delete a dataset, detaching its dimension scales first (no dangling references)."""
+    for axis in range(ds.ndim):
+        for scale in list(ds.dims[axis].values()):
+            ds.dims[axis].detach_scale(scale)
+    del ds.parent[ds.name.rsplit("/", 1)[-1]]
+
+
+def _write_checkpoint(h5, state: dict, history_policy) -> None:
+    """Write the group /checkpoint from a state dict (``stepper.state()``).
+
+    Datasets whose shape and type are unchanged are overwritten in place (a new dataset per
+    checkpoint would leave the old one's space unused in the file); the others are replaced.
+    """
+    g = h5.require_group("checkpoint")
+    x = h5["x"]
+    n = x.shape[0]
+    stale = []
+    g.visititems(lambda name, obj: stale.append(name) if isinstance(obj, h5py.Dataset)
+                 and not obj.is_scale and name not in state else None)
+    for name in stale:
+        _drop(g[name])
+    for key, val in state.items():
+        arr = np.asarray(val)
+        old = g.get(key)
+        if isinstance(old, h5py.Dataset) and old.shape == arr.shape and old.dtype == arr.dtype:
+            old[()] = arr                        # 0-d datasets for scalars: exact
+            continue
+        if old is not None:
+            _drop(old)
+        ds = g.create_dataset(key, data=arr)
+        leaf = key.rsplit("/", 1)[-1]
+        dims = []
+        for axis, size in enumerate(arr.shape):
+            if arr.ndim == 1 and size == n:
+                dims.append(x)
+                continue
+            name = f"dim_{leaf}_{axis}"
+            dim = ds.parent.get(name)
+            if dim is not None and dim.shape != (size,):
+                del ds.parent[name]              # its only user was the dataset dropped above
+                dim = None
+            dims.append(dim if dim is not None else dimension(ds.parent, name, size))
+        describe(ds, _STATE_UNITS.get(key, "1"), f"solver state: {key}", dims=dims)
+    if history_policy is not None:
+        g.attrs["history_policy"] = history_policy
 
 
 class RunFile:
@@ -50,6 +167,7 @@ class RunFile:
         h5.attrs["slippulse_version"] = __version__
         h5.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
         h5.attrs["kind"] = "dynamic"
+        stamp_format(h5, "dynamic")
         h5.attrs["status"] = "running"
         h5.attrs["message"] = ""
         gp = h5.create_group("parameters")
@@ -61,46 +179,41 @@ class RunFile:
         for section, table in cfg.items():
             for key, val in table.items():
                 gc.attrs[f"{section}.{key}"] = val
-        gg = h5.create_group("grid")
-        gg.create_dataset("x", data=stepper.x).attrs["units"] = "m"
-        n = stepper.n
-        gs = h5.create_group("snapshots")
-        gs.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8")
-        gs.create_dataset("t", shape=(0,), maxshape=(None,), dtype="f8").attrs["units"] = "s"
-        for name, unit in SNAP_FIELDS.items():
-            ds = gs.create_dataset(name, shape=(0, n), maxshape=(None, n), dtype="f8",
-                                   chunks=(1, n))
-            ds.attrs["units"] = unit
-        gsc = h5.create_group("scalars")
-        gsc.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8", chunks=(4096,))
-        for name, unit in SCALARS.items():
-            dtype = "i8" if name == "iters" else "f8"
-            gsc.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
-                               chunks=(4096,)).attrs["units"] = unit
+        coordinate(h5, "x", stepper.x, units="m", long_name=LONG_NAMES["x"])
+        _create_series(h5, stepper.n)
         return cls(path, h5)
 
     @classmethod
     def open_resume(cls, path: str) -> tuple["RunFile", dict, dict]:
-        """Reopen FILE for appending; returns (writer, stored config, checkpoint state)."""
+        """Reopen FILE for appending; returns (writer, stored config, checkpoint state).
+
+        Raises FileNotFoundError (no FILE) or ValueError (not a run file with a checkpoint,
+        unreadable, or of a newer format version), with a message naming FILE.
+        """
         if not os.path.exists(path):
             raise FileNotFoundError(f"--resume: output file {path} does not exist")
+        try:
+            with h5py.File(path, "r") as h5:
+                ok = h5.attrs.get("kind") == "dynamic" and "checkpoint" in h5
+                format_version(h5, path)
+        except OSError:
+            raise ValueError(f"--resume: {path} is not a readable HDF5 file (truncated or not "
+                             "HDF5)") from None
+        except SchemaError as exc:
+            raise ValueError(f"--resume: {exc}") from None
+        if not ok:
+            raise ValueError(f"{path} is not a slippulse dynamic run with a checkpoint")
         work = path + ".partial"
         shutil.copyfile(path, work)
         h5 = h5py.File(work, "r+")
-        if h5.attrs.get("kind") != "dynamic" or "checkpoint" not in h5:
-            h5.close()
-            raise ValueError(f"{path} is not a slippulse dynamic run with a checkpoint")
+        upgrade_v1(h5)
         cfg = json.loads(h5["config"].attrs["json"])
         st = read_checkpoint(h5)
         return cls(path, h5), cfg, st
 
     def update_config(self, cfg: dict):
         """Store the resolved config of a resumed run (only RESUME_MUTABLE keys may differ)."""
-        gc = self.h5["config"]
-        gc.attrs["json"] = json.dumps(cfg, sort_keys=True)
-        for section, table in cfg.items():
-            for key, val in table.items():
-                gc.attrs[f"{section}.{key}"] = val
+        _store_config(self.h5, cfg)
 
     # ------------------------------------------------------------------ writing
     def record_step(self, stepper):
@@ -140,20 +253,32 @@ class RunFile:
         return int(s[-1]) if s.shape[0] else -1
 
     def checkpoint(self, stepper, status="running", message=""):
-        """Write the solver state and publish FILE atomically (close, copy, rename, reopen)."""
+        """Write the solver state and publish FILE atomically (module docstring: close, rename,
+        bring the previous FILE up to date as the next work file, reopen)."""
         self._flush_scalars()
-        if "checkpoint" in self.h5:
-            del self.h5["checkpoint"]
-        g = self.h5.create_group("checkpoint")
-        for key, val in stepper.state().items():
-            g.create_dataset(key, data=np.asarray(val))   # 0-d datasets for scalars: exact
-        g.attrs["history_policy"] = stepper.history_name
+        state = stepper.state()
+        _write_checkpoint(self.h5, state, stepper.history_name)
         self.h5.attrs["status"] = status
         self.h5.attrs["message"] = message
         self.h5.close()
-        tmp = self.path + ".tmp"
-        shutil.copyfile(self.work, tmp)
-        os.replace(tmp, self.path)
+        prev = self.path + ".prev"
+        if os.path.exists(prev):
+            os.remove(prev)
+        have_prev = False
+        if os.path.exists(self.path):
+            try:
+                os.link(self.path, prev)
+                have_prev = True
+            except OSError:                      # no hard links here: copy after publishing
+                pass
+        os.replace(self.work, self.path)         # the commit point: FILE is the new checkpoint
+        if have_prev:
+            os.replace(prev, self.work)
+            self.h5 = h5py.File(self.work, "r+")
+            if _catch_up(self.h5, self.path, state, stepper.history_name):
+                return
+            self.h5.close()                      # previous FILE in another layout (resumed v1)
+        shutil.copyfile(self.path, self.work)
         self.h5 = h5py.File(self.work, "r+")
 
     def close(self, remove_work=True):
@@ -162,13 +287,47 @@ class RunFile:
             os.remove(self.work)
 
 
+def _store_config(h5, cfg: dict) -> None:
+    gc = h5["config"]
+    gc.attrs["json"] = json.dumps(cfg, sort_keys=True)
+    for section, table in cfg.items():
+        for key, val in table.items():
+            gc.attrs[f"{section}.{key}"] = val
+
+
+def _catch_up(work, path: str, state: dict, history_policy) -> bool:
+    """Make the work file (the previous FILE) hold what FILE holds: append the snapshot and
+    scalar rows it lacks (read from FILE), rewrite the checkpoint from ``state``, copy the root
+    status and the config. Returns False (work untouched) when the two are not in the same
+    layout version (the caller then copies FILE)."""
+    with h5py.File(path, "r") as src:
+        if format_version(work) != format_version(src) or "x" not in work:
+            return False
+        for gname in ("snapshots", "scalars"):
+            gs, gw = src[gname], work[gname]
+            n_new, n_old = gs["step"].shape[0], gw["step"].shape[0]
+            if n_new == n_old:
+                continue
+            for name, ds in gs.items():
+                tail = ds[n_old:n_new]
+                gw[name].resize((n_new,) + ds.shape[1:])
+                gw[name][n_old:n_new] = tail
+        for key in ("status", "message"):
+            work.attrs[key] = src.attrs[key]
+        for key, val in src["config"].attrs.items():
+            work["config"].attrs[key] = val
+    _write_checkpoint(work, state, history_policy)
+    return True
+
+
 def read_checkpoint(h5: h5py.File) -> dict:
-    """The checkpoint state dict (as written by PredictorCorrector.state())."""
+    """The checkpoint state dict (as written by PredictorCorrector.state()); dimension scales
+    are not part of it."""
     g = h5["checkpoint"]
     st = {}
 
     def visit(name, obj):
-        if isinstance(obj, h5py.Dataset):
+        if isinstance(obj, h5py.Dataset) and not obj.is_scale:
             st[name] = obj[()]
     g.visititems(visit)
     return st

@@ -8,6 +8,18 @@ Layout::
                            attrs tau_d_ratio, tau_d, tau_min, beta, c_p, L, L_tilde, v_stick, v_max,
                            max_residual, converged, n_points, wall_time, mode, status, message
 
+Format version 2 (root attributes ``format = "slippulse-steady"``, ``format_version = 2``): ``xi``
+of each pulse group is an HDF5 dimension scale (dimension ``xi``) attached to v, phi, tau and
+residual, and every dataset carries ``units`` and ``long_name``, so that
+``xarray.open_datatree(path, engine="h5netcdf")`` reads the file with named dimensions and
+coordinates (netCDF-4 conventions). Version 1 files (no ``format_version``: the same datasets
+without dimension scales) are read as well, and are upgraded in place when a pulse is added to
+them; files of a newer version are refused with a message naming it. Groups and datasets that the
+schema does not name (e.g. a ``spectrum`` subgroup of a pulse group) are left alone.
+
+The helpers :func:`coordinate`, :func:`dimension` and :func:`describe` give the other writers
+(dynio, pulse_verify, scan, analysis) the same conventions.
+
 Every write goes to a temporary file in the same directory that replaces the target with
 ``os.replace`` only once complete, so an interrupted write never leaves a corrupt file.
 """
@@ -25,8 +37,13 @@ import numpy as np
 from . import __version__
 from .params import Parameters
 
+#: Version of the file layouts written by this code (root attribute ``format_version``).
+FORMAT_VERSION = 2
 PARAM_NAMES = ("mu", "sigma", "c_s", "D", "b", "v_star", "f0", "phi_star", "alpha")
 DATASETS = {"xi": "m", "v": "m/s", "phi": "s", "tau": "Pa", "residual": "1"}
+LONG_NAMES = {"xi": "co-moving coordinate xi = x - c_p t (pulse moves toward +xi)",
+              "v": "slip rate", "phi": "state variable", "tau": "shear stress",
+              "residual": "residual of the steady equations (Delta)"}
 ATTRS = {
     "tau_d_ratio": "1", "tau_d": "Pa", "tau_min": "Pa", "beta": "1", "c_p": "m/s", "L": "m",
     "L_tilde": "1", "v_stick": "m/s", "v_max": "m/s", "max_residual": "1", "converged": "bool",
@@ -36,6 +53,96 @@ ATTRS = {
 
 class SchemaError(ValueError):
     """A file or group that does not follow the slippulse pulse schema."""
+
+
+#: netCDF-4 marker of a dimension scale that is not a variable (``NAME`` attribute prefix).
+_DIM_ONLY = "This is a netCDF dimension but not a netCDF variable."
+
+
+def stamp_format(h5, kind: str) -> None:
+    """Mark a file (or its root group) as slippulse ``kind`` in the current format version."""
+    h5.attrs["format"] = f"slippulse-{kind}"
+    h5.attrs["format_version"] = np.int64(FORMAT_VERSION)
+
+
+def format_version(h5, path: str = "") -> int:
+    """Layout version of an open file: ``format_version`` (1 when absent, the layout before it).
+
+    Raises :class:`SchemaError` naming the version when it is not 1..FORMAT_VERSION.
+    """
+    raw = h5.attrs.get("format_version", 1)
+    try:
+        ver = int(np.asarray(raw).item())
+    except (TypeError, ValueError):
+        raise SchemaError(f"{path or h5.filename}: format_version={raw!r} is not an integer") from None
+    if ver > FORMAT_VERSION:
+        raise SchemaError(f"{path or h5.filename}: format_version {ver} is newer than this "
+                          f"slippulse {__version__} reads (1 to {FORMAT_VERSION}); upgrade slippulse")
+    if ver < 1:
+        raise SchemaError(f"{path or h5.filename}: format_version {ver} is not a slippulse layout "
+                          f"(1 to {FORMAT_VERSION})")
+    return ver
+
+
+def describe(ds, units: str, long_name: str, dims=()) -> "h5py.Dataset":
+    """Set ``units`` and ``long_name`` of ``ds`` and attach the dimension scales ``dims`` (one per
+    axis, in order; :func:`coordinate` or :func:`dimension` datasets). Returns ``ds``."""
+    ds.attrs["units"] = units
+    ds.attrs["long_name"] = long_name
+    for axis, scale in enumerate(dims):
+        ds.dims[axis].attach_scale(scale)
+    return ds
+
+
+def coordinate(group, name: str, data=None, *, units: str, long_name: str, unlimited=False,
+               dtype="f8", chunks=None) -> "h5py.Dataset":
+    """A 1-D coordinate variable ``group/name``: an HDF5 dimension scale of dimension ``name``.
+
+    ``unlimited``: created empty (or from ``data``) with ``maxshape=(None,)``, to be resized as a
+    time axis grows.
+    """
+    if unlimited:
+        n = 0 if data is None else len(data)
+        ds = group.create_dataset(name, shape=(n,), maxshape=(None,), dtype=dtype,
+                                  chunks=chunks or (1024,))
+        if n:
+            ds[...] = data
+    else:
+        ds = group.create_dataset(name, data=data, dtype=dtype)
+    ds.make_scale(name)
+    return describe(ds, units, long_name)
+
+
+def dimension(group, name: str, size: int) -> "h5py.Dataset":
+    """A dimension without a coordinate variable (netCDF-4 convention: a dimension scale whose
+    ``NAME`` says so; xarray lists it under "Dimensions without coordinates")."""
+    ds = group.create_dataset(name, shape=(size,), dtype="f4")
+    ds.make_scale(f"{_DIM_ONLY}{size:10d}")
+    return ds
+
+
+def _attach_pulse_scales(grp) -> None:
+    """Make ``xi`` of a pulse group a dimension scale and attach it to the other datasets
+    (idempotent: a version-1 group is upgraded, a version-2 group left as it is)."""
+    xi = grp["xi"]
+    if not xi.is_scale:
+        xi.make_scale("xi")
+    for name in DATASETS:
+        ds = grp[name]
+        if "long_name" not in ds.attrs:
+            ds.attrs["long_name"] = LONG_NAMES[name]
+        if name != "xi" and ds.ndim == 1 and len(ds.dims[0]) == 0:
+            ds.dims[0].attach_scale(xi)
+
+
+def upgrade_steady(h5) -> None:
+    """Bring an open steady/family file to the current format (dimension scales on every pulse
+    group that has the schema's datasets); other groups and subgroups are left alone."""
+    format_version(h5)
+    for grp in (h5["pulses"].values() if "pulses" in h5 else ()):
+        if isinstance(grp, h5py.Group) and all(n in grp for n in DATASETS):
+            _attach_pulse_scales(grp)
+    stamp_format(h5, "steady")
 
 
 def pulse_label(tau_d_ratio: float) -> str:
@@ -73,15 +180,26 @@ class Pulse:
         return pulse_label(self.tau_d_ratio)
 
 
-def atomic_update(path: str, fill) -> None:
-    """Copy `path` (if it exists) to a temporary file, apply `fill(h5file)`, then replace `path`."""
+def atomic_update(path: str, fill, replace: bool = False) -> None:
+    """Copy `path` (if it exists) to a temporary file, apply `fill(h5file)`, then replace `path`.
+
+    ``replace``: start from an empty file instead (the writer replaces the whole content). An
+    existing `path` that is not a readable HDF5 file is refused (:class:`SchemaError` naming it)
+    unless ``replace``.
+    """
+    shown = path
     path = os.path.abspath(path)
     d = os.path.dirname(path)
+    if os.path.exists(d) and not os.path.isdir(d):
+        raise SchemaError(f"{shown}: cannot write there, {d} is a file, not a directory")
     os.makedirs(d, exist_ok=True)
+    if os.path.exists(path) and not replace:
+        with open_h5(shown, "output"):         # an existing target must be a readable HDF5 file
+            pass
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".h5", dir=d)
     os.close(fd)
     try:
-        if os.path.exists(path):
+        if os.path.exists(path) and not replace:
             shutil.copyfile(path, tmp)
             mode = "r+"
         else:
@@ -122,6 +240,7 @@ def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = T
     """Add (or replace) `pulse` as ``pulses/<label>`` in `path`, atomically."""
 
     def fill(h5):
+        format_version(h5, path)
         if "parameters" in h5:
             old = read_parameters(h5)
             if old != params:
@@ -134,64 +253,114 @@ def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = T
                 raise SchemaError(f"{path}: pulse {pulse.label} already present")
             del pulses[pulse.label]
         grp = pulses.create_group(pulse.label)
+        xi = coordinate(grp, "xi", np.asarray(pulse.xi, dtype=float), units=DATASETS["xi"],
+                        long_name=LONG_NAMES["xi"])
         for name, unit in DATASETS.items():
-            ds = grp.create_dataset(name, data=np.asarray(getattr(pulse, name), dtype=float))
-            ds.attrs["units"] = unit
+            if name != "xi":
+                describe(grp.create_dataset(name, data=np.asarray(getattr(pulse, name), dtype=float)),
+                         unit, LONG_NAMES[name], dims=(xi,))
         for name in ATTRS:
             val = getattr(pulse, name)
             grp.attrs[name] = np.bool_(val) if name == "converged" else val
         for key, val in pulse.extra.items():
             grp.attrs[key] = val
+        upgrade_steady(h5)
 
     atomic_update(path, fill)
 
 
 def _group_to_pulse(grp) -> Pulse:
-    missing = [n for n in DATASETS if n not in grp] + [n for n in ATTRS if n not in grp.attrs]
+    missing = ([n for n in DATASETS if not isinstance(grp.get(n), h5py.Dataset)]
+               + [n for n in ATTRS if n not in grp.attrs])
     if missing:
         raise SchemaError(f"group {grp.name} is not a slippulse pulse: missing {missing}")
-    xi = np.asarray(grp["xi"][...], dtype=float)
+    try:
+        arrays = {name: np.asarray(grp[name][...], dtype=float) for name in DATASETS}
+    except (TypeError, ValueError) as exc:
+        raise SchemaError(f"group {grp.name}: datasets must be real numbers ({exc})") from None
+    xi = arrays["xi"]
     n = xi.size
-    arrays = {name: np.asarray(grp[name][...], dtype=float) for name in DATASETS}
     if any(a.shape != (n,) for a in arrays.values()):
         raise SchemaError(f"group {grp.name}: datasets must be 1-D of equal length")
     if n < 2 or np.any(np.diff(xi) <= 0):
         raise SchemaError(f"group {grp.name}: xi must be strictly ascending")
     kw = {name: grp.attrs[name] for name in ATTRS}
-    kw["converged"] = bool(kw["converged"])
-    kw["n_points"] = int(kw["n_points"])
-    kw["mode"] = str(kw["mode"])
-    for name in ATTRS:
-        if name not in ("converged", "n_points", "mode"):
-            kw[name] = float(kw[name])
+    try:
+        kw["converged"] = bool(kw["converged"])
+        kw["n_points"] = int(kw["n_points"])
+        kw["mode"] = str(kw["mode"])
+        for name in ATTRS:
+            if name not in ("converged", "n_points", "mode"):
+                kw[name] = float(kw[name])
+    except (TypeError, ValueError) as exc:
+        raise SchemaError(f"group {grp.name}: attribute of the wrong type ({exc})") from None
     extra = {k: grp.attrs[k] for k in grp.attrs if k not in ATTRS}
     return Pulse(**arrays, **kw, extra=extra)
 
 
+def open_h5(path: str, what: str = "file") -> h5py.File:
+    """Open ``path`` read-only; a missing, empty, truncated or non-HDF5 file raises
+    :class:`SchemaError` naming it (``what``: the parameter it came from, for the message)."""
+    if not os.path.isfile(path):
+        raise SchemaError(f"{what}={path!r}: no such file")
+    if os.path.getsize(path) == 0:
+        raise SchemaError(f"{what}={path!r}: empty file (0 bytes), not HDF5")
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        reason = str(exc).split("(")[0].strip().rstrip(",")
+        raise SchemaError(f"{what}={path!r}: not a readable HDF5 file ({reason}; truncated, "
+                          "or not HDF5)") from None
+
+
+def check_writable(path: str, what: str = "out") -> None:
+    """Refuse (:class:`SchemaError`) an output path whose nearest existing parent is not a
+    directory, before any work is done."""
+    d = os.path.dirname(os.path.abspath(path))
+    while not os.path.exists(d):
+        d = os.path.dirname(d)
+    if not os.path.isdir(d):
+        raise SchemaError(f"{what}={path!r}: cannot write there, {d} is a file, not a directory")
+
+
+def _labels(h5, path: str) -> list[str]:
+    """Pulse labels of an open file, sorted by decreasing τ_d; anything else in ``pulses`` is an
+    error naming it."""
+    format_version(h5, path)
+    if "pulses" not in h5 or not isinstance(h5["pulses"], h5py.Group):
+        raise SchemaError(f"{path}: no 'pulses' group (not a slippulse steady/family file)")
+    labels = list(h5["pulses"].keys())
+    ratios = []
+    for lab in labels:
+        try:
+            ratios.append(float(lab[2:]) if lab.startswith("td") else float("nan"))
+        except ValueError:
+            ratios.append(float("nan"))
+        if not (np.isfinite(ratios[-1]) and isinstance(h5["pulses"][lab], h5py.Group)):
+            raise SchemaError(f"{path}: pulses/{lab} is not a pulse group (expected tdX.XXXX)")
+    return [lab for _, lab in sorted(zip(ratios, labels), key=lambda p: -p[0])]
+
+
 def list_pulses(path: str) -> list[str]:
     """Labels of the pulses in a file, sorted by decreasing τ_d."""
-    with h5py.File(path, "r") as h5:
-        if "pulses" not in h5:
-            raise SchemaError(f"{path}: no 'pulses' group")
-        labels = list(h5["pulses"].keys())
-    return sorted(labels, key=lambda s: -float(s[2:]))
+    with open_h5(path) as h5:
+        return _labels(h5, path)
 
 
 def read_pulse(path: str, label: str | None = None) -> tuple[Pulse, Parameters]:
-    """Read one pulse (the only one, or `label`) and the parameters it was computed with."""
-    try:
-        h5 = h5py.File(path, "r")
-    except OSError as exc:
-        raise SchemaError(f"{path}: not a readable HDF5 file ({exc})") from None
-    with h5:
+    """Read one pulse (the only one, or `label`) and the parameters it was computed with.
+
+    Reads format versions 1 and 2; any file that does not follow the schema raises
+    :class:`SchemaError` with a one-line message naming the file (and the label).
+    """
+    with open_h5(path) as h5:
+        labels = _labels(h5, path)
         params = read_parameters(h5)
-        if "pulses" not in h5:
-            raise SchemaError(f"{path}: no 'pulses' group")
-        labels = list(h5["pulses"].keys())
         if label is None:
             if len(labels) != 1:
-                raise SchemaError(f"{path}: holds {len(labels)} pulses, name one of {labels}")
+                raise SchemaError(f"{path}: holds {len(labels)} pulses, name one with --label "
+                                  f"(one of {labels})")
             label = labels[0]
-        if label not in h5["pulses"]:
-            raise SchemaError(f"{path}: no pulse {label!r}; present: {labels}")
+        if label not in labels:
+            raise SchemaError(f"{path}: no pulse label={label!r}; present: {labels}")
         return _group_to_pulse(h5["pulses"][label]), params

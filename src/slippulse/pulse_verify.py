@@ -72,6 +72,7 @@ class VerifyResult:
     errors: dict
     info: dict
     snapshots: list = field(default_factory=list)   # (t, ξ − ξ_front, V)
+    x: np.ndarray | None = None                      # the SBI grid of the snapshots (m)
 
 
 def front_position(x, V, v_star):
@@ -352,25 +353,118 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
             "t0_v_max_error": float(series["v_max_error"][0]),
             "t0_L_error": float(series["L_error"][0]), "t0_lnv_error": float(lnv[0])}
     return VerifyResult(t=t, x_front=X, series=series, errors=errors, info=info,
-                        snapshots=seed_snap)
+                        snapshots=seed_snap, x=st.x.copy())
+
+
+#: Growth rate s (per steady pulse length L⁰ travelled) of the pulse's unstable mode, with its
+#: uncertainty, measured by the ±ε perturbation study. Source: docs/stability.md, §3 "Growth
+#: rates" table (1.20: 23.5 ± 0.8, 1.10: 8.0 ± 0.2; 1.05: 0.6 on the 3+2 L domain, 0.74
+#: extrapolated in the period, ± 0.1 systematic — 0.7 ± 0.1 here).
+MODE_GROWTH = ((1.05, 0.7, 0.1), (1.10, 8.0, 0.2), (1.20, 23.5, 0.8))
+#: Relative band within which a measured growth rate counts as the mode's (the fit-model
+#: systematic of docs/stability.md is 4–7 % at 1.2 and 1.1 τ_min; verify runs are short).
+GROWTH_TOLERANCE = 0.25
+
+
+def mode_growth(tau_d_ratio: float):
+    """(s, s_err, how) of the unstable mode at τ_d/τ_min from :data:`MODE_GROWTH`, or None.
+
+    ``how`` is "measured" at a table entry (within 1e-6) and "interpolated" between two entries
+    (linear in ln s and in the relative error); outside the table's range (1.05–1.2) the rate is
+    not known and None is returned: nothing is extrapolated.
+    """
+    r = float(tau_d_ratio)
+    for x, sv, err in MODE_GROWTH:
+        if abs(r - x) < 1e-6:
+            return sv, err, "measured"
+    for (x0, s0, e0), (x1, s1, e1) in zip(MODE_GROWTH[:-1], MODE_GROWTH[1:]):
+        if x0 < r < x1:
+            w = (r - x0) / (x1 - x0)
+            sv = math.exp((1 - w) * math.log(s0) + w * math.log(s1))
+            return sv, sv * ((1 - w) * e0 / s0 + w * e1 / s1), "interpolated"
+    return None
+
+
+def drift_verdict(res: VerifyResult):
+    """Is the drift of v_max the growth e^{s d} of the pulse's unstable mode?
+
+    Returns ``(verdict, text)``: verdict True (the measured growth rate of |v_max error| per L⁰,
+    :func:`growth_rate`, is within :data:`GROWTH_TOLERANCE` of the mode's s, :func:`mode_growth`,
+    and the mode grows by more than e over the run), False (it is not), or None (s unknown at
+    this τ_d, the mode grows by less than e over the run, too few samples to fit a rate, or a run
+    that ended before its third measurement).
+    ``text`` says which, in one clause.
+    """
+    i = res.info
+    known = mode_growth(i["tau_d_ratio"])
+    s_meas = i.get("growth_rate_v_max", float("nan"))
+    if known is None:
+        return None, (f"no growth rate of the unstable mode is known at tau_d/tau_min = "
+                      f"{i['tau_d_ratio']:.4g} (table: 1.05-1.2): drift not attributed")
+    sv, err, how = known
+    efolds = sv * i["travelled"]
+    mode = f"unstable mode s = {sv:.3g} ± {err:.2g} per L ({how}, docs/stability.md)"
+    if i["status"] != "finished" and res.t.size < 3:
+        return None, (f"the run ended after {res.t.size} measurement(s) ({i['status']}): too "
+                      f"few to compare with the {mode}")
+    if efolds < 1.0:
+        return None, (f"the {mode} grows by only e^{efolds:.2f} over {i['travelled']:.3g} L: "
+                      "the drift is not its growth (start-up transient or discretisation)")
+    if not math.isfinite(s_meas):
+        return None, f"too few samples to fit a growth rate to compare with the {mode}"
+    if abs(s_meas - sv) <= GROWTH_TOLERANCE * sv + err:
+        return True, (f"|v_max error| grows as e^({s_meas:.3g} d), consistent with the {mode}: "
+                      "the pulse's physical instability, not a numerical error")
+    return False, (f"|v_max error| grows as e^({s_meas:.3g} d), NOT consistent with the {mode}")
 
 
 def summary(res: VerifyResult) -> str:
-    """One line: the four end-of-run errors, distance, steps and wall time."""
+    """One line: the four end-of-run errors, distance, steps, wall time, and whether the drift is
+    the growth of the unstable mode (:func:`drift_verdict`)."""
     e, i = res.errors, res.info
     return (f"verify td{i['tau_d_ratio']:.4f}: {i['status']}; travelled {i['travelled']:.3f} L in "
             f"{i['n_steps']} steps ({i['wall_time']:.1f} s wall, N={i['n']}, dx={i['dx'] * 1e3:.3g} mm); "
             f"c_p_error={e['c_p_error']:.2e} v_max_error={e['v_max_error']:.2e} "
-            f"L_error={e['L_error']:.2e} lnv_error={e['lnv_error']:.2e}")
+            f"L_error={e['L_error']:.2e} lnv_error={e['lnv_error']:.2e}; drift: "
+            f"{drift_verdict(res)[1]}")
+
+
+#: long_name of every series written by :func:`write_result`.
+SERIES_LONG_NAMES = {
+    "x_front": "front position (half-maximum crossing of ln(v/v*+1)), unwrapped",
+    "c_p_error": "c_p/c_p0 - 1 over the last sampling interval",
+    "v_max_error": "v_max/v_max0 - 1", "L_error": "L/L0 - 1",
+    "lnv_error": "relative L2 error of ln(v/v*+1) over the pulse",
+    "L": "pulse length (FWHM of ln(v/v*+1))", "v_max": "peak slip rate",
+    "slip": "slip across the pulse", "distance": "distance travelled, in steady pulse lengths L0",
+    "c_p": "pulse speed over the last sampling interval",
+}
 
 
 def write_result(path: str, res: VerifyResult, params, source: str = "", label: str = "") -> None:
-    """Write the errors (root attributes), their time series and the snapshots to HDF5, atomically."""
-    from .h5io import atomic_update, write_parameters
+    """Write the errors (root attributes), their time series and the snapshots to HDF5, atomically.
+
+    Layout (format version 2, netCDF-4 conventions, ``xarray.open_datatree(path,
+    engine="h5netcdf")``)::
+
+        /            attrs: the errors and run info, steady_file, label, format="slippulse-verify"
+        /parameters  attrs: Table-I parameters
+        /series      t (s, dimension scale: the measurement times); x_front (m), the errors (1),
+                     L (m), v_max (m/s), slip (m), distance (L0), c_p (m/s): (t,);
+                     xi_dev (m, dimension scale: ξ − ξ_front), deviation_xi (ξ − ξ_front)/L0;
+                     deviation: ln(v/v*+1) − steady, (t, xi_dev)
+        /snapshots   t (s, dimension scale), x (m, dimension scale: the SBI grid), v (t, x) m/s,
+                     x_front (t,) m: the front on that grid, xi_rel (t, x) m = x − x_front
+
+    (Version 1 stored one group per snapshot, snapshots/000/v ...; the readers of this package
+    read only ``series`` and the root attributes, which are laid out as before.)
+    """
+    from .h5io import atomic_update, coordinate, describe, stamp_format, write_parameters
 
     def fill(h5):
         for key in list(h5.keys()):
             del h5[key]
+        stamp_format(h5, "verify")
         write_parameters(h5, params)
         for k, v in res.errors.items():
             h5.attrs[k] = v
@@ -379,52 +473,126 @@ def write_result(path: str, res: VerifyResult, params, source: str = "", label: 
         h5.attrs["steady_file"] = source
         h5.attrs["label"] = label
         ts = h5.create_group("series")
-        ts.create_dataset("t", data=res.t).attrs["units"] = "s"
-        ts.create_dataset("x_front", data=res.x_front).attrs["units"] = "m"
+        t = coordinate(ts, "t", res.t, units="s", long_name="time of the measurement")
+        describe(ts.create_dataset("x_front", data=res.x_front), "m",
+                 SERIES_LONG_NAMES["x_front"], dims=(t,))
         for k in SERIES:
-            ts.create_dataset(k, data=res.series[k]).attrs["units"] = "1"
+            describe(ts.create_dataset(k, data=res.series[k]), "1", SERIES_LONG_NAMES[k],
+                     dims=(t,))
         for k, unit in EXTRA_SERIES.items():
             if k in res.series:
-                ts.create_dataset(k, data=res.series[k]).attrs["units"] = unit
+                describe(ts.create_dataset(k, data=res.series[k]),
+                         "L0" if k == "distance" else unit, SERIES_LONG_NAMES[k], dims=(t,))
         if "deviation" in res.series:
-            dv = ts.create_dataset("deviation", data=res.series["deviation"])
-            dv.attrs["units"] = "1"
-            dv.attrs["definition"] = "ln(v/v*+1) - steady, rows: samples, columns: deviation_xi"
-            ts.create_dataset("deviation_xi", data=res.series["deviation_xi"]).attrs["units"] = "L0"
+            L0 = float(res.info["L"])
+            rel = np.asarray(res.series["deviation_xi"], dtype=float)
+            xd = coordinate(ts, "xi_dev", rel * L0, units="m", long_name="xi - xi_front")
+            dv = describe(ts.create_dataset("deviation", data=res.series["deviation"]), "1",
+                          "ln(v/v*+1) - steady", dims=(t, xd))
+            dv.attrs["definition"] = "ln(v/v*+1) - steady, rows: samples t, columns: xi_dev"
+            describe(ts.create_dataset("deviation_xi", data=rel), "L0",
+                     "(xi - xi_front)/L0", dims=(xd,))
         sn = h5.create_group("snapshots")
-        for m, (t, xr, V) in enumerate(res.snapshots):
-            g = sn.create_group(f"{m:03d}")
-            g.attrs["t"] = t
-            g.create_dataset("xi_rel", data=xr).attrs["units"] = "m"
-            g.create_dataset("v", data=V).attrs["units"] = "m/s"
+        if res.snapshots:
+            ts_ = np.array([s[0] for s in res.snapshots])
+            rel = np.array([s[1] for s in res.snapshots])
+            v = np.array([s[2] for s in res.snapshots])
+            grid = res.x if res.x is not None else rel[0] - rel[0, 0]
+            n = grid.size
+            tc = coordinate(sn, "t", ts_, units="s", long_name="time of the snapshot",
+                            unlimited=True, chunks=(64,))
+            xc = coordinate(sn, "x", grid, units="m", long_name="SBI grid (frame following the "
+                            "pulse)")
+            for name, data, unit, long in (
+                    ("v", v, "m/s", "slip rate"),
+                    ("xi_rel", rel, "m", "xi - xi_front = x - x_front at this time")):
+                ds = sn.create_dataset(name, data=data, maxshape=(None, n), chunks=(1, n))
+                describe(ds, unit, long, dims=(tc, xc))
+            describe(sn.create_dataset("x_front", data=grid[0] - rel[:, 0], maxshape=(None,),
+                                       chunks=(64,)),
+                     "m", "front position on the grid x", dims=(tc,))
 
-    atomic_update(path, fill)
+    atomic_update(path, fill, replace=True)
 
 
 def plot_result(path_png: str, res: VerifyResult, pulse, params) -> None:
-    """v(ξ − ξ_front) at the stored times over the steady profile (log scale), PNG."""
+    """The verification figure (PNG), three panels against the steady pulse:
+
+    (a) v(ξ − ξ_front) at t = 0 and at the end over the steady profile (log scale);
+    (b) the deviation ln(v/v*+1) − steady against (ξ − ξ_front)/L⁰ at up to 9 measurement times,
+        coloured by the distance travelled;
+    (c) |v_max error| against the distance d travelled (log axis), with the growth e^{s d} of the
+        unstable mode (:func:`mode_growth`) drawn over it where s is known, through the samples of
+        the fit window of :func:`growth_rate`; the title gives :func:`drift_verdict`.
+    """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     _, _, xi_front = pulse_length(pulse.xi, pulse.v, params.v_star)
     L = pulse.L
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    dist = np.asarray(res.series["distance"], dtype=float)
+    fig, axes = plt.subplots(3, 1, figsize=(7.0, 10.5))
+    # (a) profiles
+    ax = axes[0]
     sel = (pulse.xi - xi_front > -3 * L) & (pulse.xi - xi_front < 1.5 * L)
-    ax.semilogy((pulse.xi[sel] - xi_front) / L, pulse.v[sel], "k-", lw=3, alpha=0.3,
+    ax.semilogy((pulse.xi[sel] - xi_front) / L, pulse.v[sel], "k-", lw=4, alpha=0.25,
                 label="steady")
-    cmap = plt.get_cmap("viridis")
-    for m, (t, xr, V) in enumerate(res.snapshots):
+    for (t, xr, V), style in zip((res.snapshots[0], res.snapshots[-1]), ("C0--", "C3-")):
         o = np.argsort(xr)
-        s = (xr[o] > -3 * L) & (xr[o] < 1.5 * L)
-        ax.semilogy(xr[o][s] / L, V[o][s], color=cmap(m / max(1, len(res.snapshots) - 1)), lw=1,
-                    label=f"t = {t * pulse.c_p / L:.2f} L/c_p")
-    ax.set_xlabel("(ξ − ξ_front)/L")
+        w = (xr[o] > -3 * L) & (xr[o] < 1.5 * L)
+        ax.semilogy(xr[o][w] / L, V[o][w], style, lw=1.2,
+                    label=f"SBI, d = {t * pulse.c_p / L:.3g} L")
+    ax.set_xlabel("(ξ − ξ_front)/L⁰")
     ax.set_ylabel("v (m/s)")
+    ax.set_title("(a) slip rate: start and end of the run over the steady pulse", fontsize=9)
+    ax.legend(fontsize=8)
+    # (b) deviation field
+    ax = axes[1]
+    dev = np.asarray(res.series.get("deviation", np.empty((0, 0))))
+    if dev.size:
+        rel = np.asarray(res.series["deviation_xi"])
+        picks = np.unique(np.round(np.linspace(0, dev.shape[0] - 1, min(9, dev.shape[0]))))
+        cmap = plt.get_cmap("viridis")
+        dmax = max(float(np.nanmax(dist)), 1e-300)
+        for j in picks.astype(int):
+            ax.plot(rel, dev[j], color=cmap(dist[j] / dmax), lw=1.1)
+        sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0.0, dmax))
+        fig.colorbar(sm, ax=ax, label="distance travelled d (L⁰)")
+    ax.axhline(0.0, color="0.6", lw=0.6)
+    ax.set_xlabel("(ξ − ξ_front)/L⁰")
+    ax.set_ylabel("ln(v/v*+1) − steady")
+    ax.set_title("(b) deviation from the steady pulse in the frame of the front", fontsize=9)
+    # (c) v_max error against distance, and the mode's growth
+    ax = axes[2]
+    err = np.abs(np.asarray(res.series["v_max_error"], dtype=float))
+    ok = np.isfinite(err) & (err > 0)
+    ax.semilogy(dist[ok], err[ok], "C0o-", ms=3, lw=1, label="|v_max/v_max⁰ − 1| (SBI)")
+    known = mode_growth(res.info["tau_d_ratio"])
+    if known is not None and ok.sum() >= 2:
+        sv, serr, how = known
+        win = ok & (err >= 3e-4) & (err <= 3e-2)          # growth_rate's fit window
+        base = win if win.sum() >= 3 else ok & (dist >= 0.5 * np.nanmax(dist))
+        lnA = float(np.mean(np.log(err[base]) - sv * dist[base]))
+        dd = np.linspace(0.0, float(np.nanmax(dist)), 200)
+        ax.semilogy(dd, np.exp(lnA + sv * dd), "k--", lw=1.2,
+                    label=f"e^(s d), unstable mode s = {sv:.3g} ± {serr:.2g} per L ({how})")
+    ax.set_xlabel("distance travelled d (L⁰)")
+    ax.set_ylabel("|v_max error|")
+    verdict, text = drift_verdict(res)
+    tag = {True: "drift = unstable mode (physics)", False: "drift NOT the unstable mode",
+           None: "drift not attributed"}[verdict]
+    ax.set_title(f"(c) v_max drift against distance: {tag}", fontsize=9)
+    ax.legend(fontsize=8, loc="upper left")
     e = res.errors
-    ax.set_title(f"τ_d = {pulse.tau_d_ratio:.4g} τ_min: c_p err {e['c_p_error']:.1e}, "
-                 f"v_max err {e['v_max_error']:.1e}", fontsize=9)
-    ax.legend(fontsize=7)
+    fig.suptitle(f"verify τ_d = {pulse.tau_d_ratio:.4g} τ_min, {res.info['travelled']:.3g} L: "
+                 f"c_p err {e['c_p_error']:.1e}, v_max err {e['v_max_error']:.1e}\n"
+                 + _wrap(text, 95), fontsize=9)
     fig.tight_layout()
-    fig.savefig(path_png, dpi=120)
+    fig.savefig(path_png, dpi=110)
     plt.close(fig)
+
+
+def _wrap(text: str, width: int) -> str:
+    import textwrap
+    return "\n".join(textwrap.wrap(text, width))

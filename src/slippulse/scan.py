@@ -525,24 +525,52 @@ def _column_array(values: list):
                     dtype=h5py.string_dtype(encoding="utf-8"))
 
 
+#: Units of the summary columns of the stability runner (others: "1").
+SUMMARY_UNITS = {"s_per_s": "1/s", "s_per_s_err": "1/s", "t_end": "s", "L_end": "m",
+                 "v_max_end": "m/s", "wall_time": "s", "L0": "m", "c_p0": "m/s",
+                 "v_max0": "m/s", "dx": "m", "run_wall_time": "s", "s_per_L": "1/L0",
+                 "s_per_L_err": "1/L0", "s_per_L_from_L": "1/L0"}
+
+
 def write_summary_h5(path: str, rows: list[dict], scan: Scan) -> None:
-    """``rows`` as one dataset per column in ``path`` (atomic; replaces earlier contents)."""
-    from .h5io import atomic_update
+    """``rows`` as one dataset per column in ``path`` (atomic; replaces earlier contents).
+
+    Format version 2 (``xarray.open_dataset(path, engine="h5netcdf")``): every column lies on
+    the dimension ``id`` whose coordinate is the case id (a dimension scale), with ``units``
+    (:data:`SUMMARY_UNITS`, else "1") and ``long_name`` (the column name).
+    """
+    import h5py
+
+    from .h5io import atomic_update, describe, dimension, stamp_format
 
     cols = _columns(rows)
 
     def fill(h5):
         for k in list(h5):
             del h5[k]
+        stamp_format(h5, "scan-summary")
+        # dimension "id" (one entry per case; its coordinate is the case id column)
+        dim = None
+        if "id" in cols:
+            ids = [str(r.get("id")) for r in rows]
+            dim = h5.create_dataset("id", data=ids, dtype=h5py.string_dtype(encoding="utf-8"))
+            dim.make_scale("id")
+            describe(dim, "1", "case id")
+        elif rows:
+            dim = dimension(h5, "case", len(rows))
         for col in cols:
-            h5.create_dataset(col.replace("/", "_"), data=_column_array([r.get(col) for r in rows]))
+            if col == "id":
+                continue
+            ds = h5.create_dataset(col.replace("/", "_"),
+                                   data=_column_array([r.get(col) for r in rows]))
+            describe(ds, SUMMARY_UNITS.get(col, "1"), col, dims=(dim,) if dim is not None else ())
         h5.attrs["columns"] = cols
         h5.attrs["scan_name"] = scan.name
         h5.attrs["scan_toml"] = scan.toml_text
         h5.attrs["runner"] = scan.runner
         h5.attrs["n_cases"] = len(rows)
 
-    atomic_update(path, fill)
+    atomic_update(path, fill, replace=True)
 
 
 def read_summary_h5(path: str) -> list[dict]:

@@ -509,7 +509,7 @@ def write_seed(path: str, seed: SeededPulse, source: str = "", label: str = "") 
     grid (n, dx, length), the pulse (tau_d_ratio, beta, c_p, L), x_front0, xi_shift, net_slip and
     the SOE history size.
     """
-    from .h5io import atomic_update, write_parameters
+    from .h5io import atomic_update, coordinate, describe, stamp_format, write_parameters
 
     mis = stress_mismatch(seed)
     st, pulse = seed.stepper, seed.pulse
@@ -517,15 +517,18 @@ def write_seed(path: str, seed: SeededPulse, source: str = "", label: str = "") 
     def fill(h5):
         for key in list(h5.keys()):
             del h5[key]
+        stamp_format(h5, "seed")
         write_parameters(h5, seed.params)
         load = np.broadcast_to(np.asarray(st.law.tau_load, dtype=float), st.V.shape)
-        data = {"x": (st.x, "m"), "V": (st.V, "m/s"), "phi": (st.phi, "s"),
-                "delta": (st.delta, "m"), "tau": (st.tau, "Pa"),
-                "tau_steady": (seed.tau_steady, "Pa"), "tau_load": (load, "Pa")}
+        data = {"V": (st.V, "m/s", "slip rate"), "phi": (st.phi, "s", "state variable"),
+                "delta": (st.delta, "m", "slip"), "tau": (st.tau, "Pa", "shear stress"),
+                "tau_steady": (seed.tau_steady, "Pa", "steady pulse's shear stress"),
+                "tau_load": (load, "Pa", "loading stress (with the far field)")}
         if seed.tau_ff is not None:
-            data["tau_ff"] = (seed.tau_ff, "Pa")
-        for k, (v, unit) in data.items():
-            h5.create_dataset(k, data=v).attrs["units"] = unit
+            data["tau_ff"] = (seed.tau_ff, "Pa", "far-field stress of the periodic images")
+        x = coordinate(h5, "x", st.x, units="m", long_name="position on the SBI grid")
+        for k, (v, unit, long) in data.items():
+            describe(h5.create_dataset(k, data=v), unit, long, dims=(x,))
         a = h5.attrs
         a["stress_mismatch"] = mis["stress"]
         a["friction_mismatch"] = mis["friction"]
@@ -538,5 +541,5 @@ def write_seed(path: str, seed: SeededPulse, source: str = "", label: str = "") 
         a["history_bytes"] = st.history.nbytes
         a["steady_file"], a["label"] = source, label
 
-    atomic_update(path, fill)
+    atomic_update(path, fill, replace=True)
     return mis

@@ -24,6 +24,8 @@ from .params import ParameterError, Parameters
 from .steady import SteadyProblem
 
 MIN_POINTS = 64
+#: Largest grid: the Newton solver holds several dense (N+1)² matrices, 2 GB each at N = 16000.
+MAX_POINTS = 16000
 
 
 @dataclass(frozen=True)
@@ -184,8 +186,11 @@ def interpolate(xi_old, y_old, xi_new, v_stick, center=0.0):
 
 
 def check_points(n_points: int) -> None:
-    if not isinstance(n_points, (int, np.integer)) or n_points < MIN_POINTS:
-        raise ParameterError(f"points={n_points!r} is invalid: must be an integer >= {MIN_POINTS}")
+    if (not isinstance(n_points, (int, np.integer)) or n_points < MIN_POINTS
+            or n_points > MAX_POINTS):
+        raise ParameterError(f"points={n_points!r} is invalid: must be an integer in "
+                             f"[{MIN_POINTS}, {MAX_POINTS}] (dense N x N Jacobian and Hilbert "
+                             "matrices)")
 
 
 def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, hilbert="cubic",

@@ -392,13 +392,14 @@ def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
 
 def read_row(out_path: str) -> dict:
     """The summary row of a finished :func:`run_case` file."""
-    import h5py
+    from .h5io import format_version, open_h5
 
     keys = ("fate", "status", "s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "fit_x0",
             "fit_x1", "fit_n", "fit_sign", "s_per_L_from_L", "mode_spread", "travelled",
             "t_end", "L_end", "v_max_end", "n_steps", "n_points", "wall_time", "tau_d_ratio",
             "L0", "c_p0", "beta0", "v_max0")
-    with h5py.File(out_path, "r") as h5:
+    with open_h5(out_path) as h5:
+        format_version(h5, out_path)
         row = {"file": os.path.abspath(out_path)}
         for k in keys:
             v = h5.attrs[k]
@@ -408,9 +409,10 @@ def read_row(out_path: str) -> dict:
 
 def read_series(out_path: str) -> dict:
     """Time series of a run file: t, distance, L, c_p, v_max, slip, the errors, the deviation."""
-    import h5py
+    from .h5io import format_version, open_h5
 
-    with h5py.File(out_path, "r") as h5:
+    with open_h5(out_path) as h5:
+        format_version(h5, out_path)
         s = {k: h5["series"][k][...] for k in h5["series"]}
         s["attrs"] = dict(h5.attrs)
     return s

@@ -26,6 +26,10 @@ from .fft import RealFFT
 from .params import ParameterError, Parameters
 from .sbi import HISTORY_POLICIES, elastic_functional, make_history, wavenumbers
 
+#: Largest grid of the SBI: 2^22 points hold ≈ 5 GB in the SOE history alone (n/2 modes × 75
+#: nodes × 2 complex accumulators); beyond it a run cannot fit a workstation's memory.
+MAX_GRID_POINTS = 2 ** 22
+
 # ----------------------------------------------------------------------------- friction solve
 
 
@@ -223,8 +227,9 @@ class PredictorCorrector:
 
     def __init__(self, params, n, length, interface, rule=TimeStepRule(), history="soe",
                  history_options=None, threads=1, planner="estimate"):
-        if n < 4 or n % 2:
-            raise ParameterError(f"grid.n={n!r} must be an even integer >= 4")
+        if n < 4 or n % 2 or n > MAX_GRID_POINTS:
+            raise ParameterError(f"grid.n={n!r} must be an even integer in [4, "
+                                 f"{MAX_GRID_POINTS}]")
         if not length > 0:
             raise ParameterError(f"grid.length={length!r} must be > 0 (m)")
         self.params = params
