@@ -56,7 +56,8 @@ def scan_pairs(name):
             continue
         label = plus.get("label", "")
         out.append(dict(tau=float(label[2:]), s=g["s_per_L"], err=g["s_per_L_err"],
-                        domain=f"{plus.get('behind', 3.0):g}+{plus.get('ahead', 2.0):g} L",
+                        domain=f"{plus.get('behind', 3.0):g}+{plus.get('ahead', 2.0):g} L, "
+                               f"ε = {abs(plus['eps']):g}",
                         mode=g.get("mode"), mode_xi=g.get("mode_xi")))
     return out
 
@@ -73,7 +74,8 @@ def main(argv=None):
     from slippulse.spectrum_plots import family_spectra
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("file")
-    ap.add_argument("--nested", default=None, help="JSON of spectrum_convergence.py --nested")
+    ap.add_argument("--nested", nargs="*", default=[],
+                    help="JSON files of spectrum_convergence.py --nested")
     ap.add_argument("--figdir", default="docs/figures")
     args = ap.parse_args(argv)
     sp = family_spectra(args.file)
@@ -88,14 +90,40 @@ def main(argv=None):
     for o, a, b, c, d, n in zip(sp, sl, lead, st, unit, nun):
         print(f"| {o['tau_d_ratio']:.4f} | {o['c_p'] / 2739.0:.5f} | {o['L']:.4g} | {a:.4f} | "
               f"{b.real:.4g} | {b.imag / d:.1e} | {n} | {c:.1e} |")
-    nested = []
-    if args.nested and os.path.exists(args.nested):
-        rows = json.load(open(args.nested))
-        nested = [r for r in rows if "extrapolated" in r]
-        print("\nNested refinement (Richardson):")
+    nested, allrows = [], []
+    for fn in args.nested:
+        if os.path.exists(fn):
+            rows = json.load(open(fn))
+            allrows += rows
+            nested += [r for r in rows if "extrapolated" in r]
+    nested.sort(key=lambda r: -float(r["label"][2:]))
+    if nested:
+        print("\n| τ_d/τ_min | N (levels) | s L/c_p per level | σ_t L/c_p per level | "
+              "extrapolated s L/c_p | s (1/s) |")
+        print("|---|---|---|---|---|---|")
         for r in nested:
-            print(f"  {r['label']}: {r['extrapolated']:.4f} ± {r['uncertainty']:.1e} "
-                  f"(finest N = {r['N']}, order {r['order']:.2f})")
+            lv = [a for a in allrows if a["label"] == r["label"]]
+            o = [x for x in sp if x["label"] == r["label"]]
+            unit_r = o[0]["rate_unit_c_over_L"] if o else float("nan")
+            levels = ", ".join(f"{a['sL_c']:.4f}" for a in lv)
+            trans = ", ".join(f"{a['translation']:.1e}" for a in lv)
+            print(f"| {r['label'][2:]} | {', '.join(str(a['N']) for a in lv)} | {levels} | {trans} | "
+                  f"**{r['extrapolated']:.4f} ± {r['uncertainty']:.1e}** | "
+                  f"{r['extrapolated'] * unit_r:.3g} |")
+        # law near τ_min from the refined values: s L/c = A (q − 1)^p, weighted
+        qn = np.array([float(r["label"][2:]) for r in nested])
+        sn = np.array([r["extrapolated"] for r in nested])
+        en = np.array([max(r["uncertainty"], 1e-3 * abs(r["extrapolated"])) for r in nested])
+        for lo, hi in [(1.0, 1.051), (1.0, 1.041), (1.019, 1.051)]:
+            sel = (qn > lo) & (qn < hi) & (sn > 2 * en)
+            if sel.sum() >= 3:
+                f = lambda x, lnA, p: lnA + p * np.log(x - 1.0)
+                popt, pcov = curve_fit(f, qn[sel], np.log(sn[sel]), sigma=en[sel] / sn[sel],
+                                       absolute_sigma=True)
+                perr = np.sqrt(np.diag(pcov))
+                print(f"  refined, q in ({lo}, {hi}): s L/c_p = {np.exp(popt[0]):.3g} "
+                      f"(τ_d/τ_min − 1)^({popt[1]:.2f} ± {perr[1]:.2f}) over {sel.sum()} points; "
+                      f"residuals/σ = {np.round((np.log(sn[sel]) - f(qn[sel], *popt)) / (en[sel] / sn[sel]), 2)}")
     # fits near τ_min: s L/c against q − 1 (power law) over windows
     print("\nFits s L/c_p = A (τ_d/τ_min − q0)^p:")
     for lo, hi in [(1.0, 1.03), (1.0, 1.025), (1.0, 1.02), (1.015, 1.04)]:
@@ -119,7 +147,11 @@ def main(argv=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     os.makedirs(args.figdir, exist_ok=True)
-    new = scan_pairs("growth_td1.04") + scan_pairs("eigen_modes")
+    new = (scan_pairs("growth_td1.04") + scan_pairs("eigen_modes")
+           + scan_pairs("eigen_check_td1.20"))
+    for r in new:
+        print(f"SBI pair (this study): τ_d = {r['tau']:.2f}, {r['domain']}: s = {r['s']:.4f} ± "
+              f"{r['err']:.4f} per L")
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.3))
     for a, logy in zip(ax, (False, True)):
         a.plot(q, sl, "-", color="C0", lw=1.5, label="eigenvalue, family grids (N = 2000)")
@@ -159,6 +191,19 @@ def main(argv=None):
         plot_modes(args.file, sp, modes, os.path.join(args.figdir, "stability_modes.png"))
 
 
+def front_frame_mode(xi, y0, y1):
+    """The eigenmode as the SBI measures it: the deviation of y = ln(v/v*+1) at fixed distance from
+    the front, where the front is the point ahead of the peak with y = y_max/2 (docs §1). To first
+    order the perturbed front moves by Δ = (y₁(ξ_peak)/2 − y₁(ξ_f))/y₀′(ξ_f), and the deviation at
+    η = ξ − ξ_f is y₁(ξ_f + η) + Δ y₀′(ξ_f + η). Returns (η, deviation)."""
+    from slippulse.spectrum_plots import front_position
+    xf = front_position(xi, y0)
+    dy0 = np.gradient(y0, xi)
+    k = int(np.argmax(y0))
+    d = (0.5 * y1[k] - np.interp(xf, xi, y1)) / np.interp(xf, xi, dy0)
+    return xi - xf, y1 + d * dy0
+
+
 def plot_modes(path, sp, modes, out):
     """SBI mode shapes (antisymmetric deviation of ln(v/v*+1) per unit v_max deviation, docs §4)
     with the eigenmode of the same pulse drawn over them, both scaled to unit maximum modulus."""
@@ -170,19 +215,20 @@ def plot_modes(path, sp, modes, out):
     taus = sorted({r["tau"] for r in modes}, reverse=True)
     fig, ax = plt.subplots(1, len(taus), figsize=(4.2 * len(taus), 3.6), squeeze=False)
     for a, t in zip(ax[0], taus):
-        for r in [m for m in modes if m["tau"] == t]:
+        for i, r in enumerate([m for m in modes if m["tau"] == t]):
             m = np.asarray(r["mode"])
-            a.plot(r["mode_xi"], m / np.abs(m).max(), color="C3", lw=2.5, alpha=0.6,
-                   label=f"SBI pair ({r['domain']})")
+            a.plot(r["mode_xi"], m / np.abs(m).max(), color=("C3", "C1", "C2")[i % 3], lw=2.5,
+                   alpha=0.6, label=f"SBI pair ({r['domain']})")
         o = by.get(round(t, 4))
         if o is not None and o["sigma"].size:
             pulse, params = read_pulse(path, o["label"])
             y0 = np.log(pulse.v / params.v_star + 1.0)
             x = (pulse.xi - front_position(pulse.xi, y0)) / pulse.L
-            e = o["lnv"][0].real
+            eta, e = front_frame_mode(pulse.xi, y0, o["lnv"][0].real)
+            x = eta / pulse.L
             sel = (x > -1.6) & (x < 0.6)
-            a.plot(x[sel], e[sel] / np.abs(e[sel]).max(), color="k", lw=1,
-                   label=f"eigenmode, s L/c = {o['leading_s_per_L']:.3g}")
+            a.plot(x[sel], e[sel] / e[sel][np.argmax(np.abs(e[sel]))], color="k", lw=1,
+                   label=f"eigenmode in the front frame, s L/c = {o['leading_s_per_L']:.3g}")
         a.set_title(f"τ_d = {t:.2f} τ_min", fontsize=10)
         a.set_xlabel(r"$(\xi - \xi_{front})/L$")
         a.grid(alpha=0.3)

@@ -236,3 +236,18 @@ def test_leading_eigenvalue_converged_in_N_and_domain(pulse12, params):
     s2 = pulse_spectrum(sol.to_pulse(), params, guesses=[s0], extra=False).leading
     assert abs(s1 - s0) < 0.01 * abs(s1)
     assert abs(s2 - s0) < 0.01 * abs(s1)
+
+
+def test_spectrum_group_opens_in_xarray(tmp_path, pulse12, params):
+    xr = pytest.importorskip("xarray")
+    from slippulse.h5io import write_pulse
+    from slippulse.spectrum import run_spectrum
+    f = tmp_path / "one.h5"
+    write_pulse(str(f), pulse12.to_pulse(), params)
+    run_spectrum(str(f), extra=False)
+    tree = xr.open_datatree(str(f), engine="h5netcdf")
+    ds = tree["pulses/td1.2000/spectrum"].to_dataset()
+    assert ds["lnv_real"].dims == ("eigenvalue", "xi")
+    assert ds["sigma_real"].attrs["units"] == "1/s"
+    assert ds["sigma_real"].values[0] == pytest.approx(ds.attrs["leading_sigma_real"])
+    assert ds["xi"].attrs["units"] == "m" and ds["xi"].size == pulse12.problem.n

@@ -492,10 +492,17 @@ MODE_FIELDS = {"delta": ("m", "slip perturbation delta_1 (mode normalised: max |
 
 
 def write_spectrum(path, res: PulseSpectrum, settings: dict):
-    """Store `res` as /pulses/<label>/spectrum (replacing an earlier one), atomically."""
-    from .h5io import atomic_update
+    """Store `res` as /pulses/<label>/spectrum (replacing an earlier one), atomically.
+
+    Layout (xarray: ``open_datatree(path, engine="h5netcdf")``): coordinate ``eigenvalue`` (index,
+    by decreasing Re σ); ``sigma_real``/``sigma_imag`` (1/s) and ``s_per_L_*`` on it; mode fields
+    ``delta_*``, ``V_*``, ``phi_*``, ``lnv_*`` on (eigenvalue, xi), xi being the pulse's own
+    coordinate in the parent group; scalars and the status as attributes.
+    """
+    from .h5io import atomic_update, coordinate, describe, upgrade_steady
 
     def fill(h5):
+        upgrade_steady(h5)                       # xi of every pulse group a dimension scale
         grp_p = h5["pulses"][res.label]
         if SPECTRUM_GROUP in grp_p:
             del grp_p[SPECTRUM_GROUP]
@@ -523,21 +530,22 @@ def write_spectrum(path, res: PulseSpectrum, settings: dict):
                  "rate_unit_c_over_L": "1/s", "translation_sigma": "1/s", "wall_time": "s"}
         for k, u in units.items():
             g.attrs[f"{k}_units"] = u
-        for part in ("real", "imag"):
-            ds = g.create_dataset(f"sigma_{part}", data=getattr(res.sigmas, part))
-            ds.attrs["units"] = "1/s"
-            ds.attrs["long_name"] = f"eigenvalue sigma ({part} part), perturbations ~ exp(sigma t)"
-            ds = g.create_dataset(f"s_per_L_{part}", data=getattr(res.sigmas, part) / res.rate_unit)
-            ds.attrs["units"] = "1"
-            ds.attrs["long_name"] = f"sigma L / c_p ({part} part): growth per pulse length travelled"
         nm = len(res.modes)
+        eig = coordinate(g, "eigenvalue", np.arange(nm, dtype="i8"), units="1", dtype="i8",
+                         long_name="eigenvalue index, by decreasing Re sigma")
+        xi = grp_p["xi"]
+        for part in ("real", "imag"):
+            describe(g.create_dataset(f"sigma_{part}", data=getattr(res.sigmas, part)), "1/s",
+                     f"eigenvalue sigma ({part} part), perturbations ~ exp(sigma t)", (eig,))
+            describe(g.create_dataset(f"s_per_L_{part}",
+                                      data=getattr(res.sigmas, part) / res.rate_unit), "1",
+                     f"sigma L / c_p ({part} part): e-folds per pulse length travelled", (eig,))
         for name, (unit, long) in MODE_FIELDS.items():
             arr = (np.stack([m[name] for m in res.modes]) if nm
                    else np.zeros((0, res.n_points), complex))
             for part in ("real", "imag"):
-                ds = g.create_dataset(f"{name}_{part}", data=getattr(arr, part))
-                ds.attrs["units"] = unit
-                ds.attrs["long_name"] = f"{long} ({part} part), one row per eigenvalue"
+                describe(g.create_dataset(f"{name}_{part}", data=getattr(arr, part)), unit,
+                         f"{long} ({part} part)", (eig, xi))
 
     atomic_update(path, fill)
 
