@@ -68,3 +68,83 @@ def test_interrupted_family_leaves_valid_file_and_resumes(params, tmp_path):
     assert rep.resumed_from == "td1.2000"
     assert list_pulses(out) == ["td1.2000", "td1.1950", "td1.1900", "td1.1850"]
     assert all(read_pulse(out, lab)[0].converged for lab in list_pulses(out))
+
+
+# ------------------------------------------------------------------ what a family run reports
+class _Injector:
+    """Wraps Newton: solves whose problem matches `fail` return at once as not converged.
+    Counts the injected failures independently of the code under test."""
+
+    def __init__(self, real, fail):
+        self.real, self.fail, self.injected = real, fail, 0
+
+    def __call__(self, problem, x0, **kw):
+        from slippulse.newton import SolveStats
+        if self.fail(problem):
+            self.injected += 1
+            return np.array(x0, float), SolveStats(False, "injected failure", 0, np.inf)
+        return self.real(problem, x0, **kw)
+
+
+def _inject(monkeypatch, fail):
+    import slippulse.continuation as cont
+    import slippulse.newton as nw
+    inj = _Injector(nw.newton, fail)
+    monkeypatch.setitem(nw.SOLVERS, "newton", inj)
+    monkeypatch.setattr(cont, "newton", inj)
+    return inj
+
+
+def _deep_failures(problem):
+    """τ_d steps below 1.1935 fail, and every β-step (τ_d free): the run must stop at 1.195."""
+    return problem.free == "tau_d" or problem.tau_d_ratio < 1.1935
+
+
+def test_family_counts_every_failed_attempt_and_says_why_it_stopped(params, tmp_path, monkeypatch):
+    inj = _inject(monkeypatch, _deep_failures)
+    calls = []
+    rep = run_family(params, str(tmp_path / "f.h5"), start=1.2, stop=1.185, step=0.005,
+                     n_points=500, progress=lambda r, p, m: calls.append(p is None))
+    # 1.19 fails, 1.1925 (halved) fails, then two β-steps (shrink 0.92, 0.96) fail: four failures
+    assert inj.injected == 4
+    assert len(rep.failures) == inj.injected and sum(calls) == inj.injected
+    assert rep.attempts == len(calls) == 6
+    assert rep.written == ["td1.2000", "td1.1950"]
+    assert rep.stopped_early and rep.reached == pytest.approx(1.195)
+    assert rep.reached_beta == pytest.approx(read_pulse(str(tmp_path / "f.h5"), "td1.1950")[0].beta)
+    assert "beta-steps stopped converging" in rep.stop_reason and "--points" in rep.hint
+    assert any("beta-step" in m for _, m in rep.failures)
+
+
+def test_family_command_final_line_names_where_why_and_how_to_go_further(tmp_path, monkeypatch,
+                                                                         capsys):
+    from slippulse import cli
+    inj = _inject(monkeypatch, _deep_failures)
+    out = str(tmp_path / "f.h5")
+    rc = cli.main(["steady", "family", "--from", "1.2", "--to", "1.185", "--step", "0.005",
+                   "--points", "500", "--out", out, "-q"])
+    assert rc == 1
+    text = capsys.readouterr().out
+    assert f"{inj.injected} failed" in text and inj.injected == 4
+    stop = [ln for ln in text.splitlines() if ln.startswith("STOPPED EARLY")]
+    assert len(stop) == 1
+    assert "tau_d/tau_min=1.19500" in stop[0] and "1.1850 not reached" in stop[0]
+    beta = read_pulse(out, "td1.1950")[0].beta
+    assert f"beta={beta:.6f}" in stop[0]
+    assert "beta-steps stopped converging" in stop[0] and "--points 1000" in stop[0]
+
+
+def test_progress_moves_on_beta_steps_and_counts_failures():
+    from types import SimpleNamespace
+    from slippulse.cli_steady import FamilyProgress
+    prog = FamilyProgress(1.2, 1.0, 0.005)
+    assert prog.total == 41
+    prog(1.2, SimpleNamespace(tau_d_ratio=1.2, beta=0.007, L=1.0), "ok")
+    assert prog.position == 1.0
+    # a β-step pulse between targets moves the bar by the fraction of a step it covered
+    prog(1.01, SimpleNamespace(tau_d_ratio=1.0123, beta=0.99, L=150.0), "beta-step")
+    assert prog.position == pytest.approx(1 + (1.2 - 1.0123) / 0.005)
+    prog(1.0115, None, "failed")
+    prog(1.013, SimpleNamespace(tau_d_ratio=1.013, beta=0.98, L=100.0), "fold: back up")
+    assert prog.position == pytest.approx(1 + (1.2 - 1.0123) / 0.005)     # never moves back
+    assert prog.failed == 1
