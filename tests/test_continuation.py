@@ -148,3 +148,54 @@ def test_progress_moves_on_beta_steps_and_counts_failures():
     prog(1.013, SimpleNamespace(tau_d_ratio=1.013, beta=0.98, L=100.0), "fold: back up")
     assert prog.position == pytest.approx(1 + (1.2 - 1.0123) / 0.005)     # never moves back
     assert prog.failed == 1
+
+
+# ------------------------------------------------------------------ pseudo-arclength
+def test_arclength_row_and_tangent(params):
+    """The appended arclength row is the derivative of the arclength condition (central
+    differences), and the tangent lies in the null space of the steady Jacobian."""
+    from slippulse.continuation import ArclengthProblem, family_tangent
+    from slippulse.solver import default_guess
+    from slippulse.steady import SteadyProblem
+    xi, y, beta = default_guess(params, 1.2, 120)
+    k = int(np.argmin(np.abs(xi)))
+    base = SteadyProblem(params, 1.2, xi, k, float(y[k]), free="both")
+    x = np.concatenate([y, [beta, 1.2]])
+    arc = ArclengthProblem(base, np.log(1 - 0.9 * beta), 1.19, -0.6, -0.8, 0.05, 0.01)
+    r, J = arc.residual_and_jacobian(x)
+    assert J.shape == (x.size, x.size) and np.allclose(r, arc.residual(x), rtol=0, atol=1e-14)
+    for j in (x.size - 2, x.size - 1):
+        h = 1e-7
+        e = np.zeros_like(x)
+        e[j] = h
+        fd = (arc.residual(x + e)[-1] - arc.residual(x - e)[-1]) / (2 * h)
+        assert J[-1, j] == pytest.approx(fd, rel=1e-6)
+    n = family_tangent(base, x, (1.0, 0.0, 0.05))
+    _, Jb = base.residual_and_jacobian(x)
+    assert np.max(np.abs(Jb @ n)) < 1e-9 * np.abs(Jb).max() * np.abs(n).max()
+    assert np.hypot(-n[-2] / (1 - beta), n[-1] / 0.05) == pytest.approx(1.0, rel=1e-12)
+    assert n[-2] > 0                                     # oriented toward larger β
+
+
+def test_arclength_steps_stay_on_the_family(params):
+    """Two pseudo-arclength steps from the 1.2 pulse: each a converged pulse (β and τ_d both
+    unknown) that a fixed-τ_d solve at its τ_d reproduces, moving toward τ_min and larger β."""
+    from slippulse.continuation import DeepSettings, march_arclength
+    from slippulse.solver import solve_pulse
+    a = solve_pulse(params, 1.2, n_points=500)
+    steps = []
+    deep = DeepSettings(ds=0.004, ds_max=0.004, max_iter=20)
+    for sol, _ in march_arclength(params, (a.xi, a.x[:-1], a.beta, 1.2), 500, deep=deep):
+        steps.append(sol)
+        if len(steps) == 2:
+            break
+    qs = [float(s.x[-1]) for s in steps]
+    bs = [s.beta for s in steps]
+    assert 1.2 > qs[0] > qs[1] and a.beta < bs[0] < bs[1]
+    for s in steps:
+        pu = s.to_pulse()
+        assert pu.converged and pu.max_residual <= 1e-13 and pu.extra["n_humps"] == 1
+        # the same grid, τ_d fixed at the arclength value: β comes back
+        b = solve_pulse(params, float(s.x[-1]), n_points=500, guess=(s.xi, s.x[:-2], s.beta * 1.01),
+                        passes=0, adapt_guess=False)
+        assert b.stats.converged and b.beta == pytest.approx(s.beta, rel=1e-8)

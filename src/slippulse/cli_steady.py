@@ -115,8 +115,17 @@ def cmd_family(args) -> int:
     bar = tqdm(total=prog.total, desc="family", unit="pulse", disable=args.quiet, file=sys.stderr,
                bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}{postfix}]")
     prog.bar = bar
+    from .continuation import DeepSettings
+    if args.max_points < args.points:
+        raise ParameterError(f"max-points={args.max_points} is invalid: must be >= points={args.points}")
+    if not (0 < args.ds_min < 0.4):
+        raise ParameterError(f"ds-min={args.ds_min} is invalid: must be in (0, 0.4)")
+    if not args.max_length > 0:
+        raise ParameterError(f"max-length={args.max_length} is invalid: must be > 0 (m)")
+    deep = DeepSettings(n_max=args.max_points, ds_min=args.ds_min, max_length=args.max_length,
+                        check=not args.no_grid_check)
     rep = run_family(params, out, start=start, stop=stop, step=args.step, n_points=args.points,
-                     progress=prog)
+                     progress=prog, deep=args.deep, deep_settings=deep)
     bar.close()
     if rep.resumed_from:
         print(f"resumed from {rep.resumed_from} in {out}", file=sys.stderr)
@@ -151,6 +160,18 @@ def register(sub) -> None:
     p.add_argument("--step", type=float, default=0.005, help="step in tau_d/tau_min (default 0.005)")
     p.add_argument("--points", type=int, default=2000, help="grid points per pulse (default 2000)")
     p.add_argument("--out", default=None, help="output HDF5 (default runs/steady/family.h5)")
+    p.add_argument("--deep", choices=("beta", "arclength"), default="beta",
+                   help="continuation where tau_d steps stall near tau_min: steps in beta (default) "
+                        "or pseudo-arclength in (ln(1-beta), tau_d), which follows a fold and "
+                        "writes a grid-checked pulse at every 1e-4 in tau_d/tau_min")
+    p.add_argument("--max-points", type=int, default=16000,
+                   help="arclength: largest N the per-pulse grid check may use (default 16000)")
+    p.add_argument("--ds-min", type=float, default=0.004,
+                   help="arclength: smallest step before giving up (default 0.004)")
+    p.add_argument("--max-length", type=float, default=math.inf,
+                   help="arclength: stop once the pulse length exceeds this (m; default no limit)")
+    p.add_argument("--no-grid-check", action="store_true",
+                   help="arclength: write pulses without the N vs 2N check")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_family)
 
