@@ -199,3 +199,28 @@ def test_arclength_steps_stay_on_the_family(params):
         b = solve_pulse(params, float(s.x[-1]), n_points=500, guess=(s.xi, s.x[:-2], s.beta * 1.01),
                         passes=0, adapt_guess=False)
         assert b.stats.converged and b.beta == pytest.approx(s.beta, rel=1e-8)
+
+
+def test_family_arclength_writes_grid_checked_targets_and_resumes(params, tmp_path):
+    """deep='arclength' from the first pulse on (beta_switch=0): the targets passed are solved at
+    fixed τ_d, re-solved at 2N and written with the N-vs-2N differences; a rerun resumes."""
+    from slippulse.continuation import DeepSettings
+    out = str(tmp_path / "arc.h5")
+    deep = DeepSettings(ds=0.004, ds_max=0.004, fine=0.005, tol_beta=1e-4, tol_L=1e-2,
+                        n_max=1000, max_iter=20)
+    rep = run_family(params, out, start=1.2, stop=1.195, step=0.005, n_points=500,
+                     beta_switch=0.0, deep="arclength", deep_settings=deep)
+    assert not rep.stopped_early, rep.stop_reason
+    assert list_pulses(out) == ["td1.2000", "td1.1950"]
+    p, _ = read_pulse(out, "td1.1950")
+    assert p.converged and p.max_residual <= 1e-13 and p.tau_d_ratio == pytest.approx(1.195, abs=1e-12)
+    assert p.n_points == 2 * p.extra["grid_check_n"]
+    assert p.extra["grid_check_dbeta"] <= 1e-4 and p.extra["grid_check_dL_rel"] <= 1e-2
+    # the written pulse is the fixed-τ_d solution: a direct solve from it at 2N agrees
+    from slippulse.solver import solve_pulse
+    d = solve_pulse(params, 1.195, n_points=p.n_points, guess=(p.xi, np.log(p.v), p.beta), passes=0,
+                    adapt_guess=False)
+    assert d.beta == pytest.approx(p.beta, rel=1e-9)
+    rep2 = run_family(params, out, start=1.2, stop=1.19, step=0.005, n_points=500,
+                      beta_switch=0.0, deep="arclength", deep_settings=deep)
+    assert rep2.resumed_from == "td1.1950" and rep2.written == ["td1.1900"]

@@ -229,7 +229,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         params.check_tau_d(val * params.tau_min)
     if not (stop < start):
         raise ParameterError(f"to={stop} is invalid: must be < from={start} (continuation goes down)")
-    if not (0 < step <= start - stop) or not math.isfinite(step):
+    if not (0 < step <= start - stop + 1e-12) or not math.isfinite(step):
         raise ParameterError(f"step={step} is invalid: must be in (0, from - to = {start - stop:.4g}]")
     if min_step is None:
         min_step = 0.5 * step          # two failed τ_d steps in a row switch to stepping in β
