@@ -23,6 +23,7 @@ import sys
 
 import numpy as np
 from matplotlib.figure import Figure
+from scipy.optimize import least_squares
 
 from slippulse import analysis as an
 from slippulse.h5io import Pulse, list_pulses, read_pulse
@@ -99,14 +100,15 @@ def main(argv=None):
     b = np.array([p.beta for p in pulses])
     L = np.array([p.L for p in pulses])
     N = np.array([p.n_points for p in pulses])
+    arc = np.array(["source" in p.extra for p in pulses])
     print(f"{len(pulses)} pulses; deepest tau_d/tau_min={q.min():.6f} (beta={b[q.argmin()]:.6f}, "
           f"L={L[q.argmin()]:.4g} m); largest L={L.max():.4g} m")
-    sets = {"N = 2000": N == 2000, "N = 2000, deepest from N = 4000": None}
+    sets = {"family file, N = 2000": (N == 2000) & ~arc,
+            "family file + arclength steps, N = 2000": N == 2000}
     if np.any(N == 4000):
         q4 = q[N == 4000].max()
-        sets["N = 2000, deepest from N = 4000"] = (N == 4000) | ((N == 2000) & (q > q4 + 1e-4))
-    else:
-        del sets["N = 2000, deepest from N = 4000"]
+        sets["family file (N = 2000) above, arclength N = 4000 below %.4f" % q4] = \
+            (N == 4000) | ((N == 2000) & ~arc & (q > q4 + 1e-4))
     print("\n| data | window | n | τ̃* | m_L | m_β | rms | τ̃* (L only) | m_L (L only) | τ̃* (β only) | m_β (β only) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     fits = {}
@@ -126,6 +128,27 @@ def main(argv=None):
                   f"| {f['rms']:.1e} | {fl['tau_star']:.5f} ± {fl['tau_star_err']:.5f} "
                   f"| {fl['m_L']:.3f} ± {fl['m_L_err']:.3f} | {fb['tau_star']:.5f} ± {fb['tau_star_err']:.5f} "
                   f"| {fb['m_beta']:.3f} ± {fb['m_beta_err']:.3f} |")
+    # τ̃*-free forms along the family, parametrised by β: q = τ̃* + B (1−β)^p (p = 1/m_β) and
+    # L = A (1−β)^(−r) (paper: p = 1/2, r = 3/2)
+    print("\nParametrised by 1 − β (no τ̃* in the L law): q = τ̃* + B(1−β)^p, L = A(1−β)^(−r)")
+    print("| data | 1−β range | n | τ̃* | p (paper 1/2) | m_β = 1/p | r (paper 3/2) |")
+    print("|---|---|---|---|---|---|---|")
+    for name, sel in sets.items():
+        for bmax in (0.1, 0.05, 0.03, 0.02):
+            m = sel & (1 - b <= bmax)
+            if m.sum() < 5:
+                continue
+            om = 1 - b[m]
+
+            def res_q(pp, om=om, qq=q[m]):
+                return pp[0] + pp[1] * om ** pp[2] - qq
+            fq = least_squares(res_q, [1.008, 0.05, 0.5])
+            cq = np.linalg.pinv(fq.jac.T @ fq.jac) * (fq.fun @ fq.fun) / max(m.sum() - 3, 1)
+            eq = np.sqrt(np.diag(cq))
+            cL = np.polyfit(np.log(om), np.log(L[m]), 1, cov=True)
+            print(f"| {name} | ≤ {bmax} (to {om.min():.2e}) | {m.sum()} | {fq.x[0]:.5f} ± {eq[0]:.5f} "
+                  f"| {fq.x[2]:.3f} ± {eq[2]:.3f} | {1 / fq.x[2]:.2f} | {-cL[0][0]:.3f} ± "
+                  f"{math.sqrt(cL[1][0, 0]):.3f} |")
     # the paper's law on the same pulses
     deep = q < 1.03
     bm, Ltm = an.scaling_law(q[deep], PAPER_SCALING["tau_star"], PAPER_SCALING["a_v"],
@@ -159,7 +182,7 @@ def main(argv=None):
               f"| {1e3 * r['efold'] / g:.4g} | {r['heal_width']:.4g} "
               f"| {r['G1']:.4g} | {r['G2']:.4g} | {r['G5']:.4g} | {r['G_max']:.4g} |")
     os.makedirs(a.outdir, exist_ok=True)
-    key = ("N = 2000", (1.0, 1.02))
+    key = ("family file, N = 2000", (1.0, 1.02))
     f = fits.get(key)
     if f is not None:
         fig = Figure(figsize=(9, 4))
@@ -169,7 +192,7 @@ def main(argv=None):
             d = q[s_] - f["tau_star"]
             ax1.loglog(d, L[s_], mk, ms=3, mfc="none", label=f"pulses, N = {n_}")
             ax2.loglog(d, 1 - b[s_], mk, ms=3, mfc="none", label=f"pulses, N = {n_}")
-        dd = np.geomspace(1e-4, 0.05, 100)
+        dd = np.geomspace(0.5 * (q.min() - f["tau_star"]), 0.05, 100)
         ax1.loglog(dd, np.exp(f["ln_A"]) * dd ** (-f["m_L"]), "k-",
                    label=f"fit: m_L = {f['m_L']:.2f}, τ̃* = {f['tau_star']:.5f}")
         ax2.loglog(dd, np.exp(f["ln_B"]) * dd ** f["m_beta"], "k-", label=f"fit: m_β = {f['m_beta']:.2f}")
@@ -180,7 +203,8 @@ def main(argv=None):
         ax1.set_xlabel("τ_d/τ_min − τ̃*"), ax1.set_ylabel("L (m)")
         ax2.set_xlabel("τ_d/τ_min − τ̃*"), ax2.set_ylabel("1 − β")
         ax1.legend(fontsize=7), ax2.legend(fontsize=7)
-        fig.suptitle(f"divergence of the family; τ̃* from the joint fit on [1.0, 1.02] at N = 2000")
+        fig.suptitle("L and 1 − β against τ_d/τ_min − τ̃*, τ̃* from the joint fit on [1.0, 1.02] "
+                     "(family file, N = 2000); paper's law drawn on the same axis")
         fig.tight_layout()
         for ext in ("png", "pdf"):
             fig.savefig(os.path.join(a.outdir, f"divergence.{ext}"), dpi=140)

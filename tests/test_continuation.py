@@ -224,3 +224,44 @@ def test_family_arclength_writes_grid_checked_targets_and_resumes(params, tmp_pa
     rep2 = run_family(params, out, start=1.2, stop=1.19, step=0.005, n_points=500,
                       beta_switch=0.0, deep="arclength", deep_settings=deep)
     assert rep2.resumed_from == "td1.1950" and rep2.written == ["td1.1900"]
+
+
+class _ToyFold:
+    """x = (y, β, q): equations y − β = 0, q − 1 − (β − 0.5)² = 0 (one fewer than unknowns, like
+    SteadyProblem(free='both')). q(β) has a fold (minimum) at β = 0.5, q = 1."""
+
+    def valid(self, x):
+        return 0.0 < x[-2] < 1.0
+
+    def residual(self, x):
+        return np.array([x[0] - x[1], x[2] - 1.0 - (x[1] - 0.5) ** 2])
+
+    def residual_and_jacobian(self, x):
+        J = np.array([[1.0, -1.0, 0.0], [0.0, -2.0 * (x[1] - 0.5), 1.0]])
+        return self.residual(x), J
+
+
+def test_arclength_follows_a_fold():
+    """The arclength pieces (tangent, closure row, Newton) pass a fold in q: q first decreases,
+    then increases, while β keeps increasing; fixed-q stepping could not pass it."""
+    from slippulse.continuation import ArclengthProblem, family_tangent
+    from slippulse.newton import newton
+    toy = _ToyFold()
+    x = np.array([0.2, 0.2, 1.09])
+    kappa, orient = 0.3, (1.0, 0.0, 0.3)
+    qs, bs, tq = [], [], []
+    for _ in range(40):
+        n = family_tangent(toy, x, orient)
+        orient = (n[-2], n[-1], kappa)
+        t_a, t_Q = -n[-2] / (1 - x[-2]), n[-1] / kappa
+        arc = ArclengthProblem(toy, np.log(1 - x[-2]), x[-1], t_a, t_Q, kappa, 0.05)
+        x, st = newton(arc, x + 0.05 * n, tol=1e-13, max_iter=20)
+        assert st.converged
+        qs.append(x[-1]), bs.append(x[-2]), tq.append(t_Q)
+        if x[-2] > 0.8:
+            break
+    assert np.all(np.diff(bs) > 0) and bs[-1] > 0.8
+    k = int(np.argmin(qs))
+    assert 0 < k < len(qs) - 1 and abs(bs[k] - 0.5) < 0.05 and qs[k] == pytest.approx(1.0, abs=3e-3)
+    assert tq[0] < 0 < tq[-1]
+    assert max(abs(np.asarray(qs) - 1 - (np.asarray(bs) - 0.5) ** 2)) < 1e-12
