@@ -201,29 +201,36 @@ def test_arclength_steps_stay_on_the_family(params):
         assert b.stats.converged and b.beta == pytest.approx(s.beta, rel=1e-8)
 
 
-def test_family_arclength_writes_grid_checked_targets_and_resumes(params, tmp_path):
-    """deep='arclength' from the first pulse on (beta_switch=0): the targets passed are solved at
-    fixed τ_d, re-solved at 2N and written with the N-vs-2N differences; a rerun resumes."""
+def test_family_arclength_writes_grid_checked_pulses_and_resumes(params, tmp_path):
+    """deep='arclength' from the first pulse on (beta_switch=0): arclength pulses are grid-checked
+    (2N at fixed β, converted to fixed τ_d) and the 2N solutions written with the check's numbers,
+    one per label, at least fine/2 apart; a rerun resumes below the deepest."""
     from slippulse.continuation import DeepSettings
+    from slippulse.solver import solve_pulse
     out = str(tmp_path / "arc.h5")
-    deep = DeepSettings(ds=0.004, ds_max=0.004, fine=0.005, tol_beta=1e-4, tol_L=1e-2,
+    deep = DeepSettings(ds=0.001, ds_max=0.001, fine=0.002, tol_beta=1e-4, tol_L=1e-2,
                         n_max=1000, max_iter=20)
-    rep = run_family(params, out, start=1.2, stop=1.195, step=0.005, n_points=500,
+    rep = run_family(params, out, start=1.2, stop=1.19, step=0.01, n_points=500,
                      beta_switch=0.0, deep="arclength", deep_settings=deep)
     assert not rep.stopped_early, rep.stop_reason
-    assert list_pulses(out) == ["td1.2000", "td1.1950"]
-    p, _ = read_pulse(out, "td1.1950")
-    assert p.converged and p.max_residual <= 1e-13 and p.tau_d_ratio == pytest.approx(1.195, abs=1e-12)
-    assert p.n_points == 2 * p.extra["grid_check_n"]
-    assert p.extra["grid_check_dbeta"] <= 1e-4 and p.extra["grid_check_dL_rel"] <= 1e-2
-    # the written pulse is the fixed-τ_d solution: a direct solve from it at 2N agrees
-    from slippulse.solver import solve_pulse
-    d = solve_pulse(params, 1.195, n_points=p.n_points, guess=(p.xi, np.log(p.v), p.beta), passes=0,
-                    adapt_guess=False)
+    labels = list_pulses(out)
+    assert labels[0] == "td1.2000" and len(labels) >= 3 and rep.written == labels
+    qs = [read_pulse(out, lab)[0].tau_d_ratio for lab in labels]
+    assert np.all(np.diff(qs) <= -0.5 * deep.fine) and qs[-1] <= 1.19 + 1e-12
+    for lab in labels[1:]:
+        p, _ = read_pulse(out, lab)
+        assert p.converged and p.max_residual <= 1e-13 and p.extra["n_humps"] == 1
+        assert p.n_points == 2 * p.extra["grid_check_n"]
+        assert p.extra["grid_check_dbeta"] <= 1e-4 and p.extra["grid_check_dL_rel"] <= 1e-2
+    # a written pulse is a solution at its own τ_d: a fixed-τ_d solve on its grid returns its β
+    p, _ = read_pulse(out, labels[-1])
+    d = solve_pulse(params, p.tau_d_ratio, n_points=p.n_points, guess=(p.xi, np.log(p.v), p.beta),
+                    passes=0, adapt_guess=False)
     assert d.beta == pytest.approx(p.beta, rel=1e-9)
-    rep2 = run_family(params, out, start=1.2, stop=1.19, step=0.005, n_points=500,
+    rep2 = run_family(params, out, start=1.2, stop=1.185, step=0.005, n_points=500,
                       beta_switch=0.0, deep="arclength", deep_settings=deep)
-    assert rep2.resumed_from == "td1.1950" and rep2.written == ["td1.1900"]
+    assert rep2.resumed_from == labels[-1] and rep2.written
+    assert all(read_pulse(out, lab)[0].tau_d_ratio < qs[-1] for lab in rep2.written)
 
 
 class _ToyFold:
@@ -265,3 +272,24 @@ def test_arclength_follows_a_fold():
     assert 0 < k < len(qs) - 1 and abs(bs[k] - 0.5) < 0.05 and qs[k] == pytest.approx(1.0, abs=3e-3)
     assert tq[0] < 0 < tq[-1]
     assert max(abs(np.asarray(qs) - 1 - (np.asarray(bs) - 0.5) ** 2)) < 1e-12
+
+
+def test_grid_check_at_fixed_beta_equals_fixed_tau_d_difference(params):
+    """check_grid_at_beta solves the 2N pulse at fixed β and converts the change to fixed τ_d
+    along the tangent; a fixed-τ_d solve on the same 2N grid gives the same Δβ and ΔL/L."""
+    from slippulse.continuation import _as_both, check_grid_at_beta, solve_at_beta
+    from slippulse.solver import solve_pulse
+    a = solve_pulse(params, 1.19, n_points=400)
+    coarse = solve_at_beta(params, (a.xi, a.x[:-1]), 1.19, a.beta, 400)     # τ_d ≈ 1.19 at this β
+    assert coarse.stats.converged
+    sol = _as_both(params, coarse)
+    fine, db, dl = check_grid_at_beta(params, sol, 400)
+    assert fine.stats.converged and fine.problem.n == 800
+    q = float(sol.x[-1])
+    assert abs(float(fine.x[-1]) - q) > 1e-7              # the grids disagree measurably
+    direct = solve_pulse(params, q, n_points=800, guess=(fine.xi, fine.x[:-1], sol.beta),
+                         passes=0, adapt_guess=False)
+    assert direct.stats.converged
+    p0, p2 = sol.to_pulse(), direct.to_pulse()
+    assert db == pytest.approx(abs(p2.beta - p0.beta), rel=1e-3)
+    assert dl == pytest.approx(abs(p2.L - p0.L) / p0.L, rel=1e-2)

@@ -192,9 +192,13 @@ def _hint_deep(n_points):
 
 
 def _hint_arc(why, n_points, deep):
+    if "grid-converged" in why.get("reason", ""):
+        return (f"allow larger grids (--max-points above {deep.n_max}) or skip the check "
+                f"(--no-grid-check; pulses then carry their N-dependence)")
     if "fold" in why:
-        return (f"nothing: the family turns back (fold in tau_d) at tau_d/tau_min ~ "
-                f"{why['fold']:.6f}; there are no pulses of this branch below it")
+        return (f"check whether the family turns back: tau_d rose along the march at "
+                f"tau_d/tau_min ~ {why['fold']:.6f} (a fold, or grid noise if the rise is below the "
+                f"N-to-2N shift); more points (--points {2 * n_points}) or a smaller --ds-min")
     if "max_length" in why.get("reason", ""):
         return "raise --max-length"
     return (f"allow larger grids (--max-points above {deep.n_max}) or smaller arclength steps "
@@ -279,7 +283,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
             # then solve at the exact target from the two β-solutions that bracket it
             why = {}
             if deep == "arclength":
-                reached = _arc_bridge(params, out, guess, current, stop, targets, n_points, spec,
+                reached = _arc_bridge(params, out, guess, current, stop, n_points, spec,
                                       deep_settings, rep, progress, why)
                 if not reached:
                     rep.stop(why.get("reason", "arclength continuation failed"),
@@ -381,36 +385,17 @@ def family_tangent(prob: SteadyProblem, x, orient):
     return n / math.hypot(n_a, n_Q)
 
 
-def _fine_targets(q_hi, q_lo, fine):
-    """Multiples of `fine` strictly below q_hi and at or above q_lo, descending."""
-    k_hi = math.ceil(round(q_hi / fine, 6)) - 1
-    k_lo = math.ceil(round(q_lo / fine, 6))
-    return [round(k * fine, 10) for k in range(k_hi, k_lo - 1, -1)]
-
-
-def check_grid(params, pulse_sol: SteadySolution, n_points, spec=GridSpec(), max_iter=20):
-    """Re-solve a pulse at fixed τ_d on a grid of 2N adapted to it; returns (fine SteadySolution,
-    |Δβ|, |ΔL|/L). The family's convergence criterion is |Δβ| ≤ 1e-5 and |ΔL|/L ≤ 1e-4."""
-    p0 = pulse_sol.to_pulse()
-    q = pulse_sol.problem.tau_d_ratio
-    fine = solve_pulse(params, q, n_points=2 * n_points,
-                       guess=(pulse_sol.xi, np.log(p0.v), p0.beta), spec=spec, passes=0,
-                       max_iter=max_iter)
-    if not fine.stats.converged:
-        return fine, math.inf, math.inf
-    p1 = fine.to_pulse()
-    return fine, abs(p1.beta - p0.beta), abs(p1.L - p0.L) / p0.L
-
 
 @dataclass
 class DeepSettings:
     """Pseudo-arclength continuation of the deep family (near τ_min).
 
     ds, ds_min, ds_max : arclength step in the plane (ln(1−β), q/κ) and its bounds.
-    fine : pulses are written at every multiple of `fine` in τ_d/τ_min that the march passes
-        (labels keep 4 decimals, so `fine` ≥ 1e-4).
-    check : re-solve every written pulse at 2N and double N until |Δβ| ≤ tol_beta and
-        |ΔL|/L ≤ tol_L; the 2N solution is written, with the N-vs-2N differences as attributes.
+    fine : smallest spacing in τ_d/τ_min between written pulses; an arclength pulse is written when
+        its label (4 decimals, so `fine` ≥ 1e-4) is new and it lies ≥ fine/2 from the last one.
+    check : re-solve every written pulse at 2N (fixed β; converted to fixed τ_d along the family
+        tangent) and double N until |Δβ| ≤ tol_beta and |ΔL|/L ≤ tol_L; the 2N solution is written,
+        with the N-vs-2N differences as attributes.
     n_max : largest N tried by the check.
     max_length : stop once L exceeds this (m).
     regrid : a new grid is laid out when L has changed by more than this fraction since the last.
@@ -528,102 +513,105 @@ def march_arclength(params, start, n_points, spec=GridSpec(), deep=DeepSettings(
         yield new, (t_a, t_Q)
 
 
-def _solve_target(params, target, lo, hi, n_points, spec, max_iter, start=None):
-    """Solve at fixed τ_d = target from the two arclength pulses `lo`, `hi` whose q bracket it
-    (`hi` may be the march's start, given as `start` = (xi, y, β, q, L)). Guess: the nearer pulse
-    stretched behind its leading edge to the length interpolated in ln L, β interpolated in
-    ln(1 − β), both linearly in q."""
-    def parts(sol):
-        pu = sol.to_pulse()
-        return sol.xi, sol.x[:-2], pu.beta, float(sol.x[-1]), pu.L, sol.problem.pin_index
-    A = parts(lo)
-    if hi is not None:
-        B = parts(hi)
-    else:
-        xi0, y0, b0, q0, L0 = start
-        k0, _ = front_pin(xi0, y0, math.log(params.v_stick(q0 * params.tau_min)))
-        B = (xi0, y0, b0, q0, L0, k0)
-    w = (B[3] - target) / (B[3] - A[3]) if B[3] != A[3] else 1.0     # weight of A
-    lnL = w * math.log(A[4]) + (1 - w) * math.log(B[4])
-    a_t = w * math.log(1 - A[2]) + (1 - w) * math.log(1 - B[2])
-    near = A if w >= 0.5 else B
-    xi, y, _, _, L, k = near
-    y_t = _stretch(xi, y, xi[k], math.exp(lnL) / L)
-    return solve_pulse(params, target, n_points=n_points, guess=(xi, y_t, 1.0 - math.exp(a_t)),
-                       spec=spec, passes=0, max_iter=max_iter)
+def check_grid_at_beta(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30):
+    """Grid check of an arclength pulse (x = (y, β, q)): re-solve at fixed β on a grid of 2N adapted
+    to it, and express the change at fixed τ_d along the family.
+
+    Returns (fine SteadySolution, |Δβ|, |ΔL|/L): the N → 2N differences of β and L at the coarse
+    pulse's τ_d. The family's criterion is |Δβ| ≤ 1e-5 and |ΔL|/L ≤ 1e-4.
+
+    Notes
+    -----
+    At fixed β the fine solution has τ_d/τ_min = q₁ instead of q (well conditioned as β → 1, where
+    a fixed-τ_d solve is not). Along the fine family, to first order, β_f(q) = β − (n_β/n_q)(q₁ − q)
+    and L_f(q) = L₁ − (dL/ds)/n_q (q₁ − q), with n the family tangent at the coarse pulse (the
+    N → 2N change of the tangent is of higher order) and dL/ds by a finite difference of the FWHM
+    along n. Hence Δβ = −(n_β/n_q) dq and ΔL = L₁ − L₀ − (dL/ds)/n_q dq, dq = q₁ − q.
+    """
+    p0 = sol.to_pulse()
+    q, beta = float(sol.x[-1]), p0.beta
+    fine = solve_at_beta(params, (sol.xi, sol.x[:-2]), q, beta, 2 * n_points, spec, max_iter)
+    if not fine.stats.converged:
+        return fine, math.inf, math.inf
+    p1 = fine.to_pulse()
+    n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
+    if n[-1] == 0.0:
+        return fine, math.inf, math.inf
+    eps = 1e-3 / max(float(np.abs(n[:-2]).max()), 1e-12)
+    dL_ds = (fwhm(sol.xi, np.exp(sol.x[:-2] + eps * n[:-2]), params.v_star) - p0.L) / eps
+    dq = float(fine.x[-1]) - q
+    dbeta = -(n[-2] / n[-1]) * dq
+    dL = p1.L - p0.L - dL_ds / n[-1] * dq
+    return fine, abs(dbeta), abs(dL) / p0.L
 
 
-def _deep_write(params, out, target, lo, hi, n_state, spec, deep, rep, progress, start=None):
-    """Solve the pulse at `target`, grid-check it (N vs 2N, N doubled until it passes), write the
-    finer solution with the check's numbers. Returns False if no pulse could be written."""
+def _as_both(params, sol: SteadySolution) -> SteadySolution:
+    """A fixed-β solution (x = (y, q)) as a solution of ``free="both"`` (x = (y, β, q))."""
+    prob = sol.problem
+    both = SteadyProblem(params, prob.tau_d_ratio, prob.xi, prob.pin_index, prob.y_pin,
+                         free="both", H=prob.H)
+    x = np.concatenate([sol.x[:-1], [prob.beta_fixed, float(sol.x[-1])]])
+    return SteadySolution(both, x, sol.stats, sol.wall_time, sol.passes)
+
+
+def _deep_write(params, out, sol, labels, n_state, spec, deep, rep, progress):
+    """Write an arclength pulse (after the grid check, N doubled until it passes). Returns None when
+    written (or its label was taken by the check's 2N solution already), else the reason."""
     n = n_state["n"]
-    sol = _solve_target(params, target, lo, hi, n, spec, 2 * deep.max_iter, start)
-    pulse, ok, msg = _judge(sol)
-    rep.record(target, ok, f"deep target {target:.4f} (N={n}): {msg}")
-    if progress:
-        progress(target, pulse if ok else None, msg)
-    if not ok:
-        return False
+    pulse = sol.to_pulse()
     if deep.check:
         while True:
-            fine, db, dl = check_grid(params, sol, n, spec, 2 * deep.max_iter)
+            fine, db, dl = check_grid_at_beta(params, sol, n, spec, 2 * deep.max_iter)
             fpulse, fok, fmsg = _judge(fine)
-            rep.record(target, fok, f"grid check at {target:.4f} (N={2 * n}): {fmsg}")
-            if fok and db <= deep.tol_beta and dl <= deep.tol_L:
+            msg = (f"grid check at {pulse.tau_d_ratio:.6f}: N={n} -> {2 * n}: dbeta={db:.2e}, "
+                   f"dL/L={dl:.2e} ({fmsg})")
+            passed = fok and db <= deep.tol_beta and dl <= deep.tol_L
+            rep.record(float(fine.x[-1]), passed, msg)
+            if progress:
+                progress(float(fine.x[-1]), fpulse if fok else None, msg)
+            if passed:
                 pulse = fpulse
                 pulse.extra.update({"grid_check_n": n, "grid_check_dbeta": db,
                                     "grid_check_dL_rel": dl})
                 break
             if not fok or 4 * n > deep.n_max:
-                rep.record(target, False, f"grid check at {target:.4f}: N={n} -> {2 * n} changes beta "
-                                          f"by {db:.2e}, L by {dl:.2e} (rel), N={4 * n} exceeds "
-                                          f"n_max={deep.n_max}")
-                n_state["unconverged"] = (target, n, db, dl)
-                return False
-            n, sol = 2 * n, fine
+                return (f"the pulse at tau_d/tau_min={sol.to_pulse().tau_d_ratio:.6f} is not "
+                        f"grid-converged: N={n} -> {2 * n} changes beta by {db:.1e} and L by "
+                        f"{dl:.1e} (rel), and N={4 * n} would exceed max points {deep.n_max}")
+            n, sol = 2 * n, _as_both(params, fine)
             n_state["n"] = n
+    if pulse.label in labels:
+        return None
     write_pulse(out, pulse, params)
     rep.wrote(pulse)
-    return True
+    labels.add(pulse.label)
+    return None
 
 
-def _arc_bridge(params, out, guess, current, stop, coarse, n_points, spec, deep, rep, progress,
-                why):
+def _arc_bridge(params, out, guess, current, stop, n_points, spec, deep, rep, progress, why):
     """Continue from `guess` = (xi, y, β) at τ_d/τ_min = current by pseudo-arclength down to
-    `stop`, writing a pulse at every multiple of ``deep.fine`` (and every coarse target) passed.
-    Returns True when `stop` was reached, else False with the reason in `why`."""
+    `stop`, writing an arclength pulse whenever its 4-decimal label is new and it lies at least
+    fine/2 below the last one written. Returns True when `stop` was reached, else False with the
+    reason in `why` ("fold" is set where τ_d first turns back up along the march)."""
     n_state = {"n": n_points}
-    prev = None
-    written = set()
-    start0 = (guess[0], guess[1], guess[2], current, fwhm(guess[0], np.exp(guess[1]), params.v_star))
+    labels = set(list_pulses(out)) if os.path.exists(out) else set()
+    last_q = current
     for sol, (t_a, t_Q) in march_arclength(params, (guess[0], guess[1], guess[2], current),
                                            n_points, spec, deep, progress, rep, why,
                                            n_of=lambda: n_state["n"]):
         q = float(sol.x[-1])
         if t_Q > 0 and "fold" not in why:
             why["fold"] = q
-        q_prev = current if prev is None else float(prev.x[-1])
-        lo_q, hi_q = min(q, q_prev), max(q, q_prev)
-        wanted = set(_fine_targets(hi_q, max(lo_q, stop), deep.fine))
-        wanted |= {t for t in coarse if lo_q <= t < hi_q}
-        wanted = {t for t in wanted if t < current - 1e-12}
-        for t in sorted(wanted - written, reverse=True):
-            if prev is None:                       # between the start and the first step
-                lo_s, hi_s = sol, None
-            else:
-                lo_s, hi_s = (sol, prev) if q < q_prev else (prev, sol)
-            if not _deep_write(params, out, t, lo_s, hi_s, n_state, spec, deep, rep, progress,
-                               start0):
-                why["reason"] = (f"the pulse at tau_d/tau_min={t:.4f} could not be solved or "
-                                 f"grid-converged" + (f" (N up to {deep.n_max})"
-                                                      if "unconverged" in n_state else ""))
+        pulse = sol.to_pulse()
+        if pulse.label not in labels and q <= last_q - 0.5 * deep.fine:
+            reason = _deep_write(params, out, sol, labels, n_state, spec, deep, rep, progress)
+            if reason is not None:
+                why["reason"] = reason
                 return False
-            written.add(t)
-        prev = sol
-        L = sol.to_pulse().L
+            last_q = q
         if q <= stop + 1e-12:
             return True
-        if L >= deep.max_length:
-            why["reason"] = f"pulse length L={L:.4g} m passed max_length={deep.max_length:g} m"
+        if pulse.L >= deep.max_length:
+            why["reason"] = f"pulse length L={pulse.L:.4g} m passed max_length={deep.max_length:g} m"
             return False
     return False
