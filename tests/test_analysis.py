@@ -411,3 +411,24 @@ def test_analyse_family_fits_skip_unconverged_pulses(tmp_path):
     assert len(rows) == 4
     assert rows[0]["family"]["scaling"]["n"] == 3
     assert rows[0]["family"]["fracture"]["n_curves"] == 3
+
+
+def test_divergence_fit_recovers_a_power_law_divergence():
+    """Exact power laws L = A d^−m_L, 1 − β = B d^m_β (d = x − τ̃*) with a little deterministic
+    noise: the joint and the single fits return the constants within their stated errors."""
+    from slippulse.analysis import divergence_fit
+    ts, A, mL, B, mb = 1.0093, 3.2e-4, 2.7, 45.0, 1.6
+    x = 1.0093 + np.geomspace(2e-4, 1.5e-2, 25)
+    d = x - ts
+    wig = 1e-3 * np.sin(np.arange(x.size) * 1.7)
+    L = A * d ** (-mL) * np.exp(wig)
+    beta = 1.0 - B * d ** mb * np.exp(-wig)
+    f = divergence_fit(x, beta, L, window=(1.0, 1.03))
+    assert f["n"] == 25 and f["rms"] < 2e-3
+    for name, true in (("tau_star", ts), ("m_L", mL), ("m_beta", mb), ("ln_A", np.log(A))):
+        assert abs(f[name] - true) < 4 * f[name + "_err"] + 1e-12
+        assert f[name + "_err"] < {"tau_star": 2e-6, "m_L": 5e-3, "m_beta": 5e-3, "ln_A": 3e-2}[name]
+    fl = divergence_fit(x, beta, L, window=(1.0, 1.03), quantities="L")
+    assert np.isnan(fl["m_beta"]) and abs(fl["m_L"] - mL) < 1e-2
+    with pytest.raises(ValueError, match="needs more pulses"):
+        divergence_fit(x[:2], beta[:2], L[:2], window=(1.0, 1.03))

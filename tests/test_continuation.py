@@ -68,3 +68,228 @@ def test_interrupted_family_leaves_valid_file_and_resumes(params, tmp_path):
     assert rep.resumed_from == "td1.2000"
     assert list_pulses(out) == ["td1.2000", "td1.1950", "td1.1900", "td1.1850"]
     assert all(read_pulse(out, lab)[0].converged for lab in list_pulses(out))
+
+
+# ------------------------------------------------------------------ what a family run reports
+class _Injector:
+    """Wraps Newton: solves whose problem matches `fail` return at once as not converged.
+    Counts the injected failures independently of the code under test."""
+
+    def __init__(self, real, fail):
+        self.real, self.fail, self.injected = real, fail, 0
+
+    def __call__(self, problem, x0, **kw):
+        from slippulse.newton import SolveStats
+        if self.fail(problem):
+            self.injected += 1
+            return np.array(x0, float), SolveStats(False, "injected failure", 0, np.inf)
+        return self.real(problem, x0, **kw)
+
+
+def _inject(monkeypatch, fail):
+    import slippulse.continuation as cont
+    import slippulse.newton as nw
+    inj = _Injector(nw.newton, fail)
+    monkeypatch.setitem(nw.SOLVERS, "newton", inj)
+    monkeypatch.setattr(cont, "newton", inj)
+    return inj
+
+
+def _deep_failures(problem):
+    """τ_d steps below 1.1935 fail, and every β-step (τ_d free): the run must stop at 1.195."""
+    return problem.free == "tau_d" or problem.tau_d_ratio < 1.1935
+
+
+def test_family_counts_every_failed_attempt_and_says_why_it_stopped(params, tmp_path, monkeypatch):
+    inj = _inject(monkeypatch, _deep_failures)
+    calls = []
+    rep = run_family(params, str(tmp_path / "f.h5"), start=1.2, stop=1.185, step=0.005,
+                     n_points=500, progress=lambda r, p, m: calls.append(p is None))
+    # 1.19 fails, 1.1925 (halved) fails, then two β-steps (shrink 0.92, 0.96) fail: four failures
+    assert inj.injected == 4
+    assert len(rep.failures) == inj.injected and sum(calls) == inj.injected
+    assert rep.attempts == len(calls) == 6
+    assert rep.written == ["td1.2000", "td1.1950"]
+    assert rep.stopped_early and rep.reached == pytest.approx(1.195)
+    assert rep.reached_beta == pytest.approx(read_pulse(str(tmp_path / "f.h5"), "td1.1950")[0].beta)
+    assert "beta-steps stopped converging" in rep.stop_reason and "--points" in rep.hint
+    assert any("beta-step" in m for _, m in rep.failures)
+
+
+def test_family_command_final_line_names_where_why_and_how_to_go_further(tmp_path, monkeypatch,
+                                                                         capsys):
+    from slippulse import cli
+    inj = _inject(monkeypatch, _deep_failures)
+    out = str(tmp_path / "f.h5")
+    rc = cli.main(["steady", "family", "--from", "1.2", "--to", "1.185", "--step", "0.005",
+                   "--points", "500", "--out", out, "-q"])
+    assert rc == 1
+    text = capsys.readouterr().out
+    assert f"{inj.injected} failed" in text and inj.injected == 4
+    stop = [ln for ln in text.splitlines() if ln.startswith("STOPPED EARLY")]
+    assert len(stop) == 1
+    assert "tau_d/tau_min=1.19500" in stop[0] and "1.1850 not reached" in stop[0]
+    beta = read_pulse(out, "td1.1950")[0].beta
+    assert f"beta={beta:.6f}" in stop[0]
+    assert "beta-steps stopped converging" in stop[0] and "--points 1000" in stop[0]
+
+
+def test_progress_moves_on_beta_steps_and_counts_failures():
+    from types import SimpleNamespace
+    from slippulse.cli_steady import FamilyProgress
+    prog = FamilyProgress(1.2, 1.0, 0.005)
+    assert prog.total == 41
+    prog(1.2, SimpleNamespace(tau_d_ratio=1.2, beta=0.007, L=1.0), "ok")
+    assert prog.position == 1.0
+    # a β-step pulse between targets moves the bar by the fraction of a step it covered
+    prog(1.01, SimpleNamespace(tau_d_ratio=1.0123, beta=0.99, L=150.0), "beta-step")
+    assert prog.position == pytest.approx(1 + (1.2 - 1.0123) / 0.005)
+    prog(1.0115, None, "failed")
+    prog(1.013, SimpleNamespace(tau_d_ratio=1.013, beta=0.98, L=100.0), "fold: back up")
+    assert prog.position == pytest.approx(1 + (1.2 - 1.0123) / 0.005)     # never moves back
+    assert prog.failed == 1
+
+
+# ------------------------------------------------------------------ pseudo-arclength
+def test_arclength_row_and_tangent(params):
+    """The appended arclength row is the derivative of the arclength condition (central
+    differences), and the tangent lies in the null space of the steady Jacobian."""
+    from slippulse.continuation import ArclengthProblem, family_tangent
+    from slippulse.solver import default_guess
+    from slippulse.steady import SteadyProblem
+    xi, y, beta = default_guess(params, 1.2, 120)
+    k = int(np.argmin(np.abs(xi)))
+    base = SteadyProblem(params, 1.2, xi, k, float(y[k]), free="both")
+    x = np.concatenate([y, [beta, 1.2]])
+    arc = ArclengthProblem(base, np.log(1 - 0.9 * beta), 1.19, -0.6, -0.8, 0.05, 0.01)
+    r, J = arc.residual_and_jacobian(x)
+    assert J.shape == (x.size, x.size) and np.allclose(r, arc.residual(x), rtol=0, atol=1e-14)
+    for j in (x.size - 2, x.size - 1):
+        h = 1e-7
+        e = np.zeros_like(x)
+        e[j] = h
+        fd = (arc.residual(x + e)[-1] - arc.residual(x - e)[-1]) / (2 * h)
+        assert J[-1, j] == pytest.approx(fd, rel=1e-6)
+    n = family_tangent(base, x, (1.0, 0.0, 0.05))
+    _, Jb = base.residual_and_jacobian(x)
+    assert np.max(np.abs(Jb @ n)) < 1e-9 * np.abs(Jb).max() * np.abs(n).max()
+    assert np.hypot(-n[-2] / (1 - beta), n[-1] / 0.05) == pytest.approx(1.0, rel=1e-12)
+    assert n[-2] > 0                                     # oriented toward larger β
+
+
+def test_arclength_steps_stay_on_the_family(params):
+    """Two pseudo-arclength steps from the 1.2 pulse: each a converged pulse (β and τ_d both
+    unknown) that a fixed-τ_d solve at its τ_d reproduces, moving toward τ_min and larger β."""
+    from slippulse.continuation import DeepSettings, march_arclength
+    from slippulse.solver import solve_pulse
+    a = solve_pulse(params, 1.2, n_points=500)
+    steps = []
+    deep = DeepSettings(ds=0.004, ds_max=0.004, max_iter=20)
+    for sol, _ in march_arclength(params, (a.xi, a.x[:-1], a.beta, 1.2), 500, deep=deep):
+        steps.append(sol)
+        if len(steps) == 2:
+            break
+    qs = [float(s.x[-1]) for s in steps]
+    bs = [s.beta for s in steps]
+    assert 1.2 > qs[0] > qs[1] and a.beta < bs[0] < bs[1]
+    for s in steps:
+        pu = s.to_pulse()
+        assert pu.converged and pu.max_residual <= 1e-13 and pu.extra["n_humps"] == 1
+        # the same grid, τ_d fixed at the arclength value: β comes back
+        b = solve_pulse(params, float(s.x[-1]), n_points=500, guess=(s.xi, s.x[:-2], s.beta * 1.01),
+                        passes=0, adapt_guess=False)
+        assert b.stats.converged and b.beta == pytest.approx(s.beta, rel=1e-8)
+
+
+def test_family_arclength_writes_grid_checked_pulses_and_resumes(params, tmp_path):
+    """deep='arclength' from the first pulse on (beta_switch=0): arclength pulses are grid-checked
+    (2N at fixed β, converted to fixed τ_d) and the 2N solutions written with the check's numbers,
+    one per label, at least fine/2 apart; a rerun resumes below the deepest."""
+    from slippulse.continuation import DeepSettings
+    from slippulse.solver import solve_pulse
+    out = str(tmp_path / "arc.h5")
+    deep = DeepSettings(ds=0.001, ds_max=0.001, fine=0.002, tol_beta=1e-4, tol_L=1e-2,
+                        n_max=1000, max_iter=20)
+    rep = run_family(params, out, start=1.2, stop=1.19, step=0.01, n_points=500,
+                     beta_switch=0.0, deep="arclength", deep_settings=deep)
+    assert not rep.stopped_early, rep.stop_reason
+    labels = list_pulses(out)
+    assert labels[0] == "td1.2000" and len(labels) >= 3 and rep.written == labels
+    qs = [read_pulse(out, lab)[0].tau_d_ratio for lab in labels]
+    assert np.all(np.diff(qs) <= -0.5 * deep.fine) and qs[-1] <= 1.19 + 1e-12
+    for lab in labels[1:]:
+        p, _ = read_pulse(out, lab)
+        assert p.converged and p.max_residual <= 1e-13 and p.extra["n_humps"] == 1
+        assert p.n_points == 2 * p.extra["grid_check_n"]
+        assert p.extra["grid_check_dbeta"] <= 1e-4 and p.extra["grid_check_dL_rel"] <= 1e-2
+    # a written pulse is a solution at its own τ_d: a fixed-τ_d solve on its grid returns its β
+    p, _ = read_pulse(out, labels[-1])
+    d = solve_pulse(params, p.tau_d_ratio, n_points=p.n_points, guess=(p.xi, np.log(p.v), p.beta),
+                    passes=0, adapt_guess=False)
+    assert d.beta == pytest.approx(p.beta, rel=1e-9)
+    rep2 = run_family(params, out, start=1.2, stop=1.185, step=0.005, n_points=500,
+                      beta_switch=0.0, deep="arclength", deep_settings=deep)
+    assert rep2.resumed_from == labels[-1] and rep2.written
+    assert all(read_pulse(out, lab)[0].tau_d_ratio < qs[-1] for lab in rep2.written)
+
+
+class _ToyFold:
+    """x = (y, β, q): equations y − β = 0, q − 1 − (β − 0.5)² = 0 (one fewer than unknowns, like
+    SteadyProblem(free='both')). q(β) has a fold (minimum) at β = 0.5, q = 1."""
+
+    def valid(self, x):
+        return 0.0 < x[-2] < 1.0
+
+    def residual(self, x):
+        return np.array([x[0] - x[1], x[2] - 1.0 - (x[1] - 0.5) ** 2])
+
+    def residual_and_jacobian(self, x):
+        J = np.array([[1.0, -1.0, 0.0], [0.0, -2.0 * (x[1] - 0.5), 1.0]])
+        return self.residual(x), J
+
+
+def test_arclength_follows_a_fold():
+    """The arclength pieces (tangent, closure row, Newton) pass a fold in q: q first decreases,
+    then increases, while β keeps increasing; fixed-q stepping could not pass it."""
+    from slippulse.continuation import ArclengthProblem, family_tangent
+    from slippulse.newton import newton
+    toy = _ToyFold()
+    x = np.array([0.2, 0.2, 1.09])
+    kappa, orient = 0.3, (1.0, 0.0, 0.3)
+    qs, bs, tq = [], [], []
+    for _ in range(40):
+        n = family_tangent(toy, x, orient)
+        orient = (n[-2], n[-1], kappa)
+        t_a, t_Q = -n[-2] / (1 - x[-2]), n[-1] / kappa
+        arc = ArclengthProblem(toy, np.log(1 - x[-2]), x[-1], t_a, t_Q, kappa, 0.05)
+        x, st = newton(arc, x + 0.05 * n, tol=1e-13, max_iter=20)
+        assert st.converged
+        qs.append(x[-1]), bs.append(x[-2]), tq.append(t_Q)
+        if x[-2] > 0.8:
+            break
+    assert np.all(np.diff(bs) > 0) and bs[-1] > 0.8
+    k = int(np.argmin(qs))
+    assert 0 < k < len(qs) - 1 and abs(bs[k] - 0.5) < 0.05 and qs[k] == pytest.approx(1.0, abs=3e-3)
+    assert tq[0] < 0 < tq[-1]
+    assert max(abs(np.asarray(qs) - 1 - (np.asarray(bs) - 0.5) ** 2)) < 1e-12
+
+
+def test_grid_check_equals_fixed_tau_d_difference(params):
+    """check_grid_2n solves the 2N pulse on the normal to the tangent and converts the change
+    to fixed τ_d along the tangent; a fixed-τ_d solve on the same 2N grid gives the same Δβ, ΔL/L."""
+    from slippulse.continuation import _as_both, check_grid_2n, solve_at_beta
+    from slippulse.solver import solve_pulse
+    a = solve_pulse(params, 1.19, n_points=400)
+    coarse = solve_at_beta(params, (a.xi, a.x[:-1]), 1.19, a.beta, 400)     # τ_d ≈ 1.19 at this β
+    assert coarse.stats.converged
+    sol = _as_both(params, coarse)
+    fine, db, dl = check_grid_2n(params, sol, 400)
+    assert fine.stats.converged and fine.problem.n == 800
+    q = float(sol.x[-1])
+    assert abs(float(fine.x[-1]) - q) > 1e-7              # the grids disagree measurably
+    direct = solve_pulse(params, q, n_points=800, guess=(fine.xi, fine.x[:-2], sol.beta),
+                         passes=0, adapt_guess=False)
+    assert direct.stats.converged
+    p0, p2 = sol.to_pulse(), direct.to_pulse()
+    assert db == pytest.approx(abs(p2.beta - p0.beta), rel=1e-3)
+    assert dl == pytest.approx(abs(p2.L - p0.L) / p0.L, rel=1e-2)

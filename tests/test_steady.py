@@ -49,12 +49,12 @@ def test_state_integration_is_stiff_accurate(params):
     assert phi[0] == pytest.approx(fr.phi_ss(1e-1, params.v_star, params.D), rel=1e-12)
 
 
-@pytest.mark.parametrize("free", ["beta", "tau_d"])
+@pytest.mark.parametrize("free", ["beta", "tau_d", "both"])
 def test_jacobian_matches_finite_differences(params, free):
     xi, y, beta = default_guess(params, 1.2, 120)
     k = int(np.argmin(np.abs(xi)))
     prob = SteadyProblem(params, 1.2, xi, k, float(y[k]), free=free, beta=beta)
-    x = np.concatenate([y, [beta if free == "beta" else 1.2]])
+    x = np.concatenate([y, {"beta": [beta], "tau_d": [1.2], "both": [beta, 1.2]}[free]])
     r, J = prob.residual_and_jacobian(x)
     assert np.allclose(r, prob.residual(x), rtol=0, atol=1e-14)
     Jfd = np.empty_like(J)
@@ -66,6 +66,9 @@ def test_jacobian_matches_finite_differences(params, free):
     scale = np.abs(J).max()
     assert np.max(np.abs(J - Jfd)) / scale < 1e-7
     assert np.max(np.abs(J[:, -1] - Jfd[:, -1])) / np.abs(J[:, -1]).max() < 1e-7
+    if free == "both":
+        assert J.shape == (x.size - 1, x.size)
+        assert np.max(np.abs(J[:, -2] - Jfd[:, -2])) / np.abs(J[:, -2]).max() < 1e-7
 
 
 def test_coarse_solve_at_1p2(params, pulse12):

@@ -581,6 +581,94 @@ def scaling_fit(tau_d_ratio, beta, L_tilde, params, window=SCALING_WINDOW, equat
             "equations": equations, "rms": float(math.sqrt(rss / m)), "tau_d_ratio_used": x}
 
 
+def divergence_fit(tau_d_ratio, beta, L, window=(1.0, 1.02), quantities="both"):
+    """Power-law divergence of L and of 1 − β at a common τ̃*, exponents free.
+
+    Parameters
+    ----------
+    tau_d_ratio, beta, L : array_like
+        τ_d/τ_min, c_p/c_s and the pulse length (m) of the pulses.
+    window : (float, float)
+        Inclusive τ_d/τ_min range fitted.
+    quantities : {"both", "L", "beta"}
+        Fit L and 1 − β jointly (one τ̃*), or one of them alone.
+
+    Returns
+    -------
+    dict
+        tau_star, m_L, m_beta, ln_A, ln_B and their 1σ errors (``_err``), cov, n, rms, window.
+
+    Notes
+    -----
+    Model, with d = τ_d/τ_min − τ̃* > 0:
+
+        L = A d^(−m_L),        1 − β = B d^(m_β).
+
+    The paper's theory (Eqs. 3–4) has, as β → 1, √(1−β²) ≈ √(2(1−β)) = a_v C/d, i.e. m_β = 2,
+    and L̃ = a_G √(1−β²)/(π d²) ∝ d^(−3), i.e. m_L = 3. Residuals in logarithms (the data span
+    decades), equal weights; ``scipy.optimize.least_squares`` with τ̃* bounded below min τ_d/τ_min;
+    covariance s² (JᵀJ)⁻¹, s² = RSS/(m − k). The statistical error ignores the correlated
+    discretisation error of the pulses; the fit-window study and the N-comparison carry that.
+    """
+    if quantities not in ("both", "L", "beta"):
+        raise ValueError(f"quantities={quantities!r}: must be 'both', 'L' or 'beta'")
+    x, b, Lm = _as_arrays(tau_d_ratio, beta, L)
+    sel = (x >= window[0]) & (x <= window[1]) & (b > 0) & (b < 1) & (Lm > 0)
+    x, lnL, lnb = x[sel], np.log(Lm[sel]), np.log(1.0 - b[sel])
+    use_L, use_b = quantities in ("both", "L"), quantities in ("both", "beta")
+    k = 1 + 2 * use_L + 2 * use_b
+    m = x.size * (use_L + use_b)
+    if m <= k:
+        raise ValueError(f"divergence fit ({quantities}) needs more pulses with tau_d/tau_min in "
+                         f"{window}; found {x.size}")
+    xmin = float(x.min())
+
+    def unpack(p):
+        ts, rest = p[0], list(p[1:])
+        lA, mL = (rest.pop(0), rest.pop(0)) if use_L else (np.nan, np.nan)
+        lB, mb = (rest.pop(0), rest.pop(0)) if use_b else (np.nan, np.nan)
+        return ts, lA, mL, lB, mb
+
+    def resid(p):
+        ts, lA, mL, lB, mb = unpack(p)
+        ld = np.log(x - ts)
+        out = []
+        if use_L:
+            out.append(lA - mL * ld - lnL)
+        if use_b:
+            out.append(lB + mb * ld - lnb)
+        return np.concatenate(out)
+
+    ts0 = xmin - 0.3 * (xmin - 1.0)
+    ld0 = np.log(x - ts0)
+    p0 = [ts0]
+    if use_L:
+        c = np.polyfit(ld0, lnL, 1)
+        p0 += [c[1], -c[0]]
+    if use_b:
+        c = np.polyfit(ld0, lnb, 1)
+        p0 += [c[1], c[0]]
+    upper = xmin - 1e-12
+    lo = np.full(k, -np.inf)
+    hi = np.full(k, np.inf)
+    lo[0], hi[0] = 0.9, upper
+    p0[0] = min(p0[0], upper - 1e-9)
+    res = least_squares(resid, np.array(p0), bounds=(lo, hi), xtol=1e-15, ftol=1e-15, gtol=1e-15,
+                        max_nfev=5000)
+    rss = float(res.fun @ res.fun)
+    cov_k = rss / (m - k) * np.linalg.pinv(res.jac.T @ res.jac)
+    err_k = np.sqrt(np.clip(np.diag(cov_k), 0.0, None))
+    names = ["tau_star"] + (["ln_A", "m_L"] if use_L else []) + (["ln_B", "m_beta"] if use_b else [])
+    out = {nm: float("nan") for nm in ("tau_star", "ln_A", "m_L", "ln_B", "m_beta")}
+    out.update({nm + "_err": float("nan") for nm in list(out)})
+    for j, nm in enumerate(names):
+        out[nm], out[nm + "_err"] = float(res.x[j]), float(err_k[j])
+    out.update(cov=cov_k, names=names, n=int(x.size), rms=float(math.sqrt(rss / m)),
+               window=(float(window[0]), float(window[1])), quantities=quantities,
+               at_bound=bool(res.x[0] >= upper - 1e-9))
+    return out
+
+
 # --------------------------------------------------------------------------- drivers
 def analyse_pulse(pulse, params, tau_m=None, edge_window=None):
     """Scalar measures of one pulse.

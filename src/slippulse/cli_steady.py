@@ -80,6 +80,44 @@ def cmd_solve(args) -> int:
     return 0
 
 
+class FamilyProgress:
+    """Progress of a family run, in targets passed: a converged pulse at τ_d/τ_min = r puts the
+    bar at 1 + (start − r)/step (fractional between targets, so β-steps move it too); it never
+    moves back. Failed attempts are counted and shown."""
+
+    def __init__(self, start, stop, step, bar=None):
+        self.start, self.step = start, step
+        self.total = int(round((start - stop) / step)) + 1
+        self.position = 0.0
+        self.failed = 0
+        self.bar = bar
+
+    def __call__(self, ratio, pulse, msg):
+        if pulse is None:
+            self.failed += 1
+            state = f"{ratio:.5f} failed ({self.failed}): {msg[:40]}"
+        else:
+            self.position = max(self.position,
+                                min(self.total, 1.0 + (self.start - pulse.tau_d_ratio) / self.step))
+            state = f"{pulse.tau_d_ratio:.5f} beta={pulse.beta:.6f} L={pulse.L:.4g}m"
+        if self.bar is not None:
+            self.bar.n = round(self.position, 2)
+            self.bar.set_postfix_str(state)     # refreshes the bar
+
+
+def final_status(rep, start, stop, out) -> str:
+    """The family run's last line: what was reached, the failed attempts, and at an early stop
+    where, why, and what would go further."""
+    line = (f"family {start:.4f} -> {stop:.4f}: {len(rep.written)} pulses written to {out}, reached "
+            f"tau_d/tau_min={rep.reached:.5f}, {rep.attempts} solves attempted, "
+            f"{len(rep.failures)} failed, wall={rep.wall_time:.1f} s")
+    if rep.stopped_early:
+        line += (f"\nSTOPPED EARLY at tau_d/tau_min={rep.reached:.5f} (beta={rep.reached_beta:.6f}, "
+                 f"L={rep.reached_L:.4g} m), {stop:.4f} not reached: {rep.stop_reason}. "
+                 f"To go further: {rep.hint}.")
+    return line
+
+
 def cmd_family(args) -> int:
     from .continuation import run_family
     params = DEFAULT
@@ -88,27 +126,26 @@ def cmd_family(args) -> int:
         raise ParameterError(f"step={args.step} is invalid: must be a number > 0")
     check_points(args.points)
     out = args.out or os.path.join("runs", "steady", "family.h5")
-    n_total = int(round((start - stop) / args.step)) + 1
-    bar = tqdm(total=n_total, desc="family", unit="pulse", disable=args.quiet, file=sys.stderr)
-    targets = {round(start - k * args.step, 10) for k in range(n_total)}
-
-    def progress(ratio, pulse, msg):
-        state = (f"{ratio:.4f} beta={pulse.beta:.4f} L={pulse.L:.3g}m" if pulse is not None
-                 else f"{ratio:.5f} failed, halving step")
-        bar.set_postfix_str(state)
-        if pulse is not None and round(ratio, 10) in targets:
-            bar.update(1)
-
+    prog = FamilyProgress(start, stop, args.step)
+    bar = tqdm(total=prog.total, desc="family", unit="pulse", disable=args.quiet, file=sys.stderr,
+               bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}{postfix}]")
+    prog.bar = bar
+    from .continuation import DeepSettings
+    if args.max_points < args.points:
+        raise ParameterError(f"max-points={args.max_points} is invalid: must be >= points={args.points}")
+    if not (0 < args.ds_min < 0.4):
+        raise ParameterError(f"ds-min={args.ds_min} is invalid: must be in (0, 0.4)")
+    if not args.max_length > 0:
+        raise ParameterError(f"max-length={args.max_length} is invalid: must be > 0 (m)")
+    deep = DeepSettings(n_max=args.max_points, ds_min=args.ds_min, max_length=args.max_length,
+                        check=not args.no_grid_check)
     rep = run_family(params, out, start=start, stop=stop, step=args.step, n_points=args.points,
-                     progress=progress)
+                     progress=prog, deep=args.deep, deep_settings=deep)
     bar.close()
     if rep.resumed_from:
         print(f"resumed from {rep.resumed_from} in {out}", file=sys.stderr)
-    ok = abs(rep.reached - stop) < 1e-9
-    print(f"family {start:.4f} -> {stop:.4f}: {len(rep.written)} pulses written to {out}, reached "
-          f"tau_d/tau_min={rep.reached:.5f}, {len(rep.failures)} failed attempts, "
-          f"wall={rep.wall_time:.1f} s" + ("" if ok else " (STOPPED EARLY: step below minimum)"))
-    return 0 if ok else 1
+    print(final_status(rep, start, stop, out))
+    return 1 if rep.stopped_early else 0
 
 
 def spectrum_line(label, res) -> str:
@@ -187,6 +224,18 @@ def register(sub) -> None:
     p.add_argument("--step", type=float, default=0.005, help="step in tau_d/tau_min (default 0.005)")
     p.add_argument("--points", type=int, default=2000, help="grid points per pulse (default 2000)")
     p.add_argument("--out", default=None, help="output HDF5 (default runs/steady/family.h5)")
+    p.add_argument("--deep", choices=("beta", "arclength"), default="beta",
+                   help="continuation where tau_d steps stall near tau_min: steps in beta (default) "
+                        "or pseudo-arclength in (ln(1-beta), tau_d), which follows a fold and "
+                        "writes a grid-checked pulse at every 1e-4 in tau_d/tau_min")
+    p.add_argument("--max-points", type=int, default=16000,
+                   help="arclength: largest N the per-pulse grid check may use (default 16000)")
+    p.add_argument("--ds-min", type=float, default=0.004,
+                   help="arclength: smallest step before giving up (default 0.004)")
+    p.add_argument("--max-length", type=float, default=math.inf,
+                   help="arclength: stop once the pulse length exceeds this (m; default no limit)")
+    p.add_argument("--no-grid-check", action="store_true",
+                   help="arclength: write pulses without the N vs 2N check")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_family)
 

@@ -18,7 +18,7 @@ import numpy as np
 from .h5io import list_pulses, read_pulse, write_pulse
 from .params import ParameterError, Parameters
 from .newton import newton
-from .solver import GridSpec, SteadySolution, front_pin, regrid_guess, solve_pulse
+from .solver import GridSpec, SteadySolution, front_pin, fwhm, regrid_guess, solve_pulse
 from .steady import SteadyProblem
 
 
@@ -28,10 +28,30 @@ class FamilyReport:
 
     written: list = field(default_factory=list)      # labels written this run
     resumed_from: str | None = None
-    failures: list = field(default_factory=list)     # (tau_d_ratio, message)
+    failures: list = field(default_factory=list)     # (tau_d_ratio, message), every failed solve
+    attempts: int = 0                                # solves attempted this run (failed included)
     reached: float = float("nan")                    # smallest τ_d/τ_min converged
+    reached_beta: float = float("nan")               # β and L of that pulse
+    reached_L: float = float("nan")
     stopped_early: bool = False
+    stop_reason: str = ""                            # why the run stopped before `stop`
+    hint: str = ""                                   # what would take it further
     wall_time: float = 0.0
+
+    def record(self, ratio, ok, message):
+        """Count one attempted solve; a failed one is kept with its τ_d/τ_min and message."""
+        self.attempts += 1
+        if not ok:
+            self.failures.append((float(ratio), message))
+
+    def wrote(self, pulse):
+        """A converged pulse was written: the run has reached its τ_d."""
+        self.written.append(pulse.label)
+        if not (pulse.tau_d_ratio >= self.reached):         # NaN-safe: the first, or a deeper one
+            self.reached, self.reached_beta, self.reached_L = pulse.tau_d_ratio, pulse.beta, pulse.L
+
+    def stop(self, reason, hint):
+        self.stopped_early, self.stop_reason, self.hint = True, reason, hint
 
 
 def _targets(start, stop, step):
@@ -67,11 +87,15 @@ def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_i
 
 
 def march_in_beta(params, start, prev, target, n_points, spec=GridSpec(), shrink=0.92,
-                  min_shrink=0.97, progress=None):
+                  min_shrink=0.97, progress=None, rep=None, why=None):
     """From solution `start` = (xi, y, beta, q), step β toward 1 (1−β ← shrink·(1−β)) with τ_d free,
     until τ_d/τ_min ≤ target. Yields converged SteadySolutions; stops when a step below
     `min_shrink` fails. Predictor: the last ln v (its shape: extrapolating it failed near β → 1,
-    measured) and a secant in ln(1−β) for q."""
+    measured) and a secant in ln(1−β) for q.
+
+    Every attempt is counted in `rep` (a :class:`FamilyReport`), failed ones with their message;
+    when the march gives up, ``why["reason"]`` says where and why.
+    """
     xi, y, beta, q = start
     hist = prev
     f = shrink
@@ -85,12 +109,18 @@ def march_in_beta(params, start, prev, target, n_points, spec=GridSpec(), shrink
         qg = max(qg, 1.0 + 1e-6)
         sol = solve_at_beta(params, (xi, yg), qg, bnew, n_points, spec)
         ok = sol.stats.converged
+        msg = f"beta-step to {bnew:.6f}: {sol.stats.message}"
+        if rep is not None:
+            rep.record(float(sol.x[-1]), ok, msg)
         if progress:
-            progress(float(sol.x[-1]), sol.to_pulse() if ok else None,
-                     f"beta-step to {bnew:.6f}: {sol.stats.message}")
+            progress(float(sol.x[-1]), sol.to_pulse() if ok else None, msg)
         if not ok:
             f = 1.0 - 0.5 * (1.0 - f)
             if f > min_shrink:
+                if why is not None:
+                    why["reason"] = (f"beta-steps stopped converging at beta={beta:.6f}: the step "
+                                     f"1-beta <- {1 - 2 * (1 - f):.4f}(1-beta), the smallest "
+                                     f"allowed, failed ({sol.stats.message})")
                 return
             continue
         hist = (np.log(1 - beta), xi, y, q)
@@ -110,20 +140,20 @@ def _judge(sol):
 
 
 def _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_iter, rep,
-                 progress):
+                 progress, why):
     """March in β from `guess` (at τ_d/τ_min = current) until τ_d passes `target`, writing the
     intermediate pulses, then solve at `target` from the interpolated bracketing solutions.
-    Returns (prev, guess, solution) for the continuation, or None on failure."""
+    Returns (prev, guess, solution) for the continuation, or None on failure (reason in `why`)."""
     start = (guess[0], guess[1], guess[2], current)
     prev_b = None if prev is None else (np.log(1 - prev[3]), prev[1], prev[2], prev[0])
     hi, lo = None, None
-    for bsol in march_in_beta(params, start, prev_b, target, n_points, spec, progress=progress):
+    for bsol in march_in_beta(params, start, prev_b, target, n_points, spec, progress=progress,
+                              rep=rep, why=why):
         q = float(bsol.x[-1])
         if q > target:
             bp = bsol.to_pulse()
             write_pulse(out, bp, params)
-            rep.written.append(bp.label)
-            rep.reached = q
+            rep.wrote(bp)
             hi = bsol
         else:
             lo = bsol
@@ -139,20 +169,51 @@ def _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_
     sol = solve_pulse(params, target, n_points=n_points, guess=(lo.xi, y_t, b_t), spec=spec,
                       passes=0, max_iter=max_iter)
     pulse, ok, msg = _judge(sol)
+    rep.record(target, ok, msg)
     if progress:
         progress(target, pulse if ok else None, msg)
     if not ok:
-        rep.failures.append((target, msg))
+        why["reason"] = (f"the solve at the target tau_d/tau_min={target:.4f} from the two "
+                         f"bracketing beta-step pulses failed ({msg})")
         return None
     write_pulse(out, pulse, params)
-    rep.written.append(pulse.label)
+    rep.wrote(pulse)
     return (hi_q, hi_xi, hi_y, hi_b), (sol.xi, sol.x[:-1].copy(), sol.beta), sol
+
+
+def _hint_first(first, n_points):
+    return (f"start nearer the built-in guess's pulse (--from 1.2) or use more points "
+            f"(--points {2 * n_points})")
+
+
+def _hint_deep(n_points):
+    return (f"rerun with --deep arclength (pseudo-arclength; follows a fold) or more points per "
+            f"pulse (--points {2 * n_points}); the run resumes from the pulses already in the file")
+
+
+def _hint_arc(why, n_points, deep):
+    if "grid check" in why.get("reason", ""):
+        return ("skip the check (--no-grid-check; the pulses then carry their N-dependence, "
+                "docs/analysis.md)")
+    if "grid-converged" in why.get("reason", ""):
+        return (f"allow larger grids (--max-points above {deep.n_max}) or skip the check "
+                f"(--no-grid-check; pulses then carry their N-dependence)")
+    if "fold" in why:
+        return (f"check whether the family turns back: tau_d rose along the march at "
+                f"tau_d/tau_min ~ {why['fold']:.6f} (a fold, or grid noise if the rise is below the "
+                f"N-to-2N shift); more points (--points {2 * n_points}) or a smaller --ds-min")
+    if "max_length" in why.get("reason", ""):
+        return "raise --max-length"
+    return (f"more points per pulse (--points {2 * n_points}; measured: N = 4000 went from 1.0109 "
+            f"to 1.0106 where N = 2000 stopped) or smaller arclength steps (--ds-min below "
+            f"{deep.ds_min}); the run resumes from the file")
 
 
 def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1.015,
                step: float = 0.005, n_points: int = 2000, min_step: float | None = None,
                spec: GridSpec = GridSpec(), progress=None, max_iter: int = 12,
-               beta_switch: float = 0.85) -> FamilyReport:
+               beta_switch: float = 0.85, deep: str = "beta",
+               deep_settings: DeepSettings | None = None) -> FamilyReport:
     """Solve the family from `start` down to `stop` (τ_d/τ_min) and write it to `out`.
 
     Parameters
@@ -162,14 +223,21 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     max_iter : Newton iterations allowed per predicted step (converging steps take ≤ 6).
     beta_switch : above this β, step in β (τ_d free) directly: there τ_d-steps of the family's
         size fail (measured: every τ_d step from β ≈ 0.9 on needed halving or failed).
+    deep : how to continue where natural continuation stalls: "beta" (steps in β with τ_d free,
+        bridged back to each target) or "arclength" (pseudo-arclength in (ln(1−β), τ_d), which
+        follows a fold in τ_d, with pulses written at every multiple of ``deep_settings.fine`` and
+        each grid-checked at N vs 2N; see :class:`DeepSettings`).
     """
+    if deep not in ("beta", "arclength"):
+        raise ParameterError(f"deep={deep!r} is invalid: must be 'beta' or 'arclength'")
+    deep_settings = DeepSettings() if deep_settings is None else deep_settings
     for name, val in (("from", start), ("to", stop)):
         if not math.isfinite(val):
             raise ParameterError(f"{name}={val!r} is invalid: must be a finite tau_d/tau_min")
         params.check_tau_d(val * params.tau_min)
     if not (stop < start):
         raise ParameterError(f"to={stop} is invalid: must be < from={start} (continuation goes down)")
-    if not (0 < step <= start - stop) or not math.isfinite(step):
+    if not (0 < step <= start - stop + 1e-12) or not math.isfinite(step):
         raise ParameterError(f"step={step} is invalid: must be in (0, from - to = {start - stop:.4g}]")
     if min_step is None:
         min_step = 0.5 * step          # two failed τ_d steps in a row switch to stepping in β
@@ -190,23 +258,24 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
             current = last.tau_d_ratio
             guess = (last.xi, np.log(last.v), last.beta)
             rep.resumed_from = last.label
-            rep.reached = current
+            rep.reached, rep.reached_beta, rep.reached_L = current, last.beta, last.L
     targets = [t for t in _targets(start, stop, step) if current is None or t < current - 1e-12]
     if current is None:
         # the first pulse from the built-in guess
         first = targets.pop(0)
         sol = solve_pulse(params, first, n_points=n_points, spec=spec)
-        pulse = sol.to_pulse()
+        pulse, ok, msg = _judge(sol)
+        rep.record(first, ok, msg)
         if progress:
-            progress(first, pulse, sol.stats.message)
-        if not pulse.converged:
-            rep.failures.append((first, sol.stats.message))
-            rep.stopped_early = True
+            progress(first, pulse if ok else None, msg)
+        if not ok:
+            rep.stop(f"the first pulse, at tau_d/tau_min={first:.4f}, from the built-in guess "
+                     f"failed ({msg})", _hint_first(first, n_points))
             rep.wall_time = time.perf_counter() - t0
             return rep
         write_pulse(out, pulse, params)
-        rep.written.append(pulse.label)
-        current, rep.reached = first, first
+        rep.wrote(pulse)
+        current = first
         guess = (sol.xi, sol.x[:-1].copy(), sol.beta)
     h = step
     prev = None            # (ratio, xi, y, beta) of the pulse before `current`, for the predictor
@@ -216,13 +285,22 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         if h < min_step - 1e-15 or guess[2] > beta_switch:
             # natural continuation stalls near τ_min: step in β with τ_d free past the target,
             # then solve at the exact target from the two β-solutions that bracket it
+            why = {}
+            if deep == "arclength":
+                reached = _arc_bridge(params, out, guess, current, stop, n_points, spec,
+                                      deep_settings, rep, progress, why)
+                if not reached:
+                    rep.stop(why.get("reason", "arclength continuation failed"),
+                             _hint_arc(why, n_points, deep_settings))
+                targets = []
+                break
             res = _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_iter,
-                               rep, progress)
+                               rep, progress, why)
             if res is None:
-                rep.stopped_early = True
+                rep.stop(why.get("reason", "beta-stepping failed"), _hint_deep(n_points))
                 break
             prev, guess, sol = res
-            current, rep.reached = target, target
+            current = target
             targets.pop(0)
             h = step
             continue
@@ -234,19 +312,322 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         sol = solve_pulse(params, trial, n_points=n_points, guess=_predict(guess, prev, current, trial),
                           spec=spec, passes=0, max_iter=max_iter)
         pulse, ok, msg = _judge(sol)
+        rep.record(trial, ok, msg)
         if progress:
             progress(trial, pulse if ok else None, msg)
         if not ok:
-            rep.failures.append((trial, msg))
             h *= 0.5
             continue
         write_pulse(out, pulse, params)
-        rep.written.append(pulse.label)
+        rep.wrote(pulse)
         prev = (current, guess[0], guess[1], guess[2])
-        current, rep.reached = trial, trial
+        current = trial
         guess = (sol.xi, sol.x[:-1].copy(), sol.beta)
         if abs(trial - target) < 1e-12:
             targets.pop(0)
         h = min(step, 2.0 * h)
     rep.wall_time = time.perf_counter() - t0
     return rep
+
+
+# ---------------------------------------------------------------- pseudo-arclength (deep family)
+class ArclengthProblem:
+    """The steady equations with both β and q = τ_d/τ_min free, closed by the pseudo-arclength
+    condition in the plane (a, q/κ), a = ln(1 − β):
+
+        t_a (a − a_0) + t_Q (q − q_0)/κ − ds = 0,
+
+    (t_a, t_Q) the unit tangent of the family at the last pulse (a_0, q_0). Unknowns (y, β, q);
+    the Jacobian is the (N+1)×(N+2) one of ``SteadyProblem(free="both")`` with the row
+    (0…0, −t_a/(1 − β), t_Q/κ) appended. Square, so :func:`newton` drives it.
+    """
+
+    def __init__(self, base: SteadyProblem, a0, q0, t_a, t_Q, kappa, ds):
+        self.base, self.a0, self.q0 = base, a0, q0
+        self.t_a, self.t_Q, self.kappa, self.ds = t_a, t_Q, kappa, ds
+
+    def _arc(self, x):
+        a = math.log(1.0 - x[-2])
+        return self.t_a * (a - self.a0) + self.t_Q * (x[-1] - self.q0) / self.kappa - self.ds
+
+    def valid(self, x):
+        return self.base.valid(x)
+
+    def residual(self, x):
+        if not self.valid(x):
+            return np.full(x.size, np.inf)
+        return np.concatenate([self.base.residual(x), [self._arc(x)]])
+
+    def residual_and_jacobian(self, x):
+        r, J = self.base.residual_and_jacobian(x)
+        row = np.zeros(x.size)
+        row[-2] = -self.t_a / (1.0 - x[-2])
+        row[-1] = self.t_Q / self.kappa
+        return np.concatenate([r, [self._arc(x)]]), np.vstack([J, row])
+
+
+def family_tangent(prob: SteadyProblem, x, orient):
+    """Unit tangent of the solution curve at a converged x = (y, β, q) of ``free="both"``.
+
+    Notes
+    -----
+    The tangent n spans the null space of the (N+1)×(N+2) Jacobian J: J n = 0. It is found from
+    the square system [J; c] n = [0; 1] with c = (0…0, orient) the previous direction in (β, q)
+    (so n points the same way along the curve), then scaled to unit length in (a, q/κ):
+    n_a = −n_β/(1 − β). Returns n (full vector, in (y, β, q)) scaled so that n_a² + n_Q² = 1 with
+    n_Q = n_q/κ, where κ is passed through ``orient = (c_β, c_q, κ)``.
+    """
+    c_b, c_q, kappa = orient
+    _, J = prob.residual_and_jacobian(x)
+    A = np.vstack([J, np.zeros(x.size)])
+    A[-1, -2], A[-1, -1] = c_b, c_q
+    rhs = np.zeros(x.size)
+    rhs[-1] = 1.0
+    n = np.linalg.solve(A, rhs)
+    n_a = -n[-2] / (1.0 - x[-2])
+    n_Q = n[-1] / kappa
+    return n / math.hypot(n_a, n_Q)
+
+
+
+@dataclass
+class DeepSettings:
+    """Pseudo-arclength continuation of the deep family (near τ_min).
+
+    ds, ds_min, ds_max : arclength step in the plane (ln(1−β), q/κ) and its bounds.
+    fine : smallest spacing in τ_d/τ_min between written pulses; an arclength pulse is written when
+        its label (4 decimals, so `fine` ≥ 1e-4) is new and it lies ≥ fine/2 from the last one.
+    check : re-solve every written pulse at 2N (fixed β; converted to fixed τ_d along the family
+        tangent) and double N until |Δβ| ≤ tol_beta and |ΔL|/L ≤ tol_L; the 2N solution is written,
+        with the N-vs-2N differences as attributes.
+    n_max : largest N tried by the check.
+    max_length : stop once L exceeds this (m).
+    regrid : a new grid is laid out when L has changed by more than this fraction since the last.
+    """
+
+    ds: float = 0.1
+    ds_min: float = 0.004
+    ds_max: float = 0.4
+    fine: float = 1e-4
+    check: bool = True
+    tol_beta: float = 1e-5
+    tol_L: float = 1e-4
+    n_max: int = 16000
+    max_length: float = math.inf
+    max_iter: int = 15
+    regrid: float = 0.05
+
+
+def _stretch(xi, y, x0, s):
+    """ln v stretched by the factor s about x0 behind it: y_new(ξ) = y(x0 + (ξ − x0)/s) for ξ < x0."""
+    out = y.copy()
+    behind = xi < x0
+    out[behind] = np.interp(x0 + (xi[behind] - x0) / s, xi, y)
+    return out
+
+
+def march_arclength(params, start, n_points, spec=GridSpec(), deep=DeepSettings(), progress=None,
+                    rep=None, why=None, n_of=None):
+    """Pseudo-arclength continuation from `start` = (xi, y, beta, q) toward β → 1.
+
+    Yields converged (solution, tangent-unit (t_a, t_Q)) pairs with ``solution.x = (y, β, q)``.
+    Each step: tangent at the last pulse (:func:`family_tangent`), predictor x + ds·n (β through
+    a = ln(1−β), so it stays below 1), grid adapted to the predicted pulse with ``n_of()`` points
+    (the current N, which the grid check may raise), Newton on :class:`ArclengthProblem`. A failed
+    step halves ds; a step that converges in ≤ 4 iterations lets ds grow by 1.5. It gives up below
+    ``ds_min`` (``why["reason"]``). Because the arclength runs along the curve, q may turn back
+    (a fold in τ_d): the sign of the tangent's q-component is reported with each pulse.
+    """
+    xi, y, beta, q = start
+    n_cur = n_points if n_of is None else n_of()
+    k, _ = front_pin(xi, y, math.log(params.v_stick(q * params.tau_min)))
+    base = SteadyProblem(params, q, xi, k, float(y[k]), free="both")
+    x = np.concatenate([y, [beta, q]])
+    # κ: |dq/da| at the start, so that one unit of ds moves a and q/κ alike
+    n0 = family_tangent(base, x, (1.0, 0.0, 1.0))
+    kappa = max(abs(n0[-1] / (-n0[-2] / (1.0 - beta))), 1e-5)
+    orient = (1.0, 0.0, kappa)
+    ds = deep.ds
+    L_grid = L_now = fwhm(xi, np.exp(y), params.v_star)
+    while True:
+        n = family_tangent(base, x, orient)
+        t_a, t_Q = -n[-2] / (1.0 - beta), n[-1] / kappa
+        orient = (n[-2], n[-1], kappa)
+        # predict: a + ds t_a, q + ds κ t_Q; ln v by stretching the last pulse behind its leading
+        # edge by s = exp(ds · d ln L/ds): the healing edge moves by many of its own widths per
+        # step, which the linear tangent n_y cannot carry (measured: predictor residual 8e-3 at
+        # ds = 0.01 near β = 0.9925); d ln L/ds from the tangent by a finite difference
+        eps = 1e-4
+        dlnL = (math.log(fwhm(base.xi, np.exp(x[:-2] + eps * n[:-2]), params.v_star)) -
+                math.log(L_now)) / eps
+        yp = _stretch(base.xi, x[:-2], base.xi[base.pin_index], math.exp(ds * dlnL))
+        bp = 1.0 - (1.0 - beta) * math.exp(ds * t_a)
+        qp = q + ds * kappa * t_Q
+        n_cur = n_points if n_of is None else n_of()
+        # keep the grid (and its Hilbert matrix) while L stays within `regrid` of the grid's L:
+        # then the tangent predictor is exact to O(ds²) and no interpolation error enters
+        same = (n_cur == base.n and abs(L_now / L_grid - 1.0) < deep.regrid)
+        try:
+            params.check_tau_d(qp * params.tau_min)
+            if same:
+                xn, yn, H = base.xi, yp, base.H
+                k, ky = base.pin_index, base.y_pin
+            else:
+                xn, yn = regrid_guess(params, qp, base.xi, yp, bp, n_cur, spec)
+                k, _ = front_pin(xn, yn, math.log(params.v_stick(qp * params.tau_min)))
+                H, ky = None, float(yn[k])
+        except (RuntimeError, ValueError) as exc:
+            sol_ok, msg, new = False, f"predictor unusable: {exc}", None
+        else:
+            nb = SteadyProblem(params, qp, xn, k, ky, free="both", H=H)
+            arc = ArclengthProblem(nb, math.log(1.0 - beta), q, t_a, t_Q, kappa, ds)
+            t0 = time.perf_counter()
+            xs, st = newton(arc, np.concatenate([yn, [bp, qp]]), tol=1e-13, max_iter=deep.max_iter)
+            new = SteadySolution(nb, xs, st, time.perf_counter() - t0, 1)
+            sol_ok, msg = st.converged, st.message
+            if sol_ok:
+                sol_ok = _judge(new)[1]
+                if not sol_ok:
+                    msg = "converged to a multi-hump solution: rejected"
+        qa = float(new.x[-1]) if new is not None else qp
+        its = new.stats.iterations if new is not None else 0
+        msg = f"arclength step ds={ds:.3g} (N={n_cur}, {its} it.) to beta~{bp:.6f}: {msg}"
+        if rep is not None:
+            rep.record(qa, sol_ok, msg)
+        if progress:
+            progress(qa, new.to_pulse() if sol_ok else None, msg)
+        if not sol_ok:
+            ds *= 0.5
+            if ds < deep.ds_min:
+                if why is not None:
+                    why["reason"] = (f"arclength steps stopped converging at beta={beta:.6f}, "
+                                     f"tau_d/tau_min={q:.6f}: ds fell below {deep.ds_min} "
+                                     f"({msg})")
+                return
+            continue
+        if new.problem.xi is not base.xi:
+            L_grid = new.to_pulse().L
+        base, x = new.problem, new.x.copy()
+        beta, q = float(x[-2]), float(x[-1])
+        L_now = new.to_pulse().L
+        if new.stats.iterations <= 6:
+            ds = min(1.5 * ds, deep.ds_max)
+        elif new.stats.iterations > 10:
+            ds = max(0.7 * ds, deep.ds_min)
+        yield new, (t_a, t_Q)
+
+
+def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30):
+    """Grid check of an arclength pulse (x = (y, β, q)): re-solve on a grid of 2N adapted to it,
+    on the line through it normal to the family tangent, and express the change at fixed τ_d.
+
+    Returns (fine SteadySolution with x = (y, β, q), |Δβ|, |ΔL|/L): the N → 2N differences of β and
+    L at the coarse pulse's τ_d. The family's criterion is |Δβ| ≤ 1e-5 and |ΔL|/L ≤ 1e-4.
+
+    Notes
+    -----
+    The fine pulse solves the steady equations with both β and q free, closed by the arclength
+    condition with ds = 0 through the coarse pulse (t_a (a − a₀) + t_Q (q − q₀) = 0, κ = 1): as well
+    conditioned as an arclength step, where fixed-τ_d and fixed-β re-solves stall near β → 1
+    (measured at 1.0116: fixed β at 2N stops at max|Δ| = 6e-5 after 60 iterations). Along the fine
+    family, to first order, β_f(q) = β₁ − (n_β/n_q)(q₁ − q) and L_f(q) = L₁ − (dL/ds)/n_q (q₁ − q),
+    n the tangent at the coarse pulse (its N → 2N change is of higher order), dL/ds by a finite
+    difference of the FWHM along n. Hence, with dq = q₁ − q₀:
+    Δβ = β₁ − β₀ − (n_β/n_q) dq, ΔL = L₁ − L₀ − (dL/ds)/n_q dq.
+    """
+    p0 = sol.to_pulse()
+    q, beta = float(sol.x[-1]), p0.beta
+    n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
+    t_a, t_Q = -n[-2] / (1.0 - beta), n[-1]
+    t0 = time.perf_counter()
+    xn, yn = regrid_guess(params, q, sol.xi, sol.x[:-2], beta, 2 * n_points, spec)
+    k, _ = front_pin(xn, yn, math.log(params.v_stick(q * params.tau_min)))
+    base = SteadyProblem(params, q, xn, k, float(yn[k]), free="both")
+    arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
+    xs, st = newton(arc, np.concatenate([yn, [beta, q]]), tol=1e-13, max_iter=max_iter)
+    fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
+    if not st.converged or n[-1] == 0.0:
+        return fine, math.inf, math.inf
+    p1 = fine.to_pulse()
+    eps = 1e-3 / max(float(np.abs(n[:-2]).max()), 1e-12)
+    dL_ds = (fwhm(sol.xi, np.exp(sol.x[:-2] + eps * n[:-2]), params.v_star) - p0.L) / eps
+    dq = float(xs[-1]) - q
+    dbeta = p1.beta - beta - (n[-2] / n[-1]) * dq
+    dL = p1.L - p0.L - dL_ds / n[-1] * dq
+    return fine, abs(dbeta), abs(dL) / p0.L
+
+
+def _as_both(params, sol: SteadySolution) -> SteadySolution:
+    """A fixed-β solution (x = (y, q)) as a solution of ``free="both"`` (x = (y, β, q))."""
+    prob = sol.problem
+    both = SteadyProblem(params, prob.tau_d_ratio, prob.xi, prob.pin_index, prob.y_pin,
+                         free="both", H=prob.H)
+    x = np.concatenate([sol.x[:-1], [prob.beta_fixed, float(sol.x[-1])]])
+    return SteadySolution(both, x, sol.stats, sol.wall_time, sol.passes)
+
+
+def _deep_write(params, out, sol, labels, n_state, spec, deep, rep, progress):
+    """Write an arclength pulse (after the grid check, N doubled until it passes). Returns None when
+    written (or its label was taken by the check's 2N solution already), else the reason."""
+    n = n_state["n"]
+    pulse = sol.to_pulse()
+    if deep.check:
+        while True:
+            fine, db, dl = check_grid_2n(params, sol, n, spec, 4 * deep.max_iter)
+            fpulse, fok, fmsg = _judge(fine)
+            msg = (f"grid check at {pulse.tau_d_ratio:.6f}: N={n} -> {2 * n}: dbeta={db:.2e}, "
+                   f"dL/L={dl:.2e} ({fmsg})")
+            passed = fok and db <= deep.tol_beta and dl <= deep.tol_L
+            rep.record(float(fine.x[-1]), passed, msg)
+            if progress:
+                progress(float(fine.x[-1]), fpulse if fok else None, msg)
+            if passed:
+                pulse = fpulse
+                pulse.extra.update({"grid_check_n": n, "grid_check_dbeta": db,
+                                    "grid_check_dL_rel": dl})
+                break
+            if not fok:
+                return (f"the grid check of the pulse at tau_d/tau_min="
+                        f"{sol.to_pulse().tau_d_ratio:.6f} failed: the re-solve at N={2 * n} did "
+                        f"not converge ({fmsg})")
+            if 4 * n > deep.n_max:
+                return (f"the pulse at tau_d/tau_min={sol.to_pulse().tau_d_ratio:.6f} is not "
+                        f"grid-converged: N={n} -> {2 * n} changes beta by {db:.1e} and L by "
+                        f"{dl:.1e} (rel), and N={4 * n} would exceed max points {deep.n_max}")
+            n, sol = 2 * n, fine
+            n_state["n"] = n
+    if pulse.label in labels:
+        return None
+    write_pulse(out, pulse, params)
+    rep.wrote(pulse)
+    labels.add(pulse.label)
+    return None
+
+
+def _arc_bridge(params, out, guess, current, stop, n_points, spec, deep, rep, progress, why):
+    """Continue from `guess` = (xi, y, β) at τ_d/τ_min = current by pseudo-arclength down to
+    `stop`, writing an arclength pulse whenever its 4-decimal label is new and it lies at least
+    fine/2 below the last one written. Returns True when `stop` was reached, else False with the
+    reason in `why` ("fold" is set where τ_d first turns back up along the march)."""
+    n_state = {"n": n_points}
+    labels = set(list_pulses(out)) if os.path.exists(out) else set()
+    last_q = current
+    for sol, (t_a, t_Q) in march_arclength(params, (guess[0], guess[1], guess[2], current),
+                                           n_points, spec, deep, progress, rep, why,
+                                           n_of=lambda: n_state["n"]):
+        q = float(sol.x[-1])
+        if t_Q > 0 and "fold" not in why:
+            why["fold"] = q
+        pulse = sol.to_pulse()
+        if pulse.label not in labels and q <= last_q - 0.5 * deep.fine:
+            reason = _deep_write(params, out, sol, labels, n_state, spec, deep, rep, progress)
+            if reason is not None:
+                why["reason"] = reason
+                return False
+            last_q = q
+        if q <= stop + 1e-12:
+            return True
+        if pulse.L >= deep.max_length:
+            why["reason"] = f"pulse length L={pulse.L:.4g} m passed max_length={deep.max_length:g} m"
+            return False
+    return False

@@ -100,17 +100,19 @@ class SteadyProblem:
         ln v imposed at the pin node.
     hilbert : str
         Interpolant of the Hilbert operator ("cubic" or "linear").
-    free : {"beta", "tau_d"}
+    free : {"beta", "tau_d", "both"}
         The scalar unknown appended to y: the speed β at fixed τ_d (default), or q = τ_d/τ_min at
-        fixed β = `beta` (continuation in β near τ_min, where τ_d(β) flattens).
+        fixed β = `beta` (continuation in β near τ_min, where τ_d(β) flattens). With "both" the
+        unknowns are (y, β, q) and the N + 1 equations are one short: the continuation adds the
+        pseudo-arclength condition (:mod:`slippulse.continuation`); the Jacobian is (N+1)×(N+2).
     beta : float
         The fixed speed when ``free="tau_d"``.
     """
 
     def __init__(self, params, tau_d_ratio, xi, pin_index, y_pin, hilbert="cubic", H=None,
                  free="beta", beta=None):
-        if free not in ("beta", "tau_d"):
-            raise ValueError(f"free={free!r}: must be 'beta' or 'tau_d'")
+        if free not in ("beta", "tau_d", "both"):
+            raise ValueError(f"free={free!r}: must be 'beta', 'tau_d' or 'both'")
         if free == "tau_d" and not (beta is not None and 0.0 < beta < 1.0):
             raise ValueError("free='tau_d' needs a fixed 0 < beta < 1")
         self.params = params
@@ -141,13 +143,16 @@ class SteadyProblem:
             return np.exp(x[:-1]), float(x[-1])
         if float(x[-1]) != self.tau_d_ratio:
             self._set_tau_d(float(x[-1]))
+        if self.free == "both":
+            return np.exp(x[:-2]), float(x[-2])
         return np.exp(x[:-1]), float(self.beta_fixed)
 
     def valid(self, x):
         if self.free == "beta":
             return 0.0 < x[-1] < 1.0
         p = self.params
-        return p.tau_min < x[-1] * p.tau_min < p.tau_peak
+        ok = p.tau_min < x[-1] * p.tau_min < p.tau_peak
+        return ok and (self.free == "tau_d" or 0.0 < x[-2] < 1.0)
 
     def state(self, v, beta, with_jacobian=True):
         """(φ, ∂φ/∂y, ∂φ/∂(βc_s), ∂φ/∂φ_N); ∂φ/∂y is a 1×1 placeholder without the Jacobian."""
@@ -190,17 +195,18 @@ class SteadyProblem:
         r = np.empty(n + 1)
         r[:-1] = (self.tau_d - p.sigma * fr.f(v, phi, *la) - p.mu * F * hu) * s
         r[-1] = x[self.pin_index] - self.y_pin
-        J = np.empty((n + 1, n + 1))
+        J = np.empty((n + 1, x.size))
         fphi = p.sigma * s * fr.df_dphi(v, phi, *la)
         # dΔ_i/dy_j = −(σ/τ_d)[f_v v_i δ_ij + f_φ,i P_ij] − (μF/τ_d) H_ij v_j
-        Jy = J[:-1, :-1]
+        Jy = J[:-1, :n]
         np.multiply(self.H, (-p.mu * F * s) * v, out=Jy)
         Jy -= fphi[:, None] * P
         Jy[np.diag_indices(n)] -= p.sigma * s * fr.df_dv(v, phi, *la) * v
-        if self.free == "beta":
+        if self.free in ("beta", "both"):
             # dΔ_i/dβ = −(σ/τ_d) f_φ,i c_s ∂φ_i/∂c − (μ F'(β)/τ_d) (H u)_i
-            J[:-1, -1] = -fphi * dphi_dc * p.c_s - p.mu * float(p.dF3_dbeta(beta)) * s * hu
-        else:
+            jb = -1 if self.free == "beta" else -2
+            J[:-1, jb] = -fphi * dphi_dc * p.c_s - p.mu * float(p.dF3_dbeta(beta)) * s * hu
+        if self.free in ("tau_d", "both"):
             # Δ_i = N_i/τ_d: dΔ_i/dτ_d = [1 − σ f_φ,i G_i dφ_N/dτ_d + μF (H·1)_i dv_st/dτ_d]/τ_d − Δ_i/τ_d
             vs = self.v_stick
             dvs = vs / (p.sigma * float(fr.df_ss_dlnv(vs, *la)))           # 1/τ_ss'(v_stick)
