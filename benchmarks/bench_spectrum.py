@@ -43,8 +43,12 @@ def main(argv=None):
         # the neighbour's eigenvalue as the tracking start, as in a family run
         ref = pulse_spectrum(nb, params, extra=False)
         guess = [ref.leading / ref.rate_unit * p.c_p / p.L] if ref.sigmas.size else []
-        r1 = pulse_spectrum(p, params, guesses=guess, extra=False)
-        r2 = pulse_spectrum(p, params, guesses=guess, extra=True)
+        modes = None
+        if ref.modes:                       # the neighbour's mode moved over in ξ/L, as run_spectrum
+            V, x0, x = ref.modes[0]["V"], nb.xi / nb.L, p.xi / p.L
+            modes = [np.interp(x, x0, V.real) + 1j * np.interp(x, x0, V.imag)]
+        r1 = pulse_spectrum(p, params, guesses=guess, extra=False, guess_modes=modes)
+        r2 = pulse_spectrum(p, params, guesses=guess, extra=True, guess_modes=modes)
         s = r1.leading / r1.rate_unit
         print(f"| {lab} | {p.n_points} | {t_steady:.2f} | {r1.wall_time:.1f} "
               f"({', '.join(f'{k} {v:.1f}' for k, v in r1.stage_times.items())}) | "
