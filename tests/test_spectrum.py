@@ -251,3 +251,36 @@ def test_spectrum_group_opens_in_xarray(tmp_path, pulse12, params):
     assert ds["sigma_real"].attrs["units"] == "1/s"
     assert ds["sigma_real"].values[0] == pytest.approx(ds.attrs["leading_sigma_real"])
     assert ds["xi"].attrs["units"] == "m" and ds["xi"].size == pulse12.problem.n
+
+
+def test_translation_eigenvalue_at_N2000_below_1e_6_of_the_leading(params):
+    """The issue's bound on the neutral translation mode, on the default grid (N = 2000, 1.2 τ_min):
+    measured σ_t = 1.2e-7 σ₁ (2.7e-6 c_p/L). At N = 700 it is 1e-5 σ₁ (second order)."""
+    from slippulse.solver import solve_pulse
+    p = solve_pulse(params, 1.2, n_points=2000).to_pulse()
+    res = pulse_spectrum(p, params, extra=False)
+    assert res.status == "converged"
+    assert abs(res.neutral[1]) < 1e-6 * abs(res.leading)
+    assert res.neutral[0] < 1e-12                 # uniform slip: backward error at σ = 0
+
+
+def test_failed_eigen_solve_is_reported_and_stores_no_eigenvalue(tmp_path, pulse12, params,
+                                                                 monkeypatch):
+    import slippulse.spectrum as spm
+    from slippulse.h5io import write_pulse
+
+    def never(op, sigma0, x0, **kw):
+        return spm.Eigen(complex(sigma0), x0, False, 12, float("nan"), "no convergence (test)")
+
+    monkeypatch.setattr(spm, "newton_eigen", never)
+    f = tmp_path / "one.h5"
+    write_pulse(str(f), pulse12.to_pulse(), params)
+    rep = spm.run_spectrum(str(f), extra=False)
+    assert rep.failed == ["td1.2000"]
+    st = spm.read_spectrum(str(f), "td1.2000")
+    assert st["status"] == "failed" and "no convergence (test)" in st["message"]
+    assert st["sigma"].size == 0 and st["lnv"].shape[0] == 0
+    # a rerun does not keep a failed result: it tries again
+    monkeypatch.undo()
+    rep2 = spm.run_spectrum(str(f), extra=False)
+    assert rep2.skipped == [] and rep2.failed == []

@@ -466,7 +466,9 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
     nsig, nvec = neutral_modes(op)
     sig_t, terr, _ = _translation_check(op, nsig, nvec)
     # uniform slip (δ₁ = 1, V₁ = 0) is outside the V₁ form; in the δ₁ form it is exact at σ = 0:
-    uniform = float(np.max(np.abs(op.matrices_delta(0.0) @ np.ones(op.n))))
+    Md = op.matrices_delta(0.0)
+    one = np.ones(op.n)
+    uniform = float(np.max(np.abs(Md @ one) / (np.abs(Md) @ one)))   # componentwise backward error
     neutral = np.array([uniform, sig_t])
     modes = [op.fields(f.sigma, f.delta) for f in found]
     if found:
