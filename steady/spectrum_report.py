@@ -178,28 +178,13 @@ def main(argv=None):
         plot_modes(args.file, sp, modes, os.path.join(args.figdir, "stability_modes.png"))
 
 
-def front_frame_mode(xi, y0, y1, L):
-    """The eigenmode as the SBI measures it: the deviation of y = ln(v/v*+1) at fixed distance
-    from the front (docs §1). The eigenmode at fixed ξ carries a displacement Δ of the steep front,
-    y₁ ≈ −Δ y₀′ there; in the front's frame the deviation is y₁ + Δ y₀′. Δ is taken as the
-    least-squares displacement over the front region |ξ − ξ_f| < 0.05 L (a first-order estimate
-    from the half-level crossing alone leaves a spike where the front is under a few cells wide).
-    Returns (η = ξ − ξ_f, deviation)."""
-    from slippulse.spectrum_plots import front_position
-    xf = front_position(xi, y0)
-    dy0 = np.gradient(y0, xi)
-    w = np.abs(xi - xf) < 0.05 * L
-    d = -np.dot(y1[w], dy0[w]) / np.dot(dy0[w], dy0[w])
-    return xi - xf, y1 + d * dy0
-
-
 def plot_modes(path, sp, modes, out):
     """SBI mode shapes (antisymmetric deviation of ln(v/v*+1) per unit v_max deviation, docs §4)
     with the eigenmode of the same pulse drawn over them, both scaled to unit maximum modulus."""
     import matplotlib.pyplot as plt
 
     from slippulse.h5io import read_pulse
-    from slippulse.spectrum_plots import front_position
+    from slippulse.spectrum_plots import front_frame_mode
     by = {round(o["tau_d_ratio"], 4): o for o in sp}
     taus = sorted({r["tau"] for r in modes}, reverse=True)
     fig, ax = plt.subplots(1, len(taus), figsize=(4.2 * len(taus), 3.6), squeeze=False)
@@ -212,7 +197,6 @@ def plot_modes(path, sp, modes, out):
         if o is not None and o["sigma"].size:
             pulse, params = read_pulse(path, o["label"])
             y0 = np.log(pulse.v / params.v_star + 1.0)
-            x = (pulse.xi - front_position(pulse.xi, y0)) / pulse.L
             eta, e = front_frame_mode(pulse.xi, y0, o["lnv"][0].real, pulse.L)
             x = eta / pulse.L
             sel = (x > -1.6) & (x < 0.6)

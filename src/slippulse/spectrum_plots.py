@@ -25,6 +25,18 @@ def front_position(xi, lnv0):
     return float(xi[ahead[0]]) if ahead.size else float(xi[k])
 
 
+def front_frame_mode(xi, y0, y1, L):
+    """A mode as a front-following observer (the SBI, docs/stability.md §1) sees it: the deviation
+    of y = ln(v/v*+1) at fixed distance from the front. The mode at fixed ξ carries a displacement Δ
+    of the steep front, y₁ ≈ −Δ y₀′ there; in the front's frame the deviation is y₁ + Δ y₀′, with Δ
+    the least-squares displacement over |ξ − ξ_f| < 0.05 L. Returns (η = ξ − ξ_f, deviation)."""
+    xf = front_position(xi, y0)
+    dy0 = np.gradient(y0, xi)
+    w = np.abs(xi - xf) < 0.05 * L
+    d = -np.dot(y1[w], dy0[w]) / np.dot(dy0[w], dy0[w])
+    return xi - xf, y1 + d * dy0
+
+
 def plot_family_spectrum(path, out, mode_labels=None):
     """Four panels: s L/c_p and σ (1/s) against τ_d/τ_min (with the translation eigenvalue, the
     discretisation's error indicator), the eigenvalues in the complex plane, the leading modes."""
@@ -64,6 +76,8 @@ def plot_family_spectrum(path, out, mode_labels=None):
             s = o["sigma"] / o["rate_unit_c_over_L"]
             a.plot(s.real, s.imag, "o", ms=5, label=o["label"])
     a.axvline(0, color="k", lw=0.8)
+    top = max(1.0, float(np.nanmax(np.abs(lead.real / unit))))
+    a.set_ylim(-0.3 * top, 0.3 * top)
     a.set_xlabel(r"Re $\sigma L/c_p$")
     a.set_ylabel(r"Im $\sigma L/c_p$")
     a.set_title("eigenvalues found (Re σ > 0); the imaginary axis is a continuum", fontsize=9)
@@ -74,12 +88,14 @@ def plot_family_spectrum(path, out, mode_labels=None):
         if o["label"] in picks and o["sigma"].size:
             pulse, params = read_pulse(path, o["label"])
             y0 = np.log(pulse.v / params.v_star + 1.0)
-            xf = front_position(pulse.xi, y0)
-            x = (pulse.xi - xf) / pulse.L
+            eta, e = front_frame_mode(pulse.xi, y0, o["lnv"][0].real, pulse.L)
+            x = eta / pulse.L
             sel = (x > -1.6) & (x < 0.6)
-            a.plot(x[sel], o["lnv"][0].real[sel], lw=1.2, label=o["label"])
+            body = sel & (np.abs(x) > 0.02)
+            e = e / e[body][np.argmax(np.abs(e[body]))]
+            a.plot(x[sel], np.clip(e[sel], -0.3, 1.3), lw=1.2, label=o["label"])
     a.set_xlabel(r"$(\xi - \xi_{front})/L$")
-    a.set_ylabel(r"leading mode: $\delta\ln(v/v_*+1)$ (max 1)")
+    a.set_ylabel(r"leading mode in the front frame: $\delta\ln(v/v_*+1)$")
     a.grid(alpha=0.3)
     a.legend(fontsize=8)
     fig.suptitle(f"Linear stability spectrum of the steady pulses ({path})", fontsize=10)
