@@ -207,9 +207,11 @@ def test_cli_stores_and_resumes(tmp_path, pulse12, params):
     assert st["status"] == "converged" and st["n_unstable"] == 1
     assert st["lnv"].shape == (1, pulse12.problem.n)
     assert abs(st["lnv"][0]).max() == pytest.approx(1.0)
-    r2 = subprocess.run(cmd, capture_output=True, text=True)
+    png = tmp_path / "spec.png"
+    r2 = subprocess.run(cmd + ["--figure", str(png)], capture_output=True, text=True)
     assert r2.returncode == 0 and "stored spectrum kept" in r2.stdout
     assert "0 pulses solved, 1 kept" in r2.stdout
+    assert png.stat().st_size > 10_000
 
 
 def test_leading_eigenvalue_converged_in_N_and_domain(pulse12, params):
