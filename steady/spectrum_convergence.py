@@ -26,7 +26,7 @@ from dataclasses import replace
 import numpy as np
 
 from slippulse.h5io import read_pulse
-from slippulse.solver import GridSpec, SteadySolution, interpolate, solve_on_grid, solve_pulse
+from slippulse.solver import GridSpec, refine_nested, solve_pulse
 from slippulse.spectrum import pulse_spectrum
 
 
@@ -45,16 +45,11 @@ def nested(file, lab, levels):
     rows, ref, p = [], None, pulse
     for lev in range(levels + 1):
         if lev > 0:
-            xi = p.xi
-            xin = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
-            v_st = params.v_stick(pulse.tau_d_ratio * params.tau_min)
-            yn = interpolate(xi, np.log(p.v), xin, v_st)
-            t0 = time.perf_counter()
-            prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, xin, yn, p.beta)
-            if not stats.converged:
-                print(f"{lab} nested {lev}: steady Newton failed: {stats.message}", flush=True)
+            sol = refine_nested(params, p)
+            if not sol.stats.converged:
+                print(f"{lab} nested {lev}: steady Newton failed: {sol.stats.message}", flush=True)
                 break
-            p = SteadySolution(prob, x, stats, time.perf_counter() - t0, 0).to_pulse()
+            p = sol.to_pulse()
         t1 = time.perf_counter()
         res = pulse_spectrum(p, params, guesses=[] if ref is None else [ref * p.c_p / p.L],
                              extra=False)

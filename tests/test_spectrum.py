@@ -219,17 +219,14 @@ def test_leading_eigenvalue_converged_in_N_and_domain(pulse12, params):
     half the domain ahead and behind — the leading σ within 1 % (measured: 1.4e-3 and 3e-5)."""
     from dataclasses import replace
 
-    from slippulse.solver import GridSpec, SteadySolution, interpolate, solve_on_grid, solve_pulse
+    from slippulse.solver import GridSpec, refine_nested, solve_pulse
     p0 = pulse12.to_pulse()
     ref = pulse_spectrum(p0, params, extra=False)
     s0 = ref.leading
     xi = p0.xi
-    xin = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
-    v_st = params.v_stick(1.2 * params.tau_min)
-    prob, x, stats = solve_on_grid(params, 1.2, xin, interpolate(xi, np.log(p0.v), xin, v_st),
-                                   p0.beta)
-    assert stats.converged
-    p1 = SteadySolution(prob, x, stats, 0.0, 0).to_pulse()
+    sol1 = refine_nested(params, p0)
+    assert sol1.stats.converged and sol1.problem.n == 2 * xi.size - 1
+    p1 = sol1.to_pulse()
     s1 = pulse_spectrum(p1, params, guesses=[s0], extra=False).leading
     spec = replace(GridSpec(), ahead=GridSpec().ahead / 2, behind_tail=GridSpec().behind_tail / 2)
     sol = solve_pulse(params, 1.2, n_points=700, guess=(xi, np.log(p0.v), p0.beta), passes=0,

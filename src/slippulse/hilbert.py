@@ -112,6 +112,25 @@ def _spline_system(xi):
     return T, (lo, di, up)
 
 
+def add_times_slopes(out, B, xi, overwrite_b=False):
+    """out += B S, S = T⁻¹ R the natural-spline slope matrix (slopes m = S u), in O(N²).
+
+    X = B T⁻¹ ⇔ Tᵀ Xᵀ = Bᵀ (one banded solve; Tᵀ in banded storage: the off-diagonals swapped),
+    then X R with R tridiagonal with rows (lo, di, up): (X R)[:, k] = X[:, k] di_k
+    + X[:, k+1] lo_{k+1} + X[:, k−1] up_{k−1}. B may be complex. Returns out.
+    """
+    T, (lo, di, up) = _spline_system(xi)
+    Tt = np.zeros_like(T)
+    Tt[1] = T[1]
+    Tt[0, 1:] = T[2, :-1]
+    Tt[2, :-1] = T[0, 1:]
+    X = solve_banded((1, 1), Tt, B.T, overwrite_b=overwrite_b, check_finite=False).T
+    out += X * di
+    out[:, :-1] += X[:, 1:] * lo[1:]
+    out[:, 1:] += X[:, :-1] * up[:-1]
+    return out
+
+
 def spline_slopes(xi, u):
     """Slopes of the natural cubic spline through (ξ, u) (used by tests and interpolation)."""
     T, (lo, di, up) = _spline_system(np.asarray(xi, float))
@@ -177,18 +196,7 @@ def hilbert_matrix(xi, kind: str = "cubic", tails: bool = True, center: float | 
     _assemble(xi, cubic, A, B)
     H = A
     if cubic:
-        T, (lo, di, up) = _spline_system(xi)
-        # X = B T⁻¹  ⇔  Tᵀ Xᵀ = Bᵀ; Tᵀ in banded storage: swap the off-diagonals.
-        Tt = np.zeros_like(T)
-        Tt[1] = T[1]
-        Tt[0, 1:] = T[2, :-1]
-        Tt[2, :-1] = T[0, 1:]
-        X = solve_banded((1, 1), Tt, B.T, overwrite_b=True, check_finite=False).T
-        # H += X R, R tridiagonal with rows (lo, di, up): (X R)[:, k] = X[:, k] di_k
-        #   + X[:, k+1] lo_{k+1} + X[:, k−1] up_{k−1}
-        H += X * di
-        H[:, :-1] += X[:, 1:] * lo[1:]
-        H[:, 1:] += X[:, :-1] * up[:-1]
+        add_times_slopes(H, B, xi, overwrite_b=True)
     if tails:
         _add_tails(H, xi, center)
     return H

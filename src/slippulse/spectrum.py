@@ -1,4 +1,4 @@
-"""Linear stability spectrum of steady pulses on the steady solver's grid (docs/stability.md §8).
+"""Linear stability spectrum of steady pulses on the steady solver's grid (docs/spectrum.md).
 
 A perturbation ∝ e^{σt} at fixed ξ = x − c_p t of a steady pulse (v₀, φ₀, β) obeys
 
@@ -6,18 +6,16 @@ A perturbation ∝ e^{σt} at fixed ξ = x − c_p t of a steady pulse (v₀, φ
     (σ − c ∂_ξ) φ₁ = −w φ₁ − w_v φ₀ V₁                      (ageing law g = 1 − w φ, linearised)
     σ_n (f_v V₁ + f_φ φ₁) = K_σ[δ₁]                         (friction = elastodynamics)
 
-with K_σ of symbol −(μ/2)√(k² + (σ − ikc)²/c_s²) (Re √ > 0). On the grid, δ₁ is the unknown (its
-cubic spline gives δ₁′), φ₁ = Φ(σ) V₁ by the exponential state recursion, and the problem is the
-nonlinear eigenproblem
-
-    M(σ) δ = 0,   M(σ) = [σ_n (diag f_v + diag f_φ Φ(σ)) (σ I − c S) − K_σ] / τ_d,
-
-S the spline-slope matrix. M is analytic for Re σ > 0 (the imaginary axis carries the continuous
-spectrum of radiated waves and of the rest state behind the pulse), and at σ = 0 it is the steady
-problem linearised: uniform slip (δ = 1) is an exact null vector, translation (δ = δ₀′) one up to
-the discretisation. Eigenvalues are found by shift-invert Arnoldi on the linearisation
-M(σ_a) + (σ − σ_a) M′(σ_a) and refined by Newton on the bordered system (nonlinear inverse
-iteration with the exact M′).
+with K_σ of symbol −(μ/2)√(k² + (σ − ikc)²/c_s²) (Re √ > 0). On the grid the unknown is V₁;
+δ₁ = D(σ)V₁ integrates (σ − c∂_ξ)δ₁ = V₁ from δ₁ = 0 far ahead (bounded ahead), φ₁ = Φ(σ)V₁ by the
+exponential state recursion, and the problem is the nonlinear eigenproblem M(σ) V₁ = 0
+(:meth:`StabilityOperator.matrices`; derivation in docs/spectrum.md). M is analytic for Re σ > 0
+(the imaginary axis carries the continuous spectrum of radiated waves and of the rest state behind
+the pulse), and M(0) is the linearised discrete steady problem: translation (V₁ = v₀′) is its null
+vector up to the discretisation; uniform slip (δ₁ = 1, V₁ = 0) is checked in the δ₁ form
+(:meth:`StabilityOperator.matrices_delta`), where it is exact. Eigenvalues are found by
+shift-invert Arnoldi on the linearisation M(σ_a) + (σ − σ_a) M′(σ_a) and refined by Newton on the
+bordered system (nonlinear inverse iteration with the exact M′).
 """
 from __future__ import annotations
 
@@ -26,33 +24,19 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import lu_factor, lu_solve, solve_banded
+from scipy.linalg import lu_factor, lu_solve
 
 from . import friction as fr
-from .hilbert import _spline_system, _tail_columns, hilbert_matrix
+from .hilbert import _tail_columns, add_times_slopes, hilbert_matrix
 from .spectrum_kernels import (KernelTables, assemble_w, slip_coefficients, state_rows,
                                times_D)
 
 
 # ----------------------------------------------------------------------- spline helpers
-def _times_slopes(B, xi):
-    """B S for the spline-slope matrix S = T⁻¹ R (natural cubic spline), in O(N²): X = B T⁻¹ by a
-    banded solve (Tᵀ Xᵀ = Bᵀ), then X R with R tridiagonal."""
-    T, (lo, di, up) = _spline_system(xi)
-    Tt = np.zeros_like(T)
-    Tt[1] = T[1]
-    Tt[0, 1:] = T[2, :-1]
-    Tt[2, :-1] = T[0, 1:]
-    X = solve_banded((1, 1), Tt, B.T, check_finite=False).T
-    out = X * di
-    out[:, :-1] += X[:, 1:] * lo[1:]
-    out[:, 1:] += X[:, :-1] * up[:-1]
-    return out
-
-
 def slope_matrix(xi):
     """Dense S with S u = slopes of the natural cubic spline through (ξ, u)."""
-    return _times_slopes(np.eye(xi.size), xi)
+    n = xi.size
+    return add_times_slopes(np.zeros((n, n)), np.eye(n), xi)
 
 
 # ------------------------------------------------------------------- elastic operator
@@ -77,15 +61,22 @@ class ElasticOperator:
         self.center = center
         H = hilbert_matrix(self.xi, center=center) if H is None else H
         self.H = H
+        self._HS = None
         behind, ahead = _tail_columns(self.xi, center)
         self.H0 = H.copy()
         self.H0[:, 0] -= behind
         self.H0[:, -1] -= ahead
-        self.HS = _times_slopes(H, self.xi)
         self.lam = self.mu * math.sqrt(1.0 - self.beta ** 2) / 2.0
         h = np.diff(self.xi)
         self.r_min = 0.005 * h.min()
         self.r_max = 1.01 * (self.xi[-1] - self.xi[0])
+
+    @property
+    def HS(self):
+        """H S (the steady operator on δ′; only the δ₁ form and the tests use it), built once."""
+        if self._HS is None:
+            self._HS = add_times_slopes(np.zeros_like(self.H), self.H, self.xi)
+        return self._HS
 
     def gamma(self, sigma):
         return self.beta * sigma / (self.c_s * (1.0 - self.beta ** 2))
@@ -115,8 +106,8 @@ class ElasticOperator:
         AS = np.zeros((n, n), complex)
         BS = np.zeros((n, n), complex)
         assemble_w(self.xi, *tab.args(), AW, BW, AS, BS)
-        W = AW + _times_slopes(BW, self.xi)
-        dW = AS + _times_slopes(BS, self.xi) if deriv else None
+        W = add_times_slopes(AW, BW, self.xi, overwrite_b=True)
+        dW = add_times_slopes(AS, BS, self.xi, overwrite_b=True) if deriv else None
         return W, dW
 
     def apply(self, sigma, delta):
@@ -257,10 +248,10 @@ class StabilityOperator:
 # ------------------------------------------------------------------------------ eigen-solvers
 @dataclass
 class Eigen:
-    """One eigenvalue σ (1/s) with its mode δ (normalised: e·δ = 1) and how it was obtained."""
+    """One eigenvalue σ (1/s) with its mode V₁ (normalised: eᴴV₁ = 1) and how it was obtained."""
 
     sigma: complex
-    delta: np.ndarray
+    V: np.ndarray
     converged: bool
     iterations: int
     residual: float
@@ -405,7 +396,7 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
     """Leading eigenvalues and modes of one pulse.
 
     guesses : σ values (1/s) to start from (e.g. the neighbouring pulse's eigenvalues, rescaled);
-        without them, shifts DEFAULT_SHIFTS·c/L are tried.
+        the shifts DEFAULT_SHIFTS·c/L are tried after them (or alone) until an eigenvalue is found.
     extra : after the leading eigenvalue, search below it (shift at 0.4 Re σ₁, 2 candidates).
     tol : Newton's step criterion, relative; the iteration converges quadratically, so the σ
         returned (after that step) is accurate to ~tol² (measured: steps 1e-3, 4e-8, 1e-12 c/L).
@@ -434,21 +425,20 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
                 abs(eig.sigma - f.sigma) < 1e-6 * max(abs(f.sigma), unit) for f in found):
             found.append(eig)
 
-    shifts = [complex(g) for g in guesses] or [complex(q * unit) for q in DEFAULT_SHIFTS]
+    tracked = [complex(g) for g in guesses]
     if guess_modes is not None:
-        for g, v in zip(shifts, guess_modes):
+        for g, v in zip(tracked, guess_modes):
             if v is not None and g.real > MIN_RE * unit:
                 add(g, np.asarray(v, complex))
+    # Arnoldi at the tracked shifts, then (if they gave nothing) at the default shifts
+    for sa in tracked + [complex(q * unit) for q in DEFAULT_SHIFTS]:
         if found:
-            shifts = []
-    for sa in shifts:
+            break
         if not sa.real > MIN_RE * unit:
             continue
         sig, vec = linearised_candidates(op, sa, k=1)
         for j in range(len(sig)):
             add(complex(sig[j]), vec[:, j])
-        if found:
-            break
     t1 = time.perf_counter()
     if found and extra:
         lead = max(f.sigma.real for f in found)
@@ -459,7 +449,7 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
     for f in list(found):
         if abs(f.sigma.imag) > 1e-8 * abs(f.sigma) and not any(
                 abs(g.sigma - f.sigma.conjugate()) < 1e-6 * abs(f.sigma) for g in found):
-            found.append(Eigen(f.sigma.conjugate(), f.delta.conj(), True, 0, f.residual,
+            found.append(Eigen(f.sigma.conjugate(), f.V.conj(), True, 0, f.residual,
                                "conjugate"))
     found.sort(key=lambda f: -f.sigma.real)
     t2 = time.perf_counter()
@@ -470,7 +460,7 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
     one = np.ones(op.n)
     uniform = float(np.max(np.abs(Md @ one) / (np.abs(Md) @ one)))   # componentwise backward error
     neutral = np.array([uniform, sig_t])
-    modes = [op.fields(f.sigma, f.delta) for f in found]
+    modes = [op.fields(f.sigma, f.V) for f in found]
     if found:
         status, msg = "converged", f"{len(found)} eigenvalue(s) with Re sigma > {MIN_RE:g} c/L"
     elif failures:
@@ -481,19 +471,6 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
     return PulseSpectrum(label or pulse.label, np.array([f.sigma for f in found], complex), modes,
                          neutral, terr, unit, op.n, status, msg, t3 - t0, iters, failures,
                          {"leading": t1 - t0, "extra": t2 - t1, "neutral": t3 - t2})
-
-
-def _fallback_search(pulse, params, guesses, extra, tol, label, guess_modes=None):
-    """Tracked start first; if it finds nothing, the default shifts."""
-    res = pulse_spectrum(pulse, params, guesses=guesses, extra=extra, tol=tol, label=label,
-                         guess_modes=guess_modes)
-    if guesses and res.sigmas.size == 0:
-        res2 = pulse_spectrum(pulse, params, guesses=(), extra=extra, tol=tol, label=label)
-        res2.failures = res.failures + res2.failures
-        res2.wall_time += res.wall_time
-        res2.newton_iterations += res.newton_iterations
-        return res2
-    return res
 
 
 # ------------------------------------------------------------------------------- storage
@@ -670,7 +647,8 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
                 x = pulse.xi / pulse.L
                 modes = [np.interp(x, prev_mode[0], prev_mode[1].real)
                          + 1j * np.interp(x, prev_mode[0], prev_mode[1].imag)]
-        res = _fallback_search(pulse, params, guesses, extra, tol, lab, modes)
+        res = pulse_spectrum(pulse, params, guesses=guesses, extra=extra, tol=tol, label=lab,
+                             guess_modes=modes)
         write_spectrum(path, res, settings)
         rep.results.append(res)
         if res.status != "converged":
