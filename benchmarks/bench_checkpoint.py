@@ -32,8 +32,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from slippulse import __version__
-    from slippulse.dynconfig import build_stepper, load_config
-    from slippulse.dynio import RunFile
+    from slippulse.dynamics.config import build_stepper, load_config
+    from slippulse.dynamics.runfile import RunFile
 
     cfg = load_config(None, [f"grid.n={args.n}"])
     st = build_stepper(cfg)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from slippulse.pulse_verify import (DEV_POINTS, GROWTH_TOLERANCE, MODE_GROWTH, VerifyResult,
+from slippulse.stability.verify import (DEV_POINTS, GROWTH_TOLERANCE, MODE_GROWTH, VerifyResult,
                                     drift_verdict, growth_rate, mode_growth, plot_result, summary)
 
 

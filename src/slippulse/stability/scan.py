@@ -13,7 +13,7 @@ SCAN.toml
     [scan]
     name = "growth_td1.05"                   # required
     out_dir = "runs/scans/growth_td1.05"     # required; relative to the current directory
-    runner = "slippulse.stability:run_case"  # optional ("module:function", this default)
+    runner = "slippulse.stability.perturbation:run_case"  # optional ("module:function", this default)
     runner_path = ["tools"]                  # optional: directories prepended to sys.path (in the
                                              # main process and in every worker) to import runner
     [defaults]                               # keys shared by every case (any scalar)
@@ -30,7 +30,7 @@ Cases are the cartesian product of the ``[grid]`` lists (in TOML order, the last
 fastest), each merged over ``[defaults]``, followed by the ``[[case]]`` tables, each merged over
 ``[defaults]``. Values are str, int, float (finite) or bool; the keys ``id`` and ``status`` are
 reserved. Unknown top-level tables or ``[scan]`` keys, non-scalar values, an empty scan and duplicate
-cases are errors (:class:`slippulse.cli.UsageError`, naming the key and what is allowed).
+cases are errors (:class:`slippulse.cli.app.UsageError`, naming the key and what is allowed).
 
 Case ids and files
 ------------------
@@ -81,7 +81,7 @@ case key is dropped when the values agree, else stored as ``<key>_result``). ``s
 union of the columns (empty cells where a row lacks one); ``summary.h5`` has one dataset per column
 (bool, int64, float64 with NaN for missing values, or variable-length str), the attribute
 ``columns`` (their order) and the attributes ``scan_name``, ``scan_toml``, ``runner``, written
-atomically (:func:`slippulse.h5io.atomic_update`).
+atomically (:func:`slippulse.core.h5io.atomic_update`).
 """
 from __future__ import annotations
 
@@ -98,9 +98,9 @@ import time
 import tomllib
 from dataclasses import dataclass, field
 
-from .cli import UsageError
+from ..cli.app import UsageError
 
-DEFAULT_RUNNER = "slippulse.stability:run_case"
+DEFAULT_RUNNER = "slippulse.stability.perturbation:run_case"
 TOP_LEVEL = ("scan", "defaults", "grid", "case")
 SCAN_KEYS = {"name": "str, required", "out_dir": "str, required",
              "runner": f"'module:function', default {DEFAULT_RUNNER!r}",
@@ -541,7 +541,7 @@ def write_summary_h5(path: str, rows: list[dict], scan: Scan) -> None:
     """
     import h5py
 
-    from .h5io import atomic_update, describe, dimension, stamp_format
+    from ..core.h5io import atomic_update, describe, dimension, stamp_format
 
     cols = _columns(rows)
 

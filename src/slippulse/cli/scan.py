@@ -1,6 +1,6 @@
 """``slippulse dynamic scan SCAN.toml [--workers N | --scheduler ADDRESS] [--dry-run] ...``.
 
-Runs the independent simulations of a scan (format and design: :mod:`slippulse.scan`) in local
+Runs the independent simulations of a scan (format and design: :mod:`slippulse.stability.scan`) in local
 worker processes or on an existing Dask cluster, reusing the cases already finished, with a tqdm
 bar over the cases and a one-line summary at the end. Exit codes: 0 all cases fine, 1 some case
 (or the runner's figures) failed, 2 bad input.
@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 import sys
 
-from .cli import UsageError
+from .app import UsageError
 
 
 def register(sub) -> None:
@@ -20,7 +20,7 @@ def register(sub) -> None:
         description="Run every case of SCAN.toml (cartesian product of [grid] over [defaults], "
                     "then the [[case]] tables) through the scan's runner, one HDF5 file per case "
                     "in scan.out_dir; finished cases are reused. Writes summary.csv and summary.h5 "
-                    "in scan.out_dir. Format: src/slippulse/scan.py, example: "
+                    "in scan.out_dir. Format: src/slippulse/stability/scan.py, example: "
                     "dynamic/scans/example.toml.")
     p.add_argument("scan", metavar="SCAN.toml", help="scan description (TOML)")
     p.add_argument("--workers", type=int, default=1, metavar="N",
@@ -47,7 +47,7 @@ def _show(path: str) -> str:
 
 
 def cmd_scan(args) -> int:
-    from .scan import load_scan, run_scan, scan_states
+    from ..stability.scan import load_scan, run_scan, scan_states
 
     scan = load_scan(args.scan)
     if args.dry_run:

@@ -1,6 +1,6 @@
 """Propagate a seeded steady pulse and measure its drift from the steady solution (issue 4).
 
-``verify_pulse`` seeds the SBI stepper with a steady pulse (:mod:`slippulse.seeding`), steps it over
+``verify_pulse`` seeds the SBI stepper with a steady pulse (:mod:`slippulse.stability.seeding`), steps it over
 a given number of pulse lengths with adaptive time steps, keeps it in a frame that follows it
 (``seeding.follow_pulse``) and measures, in the co-moving frame:
 
@@ -29,9 +29,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from .analysis import pulse_length
+from ..steady.analysis import pulse_length
 from .seeding import DomainSpec, SeededPulse, follow_pulse, seed_pulse
-from .stepper import TimeStepRule
+from ..dynamics.stepper import TimeStepRule
 
 #: Window of the ln v error, in steady pulse lengths relative to the front crossing.
 LNV_WINDOW = (-1.25, 0.25)
@@ -459,7 +459,7 @@ def write_result(path: str, res: VerifyResult, params, source: str = "", label: 
     (Version 1 stored one group per snapshot, snapshots/000/v ...; the readers of this package
     read only ``series`` and the root attributes, which are laid out as before.)
     """
-    from .h5io import atomic_update, coordinate, describe, stamp_format, write_parameters
+    from ..core.h5io import atomic_update, coordinate, describe, stamp_format, write_parameters
 
     def fill(h5):
         for key in list(h5.keys()):

@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from .params import ParameterError
+from ..core.params import ParameterError
 
 #: Keys of a scan case (run_case) with their defaults and meaning.
 CASE_DEFAULTS = {
@@ -310,10 +310,10 @@ def _fate(status: str) -> str:
 
 def run_perturbation(case: dict, progress: bool = False):
     """Run one perturbed pulse to its fate; returns (pulse, params, VerifyResult, analysis dict)."""
-    from .h5io import read_pulse
-    from .pulse_verify import verify_pulse
+    from ..core.h5io import read_pulse
+    from .verify import verify_pulse
     from .seeding import DomainSpec
-    from .stepper import TimeStepRule
+    from ..dynamics.stepper import TimeStepRule
 
     c = check_case(case)
     pulse, params = read_pulse(c["steady"], c["label"])
@@ -369,7 +369,7 @@ def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
     """
     import h5py
 
-    from .pulse_verify import write_result
+    from .verify import write_result
     from .scan import case_json
 
     c = check_case(case)
@@ -392,7 +392,7 @@ def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
 
 def read_row(out_path: str) -> dict:
     """The summary row of a finished :func:`run_case` file."""
-    from .h5io import format_version, open_h5
+    from ..core.h5io import format_version, open_h5
 
     keys = ("fate", "status", "s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "fit_x0",
             "fit_x1", "fit_n", "fit_sign", "s_per_L_from_L", "mode_spread", "travelled",
@@ -409,7 +409,7 @@ def read_row(out_path: str) -> dict:
 
 def read_series(out_path: str) -> dict:
     """Time series of a run file: t, distance, L, c_p, v_max, slip, the errors, the deviation."""
-    from .h5io import format_version, open_h5
+    from ..core.h5io import format_version, open_h5
 
     with open_h5(out_path) as h5:
         format_version(h5, out_path)
@@ -468,7 +468,7 @@ def scan_figures(rows: list[dict], out_dir: str) -> list[str]:
     """Scan hook: the pair table (growth_pairs.csv) and the figures of plotting.stability_figures."""
     import csv
 
-    from .plotting import stability_figures
+    from ..plotting.steady import stability_figures
     os.makedirs(out_dir, exist_ok=True)
     pairs = pair_table(rows)
     paths = []
@@ -487,7 +487,7 @@ def scan_figures(rows: list[dict], out_dir: str) -> list[str]:
 def steady_curve(*paths) -> np.ndarray:
     """(L, c_p, τ_d/τ_min, β) of every pulse in the steady family files (one per τ_d), sorted by
     L (m, m/s)."""
-    from .h5io import list_pulses, read_pulse
+    from ..core.h5io import list_pulses, read_pulse
     pts = {}
     for path in paths:
         for lab in list_pulses(path):

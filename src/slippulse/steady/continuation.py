@@ -15,11 +15,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .h5io import list_pulses, read_pulse, write_pulse
-from .params import ParameterError, Parameters
+from ..core.h5io import list_pulses, read_pulse, write_pulse
+from ..core.params import ParameterError, Parameters
 from .newton import newton
 from .solver import GridSpec, SteadySolution, front_pin, fwhm, regrid_guess, solve_pulse
-from .steady import SteadyProblem
+from .equations import SteadyProblem
 
 
 @dataclass

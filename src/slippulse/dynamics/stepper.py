@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from . import friction as fr
+from ..core import friction as fr
 from .fft import RealFFT
-from .params import ParameterError, Parameters
+from ..core.params import ParameterError, Parameters
 from .sbi import HISTORY_POLICIES, elastic_functional, make_history, wavenumbers
 
 #: Largest grid of the SBI: 2^22 points hold ≈ 5 GB in the SOE history alone (n/2 modes × 75

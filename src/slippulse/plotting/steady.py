@@ -13,10 +13,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from matplotlib.figure import Figure
 
-from . import analysis as an
-from . import h5io, modeii
-from .friction import RateStateFriction
-from .params import Parameters
+from ..steady import analysis as an
+from ..core import h5io
+from ..steady import modeii
+from ..core.friction import RateStateFriction
+from ..core.params import Parameters
 
 #: τ_d/τ_min of the curves of Figs. 2 and S2 (nearest available are drawn).
 FIG2_TARGETS = (1.015, 1.02, 1.03, 1.05, 1.1, 1.2)
@@ -440,7 +441,7 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_stead
     * ``stab_modes.png``: the unstable mode of each ±ε pair (antisymmetric deviation of
       ln(v/v*+1) per unit v_max deviation, co-moving frame), ``stability.pair_growth``.
     """
-    from .stability import read_series, smoothed_c_p, steady_curve
+    from ..stability.perturbation import read_series, smoothed_c_p, steady_curve
 
     os.makedirs(out_dir, exist_ok=True)
     runs = [r for r in rows if r.get("file") and os.path.exists(str(r["file"]))]

@@ -14,10 +14,10 @@ import time
 
 import numpy as np
 
-from .cli import UsageError
-from .dynconfig import RESUME_MUTABLE, build_stepper, diff_keys, load_config
-from .dynio import RunFile
-from .stepper import MAX_GRID_POINTS
+from .app import UsageError
+from ..dynamics.config import RESUME_MUTABLE, build_stepper, diff_keys, load_config
+from ..dynamics.runfile import RunFile
+from ..dynamics.stepper import MAX_GRID_POINTS
 
 
 def register(subparsers) -> None:
@@ -79,9 +79,9 @@ def register(subparsers) -> None:
     sd.set_defaults(func=cmd_seed)
     try:                                   # ``dynamic scan`` (cli_scan.py)
         import importlib
-        cli_scan = importlib.import_module("slippulse.cli_scan")
+        cli_scan = importlib.import_module("slippulse.cli.scan")
     except ModuleNotFoundError as exc:
-        if exc.name != "slippulse.cli_scan":
+        if exc.name != "slippulse.cli.scan":
             raise
     else:
         cli_scan.register(sub)
@@ -178,11 +178,11 @@ def _check_grid(dx: float, ahead: float, behind: float, L: float) -> None:
 
 def cmd_verify(args) -> int:
     """``slippulse dynamic verify``: seed, propagate, measure, write HDF5 + PNG, print one line."""
-    from .h5io import SchemaError, check_writable, read_pulse
-    from .params import ParameterError
-    from .pulse_verify import plot_result, summary, verify_pulse, write_result
-    from .seeding import DomainSpec
-    from .stepper import TimeStepRule
+    from ..core.h5io import SchemaError, check_writable, read_pulse
+    from ..core.params import ParameterError
+    from ..stability.verify import plot_result, summary, verify_pulse, write_result
+    from ..stability.seeding import DomainSpec
+    from ..dynamics.stepper import TimeStepRule
 
     try:
         pulse, params = read_pulse(args.steady, args.label)
@@ -220,9 +220,9 @@ def cmd_verify(args) -> int:
 
 def cmd_seed(args) -> int:
     """``slippulse dynamic seed``: seed, write the t = 0 state, print the stress mismatch."""
-    from .h5io import SchemaError, read_pulse
-    from .params import ParameterError
-    from .seeding import DomainSpec, seed_pulse, write_seed
+    from ..core.h5io import SchemaError, read_pulse
+    from ..core.params import ParameterError
+    from ..stability.seeding import DomainSpec, seed_pulse, write_seed
 
     try:
         pulse, params = read_pulse(args.steady, args.label)

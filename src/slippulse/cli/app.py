@@ -9,11 +9,11 @@ import argparse
 import importlib
 import sys
 
-from .h5io import SchemaError
-from .params import ParameterError
+from ..core.h5io import SchemaError
+from ..core.params import ParameterError
 
 #: Modules that add sub-commands: each defines ``register(subparsers)``.
-_PLUGINS = ("slippulse.cli_steady", "slippulse.cli_figures", "slippulse.cli_dynamic")
+_PLUGINS = ("slippulse.cli.steady", "slippulse.cli.figures", "slippulse.cli.dynamic")
 
 
 class UsageError(ValueError):
@@ -52,10 +52,3 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("slippulse: interrupted", file=sys.stderr)
         return 130
-
-
-if __name__ == "__main__":
-    # run the package's module, not this copy named __main__: the sub-commands raise
-    # slippulse.cli.UsageError, which must be the class main() catches
-    from slippulse.cli import main as _main
-    sys.exit(_main())
