@@ -73,7 +73,7 @@ def _variant(p, base):
 
 
 def report():
-    from slippulse.plotting.steady import stability_figures
+    from slippulse.plotting.stability import stability_figures
     from slippulse.stability.perturbation import pair_table
 
     all_rows, table = [], []

@@ -1,4 +1,4 @@
-"""Instability measurement (stability.py): growth fits on exact exponentials, the ±ε protocol on
+"""Instability measurement (stability/perturbation.py): growth fits on exact exponentials, the ±ε protocol on
 real runs of the unstable 1.2 τ_min pulse, and a real perturbation scan through a Dask LocalCluster.
 
 The 1.2 τ_min pulse of the shared fixture is coarse (steady N = 700, SBI Δx = 8 mm): cheap runs whose

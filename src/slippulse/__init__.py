@@ -5,5 +5,7 @@ Layers (arrows point down only): cli → plotting → stability → steady, dyna
 """
 __version__ = "0.1.0"
 
-from .core.params import Parameters, ParameterError, DEFAULT  # noqa: F401
-from .core.friction import RateStateFriction  # noqa: F401
+from .core.params import Parameters, ParameterError, DEFAULT
+from .core.friction import RateStateFriction
+
+__all__ = ['Parameters', 'ParameterError', 'DEFAULT', 'RateStateFriction', '__version__']

@@ -9,15 +9,12 @@ import argparse
 import importlib
 import sys
 
+from ..core.errors import UsageError
 from ..core.h5io import SchemaError
 from ..core.params import ParameterError
 
 #: Modules that add sub-commands: each defines ``register(subparsers)``.
 _PLUGINS = ("slippulse.cli.steady", "slippulse.cli.figures", "slippulse.cli.dynamic")
-
-
-class UsageError(ValueError):
-    """Bad command-line input (reported without a traceback, exit code 2)."""
 
 
 def build_parser() -> argparse.ArgumentParser:

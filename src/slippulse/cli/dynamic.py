@@ -1,8 +1,8 @@
 """``slippulse dynamic run CONFIG.toml [--set section.key=value ...] [--resume] [--out FILE]``.
 
-Runs the mode-III SBI time stepper (docs/dynamic.md) from a TOML config (dynconfig.py), with a
+Runs the mode-III SBI time stepper (docs/dynamic.md) from a TOML config (dynamics/config.py), with a
 tqdm progress bar (simulated time, steps/s) and a one-line summary at the end. Output: an HDF5 file
-(dynio.py) with snapshots, per-step scalars and checkpoints; ``--resume`` continues a run from its
+(dynamics/runfile.py) with snapshots, per-step scalars and checkpoints; ``--resume`` continues a run from its
 last checkpoint, bit-identically to an uninterrupted run.
 """
 from __future__ import annotations
@@ -77,7 +77,7 @@ def register(subparsers) -> None:
                     help="add the isolated pulse's far field to the loading (default steady)")
     sd.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     sd.set_defaults(func=cmd_seed)
-    try:                                   # ``dynamic scan`` (cli_scan.py)
+    try:                                   # ``dynamic scan`` (cli/scan.py)
         import importlib
         cli_scan = importlib.import_module("slippulse.cli.scan")
     except ModuleNotFoundError as exc:
@@ -180,7 +180,8 @@ def cmd_verify(args) -> int:
     """``slippulse dynamic verify``: seed, propagate, measure, write HDF5 + PNG, print one line."""
     from ..core.h5io import SchemaError, check_writable, read_pulse
     from ..core.params import ParameterError
-    from ..stability.verify import plot_result, summary, verify_pulse, write_result
+    from ..plotting.stability import plot_verify_result
+    from ..stability.verify import summary, verify_pulse, write_result
     from ..stability.seeding import DomainSpec
     from ..dynamics.stepper import TimeStepRule
 
@@ -213,7 +214,7 @@ def cmd_verify(args) -> int:
         raise UsageError(str(exc))
     write_result(out, res, params, source=os.path.abspath(args.steady), label=label)
     png = os.path.splitext(out)[0] + ".png"
-    plot_result(png, res, pulse, params)
+    plot_verify_result(png, res, pulse, params)
     print(summary(res) + f"; output {out}, figure {png}")
     return 0 if res.info["status"] == "finished" else 2
 

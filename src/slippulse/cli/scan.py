@@ -46,6 +46,18 @@ def _show(path: str) -> str:
     return path if rel.startswith("..") else rel
 
 
+def _figures_hook(scan):
+    """The perturbation runner's figures (pair table + plots) live in the plotting layer; other
+    runners bring their own ``scan_figures`` (None here: run_scan looks it up)."""
+    from ..stability import perturbation
+    from ..stability.scan import load_runner
+
+    if load_runner(scan.runner, scan.runner_path)[0] is perturbation.run_case:
+        from ..plotting.stability import scan_figures
+        return scan_figures
+    return None
+
+
 def cmd_scan(args) -> int:
     from ..stability.scan import load_scan, run_scan, scan_states
 
@@ -77,7 +89,7 @@ def cmd_scan(args) -> int:
     old = signal.signal(signal.SIGTERM, _terminate)
     try:
         res = run_scan(scan, executor=executor, workers=args.workers, overwrite=args.overwrite,
-                       progress=not args.no_progress)
+                       progress=not args.no_progress, figures=_figures_hook(scan))
     finally:
         signal.signal(signal.SIGTERM, old)
     for row in res.rows:

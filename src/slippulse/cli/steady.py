@@ -5,7 +5,6 @@ import math
 import os
 import sys
 
-import numpy as np
 from tqdm import tqdm
 
 from ..core.h5io import pulse_label, write_pulse

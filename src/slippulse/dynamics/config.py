@@ -24,7 +24,7 @@ import math
 import tomllib
 from dataclasses import fields
 
-from ..cli.app import UsageError
+from ..core.errors import UsageError
 from ..core.params import Parameters
 
 DEFAULTS: dict = {

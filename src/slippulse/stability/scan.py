@@ -30,7 +30,7 @@ Cases are the cartesian product of the ``[grid]`` lists (in TOML order, the last
 fastest), each merged over ``[defaults]``, followed by the ``[[case]]`` tables, each merged over
 ``[defaults]``. Values are str, int, float (finite) or bool; the keys ``id`` and ``status`` are
 reserved. Unknown top-level tables or ``[scan]`` keys, non-scalar values, an empty scan and duplicate
-cases are errors (:class:`slippulse.cli.app.UsageError`, naming the key and what is allowed).
+cases are errors (:class:`slippulse.core.errors.UsageError`, naming the key and what is allowed).
 
 Case ids and files
 ------------------
@@ -98,7 +98,7 @@ import time
 import tomllib
 from dataclasses import dataclass, field
 
-from ..cli.app import UsageError
+from ..core.errors import UsageError
 
 DEFAULT_RUNNER = "slippulse.stability.perturbation:run_case"
 TOP_LEVEL = ("scan", "defaults", "grid", "case")
@@ -591,7 +591,7 @@ def read_summary_h5(path: str) -> list[dict]:
 
 
 def run_scan(scan: Scan, executor="local", workers: int = 1, overwrite: bool = False,
-             progress: bool = True) -> ScanResult:
+             progress: bool = True, figures=None) -> ScanResult:
     """Run the cases of ``scan`` that are not finished yet, then write the summary and figures.
 
     Parameters
@@ -608,6 +608,10 @@ def run_scan(scan: Scan, executor="local", workers: int = 1, overwrite: bool = F
         Rerun cases whose output file holds another case (default: error naming the file).
     progress : bool
         Show a tqdm bar over the cases.
+    figures : callable ``(rows, out_dir) -> list[str]`` or None
+        Draws the scan's figures after the summary; None: the runner module's ``scan_figures``
+        if it has one (the perturbation runner's is ``slippulse.plotting.stability.scan_figures``,
+        passed by ``slippulse dynamic scan``).
 
     Returns
     -------
@@ -685,8 +689,8 @@ def run_scan(scan: Scan, executor="local", workers: int = 1, overwrite: bool = F
     h5_path = os.path.join(scan.out_dir, "summary.h5")
     write_csv(csv_path, final)
     write_summary_h5(h5_path, final, scan)
+    draw = figures if figures is not None else getattr(module, "scan_figures", None)
     figures, fig_error = [], None
-    draw = getattr(module, "scan_figures", None)
     if callable(draw):
         try:
             figures = list(draw(final, scan.out_dir) or [])

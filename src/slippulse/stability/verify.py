@@ -16,8 +16,8 @@ a given number of pulse lengths with adaptive time steps, keeps it in a frame th
 
 The references c_p⁰ and L⁰ are the steady file's values; v_max⁰ is the parabolic peak of the
 steady profile (:func:`reference_v_max`; the file's v_max is the largest node value).
-``write_result`` stores the final errors as root attributes and their time series; ``plot_result``
-draws v(ξ) at several times over the steady profile. CLI: ``slippulse dynamic verify`` (cli_dynamic.py).
+``write_result`` stores the final errors as root attributes and their time series; ``slippulse.plotting.stability.plot_verify_result``
+draws v(ξ) at several times over the steady profile. CLI: ``slippulse dynamic verify`` (cli/dynamic.py).
 """
 from __future__ import annotations
 
@@ -513,86 +513,3 @@ def write_result(path: str, res: VerifyResult, params, source: str = "", label: 
                      "m", "front position on the grid x", dims=(tc,))
 
     atomic_update(path, fill, replace=True)
-
-
-def plot_result(path_png: str, res: VerifyResult, pulse, params) -> None:
-    """The verification figure (PNG), three panels against the steady pulse:
-
-    (a) v(ξ − ξ_front) at t = 0 and at the end over the steady profile (log scale);
-    (b) the deviation ln(v/v*+1) − steady against (ξ − ξ_front)/L⁰ at up to 9 measurement times,
-        coloured by the distance travelled;
-    (c) |v_max error| against the distance d travelled (log axis), with the growth e^{s d} of the
-        unstable mode (:func:`mode_growth`) drawn over it where s is known, through the samples of
-        the fit window of :func:`growth_rate`; the title gives :func:`drift_verdict`.
-    """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    _, _, xi_front = pulse_length(pulse.xi, pulse.v, params.v_star)
-    L = pulse.L
-    dist = np.asarray(res.series["distance"], dtype=float)
-    fig, axes = plt.subplots(3, 1, figsize=(7.0, 10.5))
-    # (a) profiles
-    ax = axes[0]
-    sel = (pulse.xi - xi_front > -3 * L) & (pulse.xi - xi_front < 1.5 * L)
-    ax.semilogy((pulse.xi[sel] - xi_front) / L, pulse.v[sel], "k-", lw=4, alpha=0.25,
-                label="steady")
-    for (t, xr, V), style in zip((res.snapshots[0], res.snapshots[-1]), ("C0--", "C3-")):
-        o = np.argsort(xr)
-        w = (xr[o] > -3 * L) & (xr[o] < 1.5 * L)
-        ax.semilogy(xr[o][w] / L, V[o][w], style, lw=1.2,
-                    label=f"SBI, d = {t * pulse.c_p / L:.3g} L")
-    ax.set_xlabel("(ξ − ξ_front)/L⁰")
-    ax.set_ylabel("v (m/s)")
-    ax.set_title("(a) slip rate: start and end of the run over the steady pulse", fontsize=9)
-    ax.legend(fontsize=8)
-    # (b) deviation field
-    ax = axes[1]
-    dev = np.asarray(res.series.get("deviation", np.empty((0, 0))))
-    if dev.size:
-        rel = np.asarray(res.series["deviation_xi"])
-        picks = np.unique(np.round(np.linspace(0, dev.shape[0] - 1, min(9, dev.shape[0]))))
-        cmap = plt.get_cmap("viridis")
-        dmax = max(float(np.nanmax(dist)), 1e-300)
-        for j in picks.astype(int):
-            ax.plot(rel, dev[j], color=cmap(dist[j] / dmax), lw=1.1)
-        sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0.0, dmax))
-        fig.colorbar(sm, ax=ax, label="distance travelled d (L⁰)")
-    ax.axhline(0.0, color="0.6", lw=0.6)
-    ax.set_xlabel("(ξ − ξ_front)/L⁰")
-    ax.set_ylabel("ln(v/v*+1) − steady")
-    ax.set_title("(b) deviation from the steady pulse in the frame of the front", fontsize=9)
-    # (c) v_max error against distance, and the mode's growth
-    ax = axes[2]
-    err = np.abs(np.asarray(res.series["v_max_error"], dtype=float))
-    ok = np.isfinite(err) & (err > 0)
-    ax.semilogy(dist[ok], err[ok], "C0o-", ms=3, lw=1, label="|v_max/v_max⁰ − 1| (SBI)")
-    known = mode_growth(res.info["tau_d_ratio"])
-    if known is not None and ok.sum() >= 2:
-        sv, serr, how = known
-        win = ok & (err >= 3e-4) & (err <= 3e-2)          # growth_rate's fit window
-        base = win if win.sum() >= 3 else ok & (dist >= 0.5 * np.nanmax(dist))
-        lnA = float(np.mean(np.log(err[base]) - sv * dist[base]))
-        dd = np.linspace(0.0, float(np.nanmax(dist)), 200)
-        ax.semilogy(dd, np.exp(lnA + sv * dd), "k--", lw=1.2,
-                    label=f"e^(s d), unstable mode s = {sv:.3g} ± {serr:.2g} per L ({how})")
-    ax.set_xlabel("distance travelled d (L⁰)")
-    ax.set_ylabel("|v_max error|")
-    verdict, text = drift_verdict(res)
-    tag = {True: "drift = unstable mode (physics)", False: "drift NOT the unstable mode",
-           None: "drift not attributed"}[verdict]
-    ax.set_title(f"(c) v_max drift against distance: {tag}", fontsize=9)
-    ax.legend(fontsize=8, loc="upper left")
-    e = res.errors
-    fig.suptitle(f"verify τ_d = {pulse.tau_d_ratio:.4g} τ_min, {res.info['travelled']:.3g} L: "
-                 f"c_p err {e['c_p_error']:.1e}, v_max err {e['v_max_error']:.1e}\n"
-                 + _wrap(text, 95), fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path_png, dpi=110)
-    plt.close(fig)
-
-
-def _wrap(text: str, width: int) -> str:
-    import textwrap
-    return "\n".join(textwrap.wrap(text, width))
