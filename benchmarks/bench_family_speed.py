@@ -29,9 +29,14 @@ NEW_SRC = os.path.join(os.path.dirname(HERE), "src")
 
 RUN = r"""
 import json, os, sys, time
-from slippulse.continuation import run_family
-from slippulse.params import DEFAULT
-from slippulse.solver import solve_pulse
+try:                                    # package layout of issue 13
+    from slippulse.steady.continuation import run_family
+    from slippulse.core.params import DEFAULT
+    from slippulse.steady.solver import solve_pulse
+except ImportError:                     # the flat layout before it
+    from slippulse.continuation import run_family
+    from slippulse.params import DEFAULT
+    from slippulse.solver import solve_pulse
 out, n = sys.argv[1], sys.argv[2]
 if os.path.exists(out):
     os.remove(out)
@@ -60,9 +65,9 @@ def targets():
 
 def reference(family, path, n_ref):
     """β and L at every target from order-4 solves at n_ref points seeded by the family's pulses."""
-    from slippulse.h5io import read_pulse
-    from slippulse.params import DEFAULT
-    from slippulse.solver import solve_pulse
+    from slippulse.core.h5io import read_pulse
+    from slippulse.core.params import DEFAULT
+    from slippulse.steady.solver import solve_pulse
     ref = {}
     if os.path.exists(path):
         with open(path) as fh:
@@ -85,7 +90,7 @@ def reference(family, path, n_ref):
 
 
 def errors(family, ref):
-    from slippulse.h5io import read_pulse
+    from slippulse.core.h5io import read_pulse
     rows = []
     for lab, x in ref["pulses"].items():
         pu, _ = read_pulse(family, lab)

@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from slippulse.h5io import read_pulse
-from slippulse.params import DEFAULT
-from slippulse.solver import solve_pulse
+from slippulse.core.h5io import read_pulse
+from slippulse.core.params import DEFAULT
+from slippulse.steady.solver import solve_pulse
 
 
 def solve_at(seed, ratio, n, order):

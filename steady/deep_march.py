@@ -4,7 +4,7 @@
 
 Starts from pulse LABEL of a family file (or resumes from the last step already in
 OUTDIR/arc_N_*.npz) and takes up to K arclength steps in (ln(1−β), τ_d/τ_min) at N points
-(:func:`slippulse.continuation.march_arclength`). Each step is written as arc_N_kkk.npz with the
+(:func:`slippulse.steady.continuation.march_arclength`). Each step is written as arc_N_kkk.npz with the
 grid xi, the unknowns x = (ln v, β, τ_d/τ_min), L and the solver statistics. Steps are not at
 round τ_d (the family file's labels keep 4 decimals); `steady/divergence.py` reads them.
 Cost on the shared 2-core machine: ≈ 5–15 s per step at N = 2000, 20–80 s at N = 4000.
@@ -17,9 +17,9 @@ import time
 
 import numpy as np
 
-from slippulse.continuation import DeepSettings, march_arclength
-from slippulse.h5io import read_pulse
-from slippulse.params import DEFAULT
+from slippulse.steady.continuation import DeepSettings, march_arclength
+from slippulse.core.h5io import read_pulse
+from slippulse.core.params import DEFAULT
 
 
 def main(argv=None):

@@ -6,7 +6,7 @@ Reads the pulses of a family file (τ_d-continuation and β-steps, all N) and th
 of `steady/deep_march.py` (OUTDIR/arc_N_kkk.npz), then prints, as Markdown:
 
 1. the joint and single power-law fits L = A d^−m_L, 1 − β = B d^m_β, d = τ_d/τ_min − τ̃*
-   (:func:`slippulse.analysis.divergence_fit`) over several windows, per grid size N;
+   (:func:`slippulse.steady.analysis.divergence_fit`) over several windows, per grid size N;
 2. the paper's Eqs. 3–4 (τ̃* = 1.0087, a_v = 1.15, a_G = 0.69) evaluated on the same pulses;
 3. edge structure against L: v_max, τ_max, the leading-edge length ℓ = ξ(τ_max) − ξ(v_max), the
    e-fold length of v ahead of the leading edge, the healing-edge width, Ḡ at fixed δ.
@@ -26,10 +26,10 @@ from matplotlib.figure import Figure
 from scipy.optimize import least_squares
 
 from slippulse import analysis as an
-from slippulse.h5io import Pulse, list_pulses, read_pulse
-from slippulse.params import DEFAULT
-from slippulse.plotting import PAPER_SCALING
-from slippulse.steady import SteadyProblem
+from slippulse.core.h5io import Pulse, list_pulses, read_pulse
+from slippulse.core.params import DEFAULT
+from slippulse.plotting.steady import PAPER_SCALING
+from slippulse.steady.equations import SteadyProblem
 
 WINDOWS = ((1.0, 1.0125), (1.0, 1.015), (1.0, 1.02), (1.0, 1.03), (1.0115, 1.02), (1.0125, 1.03))
 

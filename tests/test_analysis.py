@@ -5,10 +5,11 @@ import h5py
 import numpy as np
 import pytest
 
-from slippulse import analysis as an
-from slippulse import h5io, modeii
-from slippulse.friction import RateStateFriction
-from slippulse.params import DEFAULT, G_C_STAR
+from slippulse.steady import analysis as an
+from slippulse.core import h5io
+from slippulse.steady import modeii
+from slippulse.core.friction import RateStateFriction
+from slippulse.core.params import DEFAULT, G_C_STAR
 
 P = DEFAULT
 V_STAR = P.v_star
@@ -416,7 +417,7 @@ def test_analyse_family_fits_skip_unconverged_pulses(tmp_path):
 def test_divergence_fit_recovers_a_power_law_divergence():
     """Exact power laws L = A d^−m_L, 1 − β = B d^m_β (d = x − τ̃*) with a little deterministic
     noise: the joint and the single fits return the constants within their stated errors."""
-    from slippulse.analysis import divergence_fit
+    from slippulse.steady.analysis import divergence_fit
     ts, A, mL, B, mb = 1.0093, 3.2e-4, 2.7, 45.0, 1.6
     x = 1.0093 + np.geomspace(2e-4, 1.5e-2, 25)
     d = x - ts

@@ -8,13 +8,13 @@ import h5py
 import numpy as np
 import pytest
 
-from slippulse import friction as fr
-from slippulse.h5io import SchemaError, read_pulse, write_pulse
-from slippulse.hilbert import hilbert_matrix
-from slippulse.params import ParameterError
-from slippulse.solver import default_guess, solve_pulse
-from slippulse.steady import (RADAU_A, RADAU_C, SteadyProblem, integrate_state,
-                               integrate_state_radau)
+from slippulse.core import friction as fr
+from slippulse.core.h5io import SchemaError, read_pulse, write_pulse
+from slippulse.steady.hilbert import hilbert_matrix
+from slippulse.core.params import ParameterError
+from slippulse.steady.solver import default_guess, solve_pulse
+from slippulse.steady.equations import (RADAU_A, RADAU_C, SteadyProblem, integrate_state,
+                                        integrate_state_radau)
 
 
 def manufactured_state(params, n, beta_cs=20.0):
@@ -169,7 +169,7 @@ def test_guess_basin_is_not_a_knife_edge(params, L, beta, lc):
 
 
 def test_hump_counter():
-    from slippulse.solver import count_humps
+    from slippulse.steady.solver import count_humps
     x = np.linspace(-10, 10, 2001)
     one = 1e-7 + 1e-3 * np.exp(-x ** 2)
     two = one + 1e-4 * np.exp(-(x + 4) ** 2)

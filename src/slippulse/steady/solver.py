@@ -1,6 +1,6 @@
 """Steady-pulse solver: built-in guess, solution-adapted grids, Newton/LM solves, the Pulse result.
 
-The physics lives in :mod:`slippulse.steady` (residual and Jacobian on a fixed grid); this module
+The physics lives in :mod:`slippulse.steady.equations` (residual and Jacobian on a fixed grid); this module
 decides grids and drives the iteration:
 
 1. a guess on a guess-adapted grid (:func:`default_guess`),
@@ -18,10 +18,10 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from .grid import build_grid
-from .h5io import Pulse
+from ..core.h5io import Pulse
 from .newton import SOLVERS, SolveStats
-from .params import ParameterError, Parameters
-from .steady import SteadyProblem
+from ..core.params import ParameterError, Parameters
+from .equations import SteadyProblem
 
 MIN_POINTS = 64
 #: Largest grid: the Newton solver holds several dense (N+1)² matrices, 2 GB each at N = 16000.
@@ -223,7 +223,7 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
     adapt_guess : lay the first grid out from a given guess (with n_points when passes = 0);
         otherwise solve on the guess's own grid.
     progress : callable(str), optional, told about each pass.
-    state_order : state integrator of every pass (:class:`slippulse.steady.SteadyProblem`).
+    state_order : state integrator of every pass (:class:`slippulse.steady.equations.SteadyProblem`).
     """
     check_points(n_points)
     params.check_tau_d(tau_d_ratio * params.tau_min)

@@ -31,7 +31,7 @@ import math
 import numpy as np
 from numba import njit
 
-from . import friction as fr
+from ..core import friction as fr
 from .hilbert import hilbert_matrix
 
 
@@ -251,7 +251,7 @@ class SteadyProblem:
         The scalar unknown appended to y: the speed β at fixed τ_d (default), or q = τ_d/τ_min at
         fixed β = `beta` (continuation in β near τ_min, where τ_d(β) flattens). With "both" the
         unknowns are (y, β, q) and the N + 1 equations are one short: the continuation adds the
-        pseudo-arclength condition (:mod:`slippulse.continuation`); the Jacobian is (N+1)×(N+2).
+        pseudo-arclength condition (:mod:`slippulse.steady.continuation`); the Jacobian is (N+1)×(N+2).
     beta : float
         The fixed speed when ``free="tau_d"``.
     state_order : {4, 2}
