@@ -103,7 +103,9 @@ def tangent_step(params, base: _Base, value, fixed, n_points, spec=GridSpec(), m
     |L/L_grid − 1| ≤ regrid, else a grid adapted to the base pulse with ln v interpolated onto it.
     tangent: J = ∂(Δ, pin)/∂(y, β, q) at the base (``SteadyProblem(free="both")``), split into the
     columns of the unknowns J_x and of the stepped parameter J_p; LU of J_x; t = −J_x⁻¹ J_p.
-    predict: x = x_base + (value − p_base) t.
+    predict: with dp = value − p_base, the scalar unknown + dp t; ln v stretched behind the pin by
+    s = exp(dp d ln L/dp) (d ln L/dp from t by a finite difference of the FWHM) plus dp times the
+    part of t_y that the stretch does not hold (t_y + (ξ − ξ_pin) y′ d ln L/dp behind the pin).
     correct: :func:`newton` with the LU of J_x (chord iterations, then Newton if they stall).
     """
     t0 = time.perf_counter()
@@ -131,6 +133,8 @@ def tangent_step(params, base: _Base, value, fixed, n_points, spec=GridSpec(), m
     eps = 1e-3 / max(float(np.abs(t[:n]).max()), 1e-12)
     dlnL = (math.log(fwhm(xi, np.exp(y + eps * t[:n]), params.v_star)) -
             math.log(fwhm(xi, np.exp(y), params.v_star))) / eps
+    if not math.isfinite(dlnL):            # FWHM not measurable on the perturbed profile
+        dlnL = 0.0
     behind = xi < xi[k]
     t_stretch = np.zeros(n)
     t_stretch[behind] = -(xi[behind] - xi[k]) * np.gradient(y, xi)[behind] * dlnL
