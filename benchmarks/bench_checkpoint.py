@@ -8,7 +8,7 @@ Builds the default ``slippulse dynamic run`` stepper with N = ``--n`` points, op
 (``dynio.RunFile``) in a temporary directory, appends snapshots of the current state until the file
 holds about each size in ``--sizes`` (MB), and at each size times ``--repeat`` calls of
 ``RunFile.checkpoint`` (the time the run is paused: the state written and the file published).
-Only the public ``RunFile`` API is used, so the same script measures any version of dynio.py.
+Only the public ``RunFile`` API is used, so the same script measures any version of the run-file module (dynio.py, now dynamics/runfile.py).
 Prints one JSON line per size: file size (MB), median and min seconds per checkpoint.
 """
 from __future__ import annotations
@@ -32,8 +32,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from slippulse import __version__
-    from slippulse.dynconfig import build_stepper, load_config
-    from slippulse.dynio import RunFile
+    from slippulse.dynamics.config import build_stepper, load_config
+    from slippulse.dynamics.runfile import RunFile
 
     cfg = load_config(None, [f"grid.n={args.n}"])
     st = build_stepper(cfg)

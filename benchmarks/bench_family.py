@@ -14,10 +14,10 @@ import time
 
 import numpy as np
 
-from slippulse.continuation import run_family
-from slippulse.h5io import list_pulses, read_pulse
-from slippulse.params import DEFAULT
-from slippulse.solver import solve_pulse
+from slippulse.steady.continuation import run_family
+from slippulse.core.h5io import list_pulses, read_pulse
+from slippulse.core.params import DEFAULT
+from slippulse.steady.solver import solve_pulse
 
 
 def main():

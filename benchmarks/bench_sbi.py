@@ -61,9 +61,9 @@ def _policy(name):
 def timing(n, policy, nhist, steps):
     import numba
 
-    from slippulse.fft import RealFFT
-    from slippulse.params import DEFAULT as P
-    from slippulse.stepper import PredictorCorrector, RateStateInterface, TimeStepRule
+    from slippulse.dynamics.fft import RealFFT
+    from slippulse.core.params import DEFAULT as P
+    from slippulse.dynamics.stepper import PredictorCorrector, RateStateInterface, TimeStepRule
 
     law = RateStateInterface(P, 1.2 * P.tau_min)
     t0 = time.perf_counter()

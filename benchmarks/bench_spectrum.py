@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 
-from slippulse.h5io import list_pulses, read_pulse
-from slippulse.solver import solve_pulse
-from slippulse.spectrum import pulse_spectrum
+from slippulse.core.h5io import list_pulses, read_pulse
+from slippulse.steady.solver import solve_pulse
+from slippulse.stability.spectrum import pulse_spectrum
 
 
 def main(argv=None):

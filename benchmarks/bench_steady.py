@@ -12,8 +12,8 @@ import time
 
 import numpy as np
 
-from slippulse.params import DEFAULT
-from slippulse.solver import solve_pulse
+from slippulse.core.params import DEFAULT
+from slippulse.steady.solver import solve_pulse
 
 
 def main():
@@ -31,7 +31,7 @@ def main():
             wall = time.perf_counter() - t0
             pu = s.to_pulse()
             t1 = time.perf_counter()
-            from slippulse.hilbert import hilbert_matrix
+            from slippulse.steady.hilbert import hilbert_matrix
             hilbert_matrix(pu.xi, center=0.0)
             t_h = time.perf_counter() - t1
             rows.append((n, pu.beta, pu.L, pu.max_residual, wall, s.stats.iterations,

@@ -38,13 +38,13 @@ import time
 
 import numpy as np
 
-from slippulse.h5io import list_pulses, read_pulse
-from slippulse.hilbert import hilbert_matrix, hilbert_matrix_fft
-from slippulse.newton import SOLVERS
-from slippulse.params import DEFAULT
-from slippulse.solver import (GridSpec, adapted_grid, count_humps, default_guess, fwhm, front_pin,
+from slippulse.core.h5io import list_pulses, read_pulse
+from slippulse.steady.hilbert import hilbert_matrix, hilbert_matrix_fft
+from slippulse.steady.newton import SOLVERS
+from slippulse.core.params import DEFAULT
+from slippulse.steady.solver import (GridSpec, adapted_grid, count_humps, default_guess, fwhm, front_pin,
                               interpolate, solve_pulse)
-from slippulse.steady import SteadyProblem
+from slippulse.steady.equations import SteadyProblem
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 FIG = os.path.join(HERE, "figures")

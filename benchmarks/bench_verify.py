@@ -102,10 +102,10 @@ def case_key(c):
 
 
 def run_case(c, pulse, params):
-    from slippulse.pulse_verify import verify_pulse
-    from slippulse.seeding import SOE_CHEAP, DomainSpec
-    from slippulse.stability import HISTORIES
-    from slippulse.stepper import TimeStepRule
+    from slippulse.stability.verify import verify_pulse
+    from slippulse.stability.seeding import SOE_CHEAP, DomainSpec
+    from slippulse.stability.perturbation import HISTORIES
+    from slippulse.dynamics.stepper import TimeStepRule
 
     hist = c.get("history", "cheap")
     if hist == "short":
@@ -136,7 +136,7 @@ def run_case(c, pulse, params):
 
 
 def run_all(what):
-    from slippulse.h5io import read_pulse
+    from slippulse.core.h5io import read_pulse
 
     if not os.path.exists(FAMILY):
         sys.exit(f"{FAMILY} missing: run `python dynamic/stability.py family` first")

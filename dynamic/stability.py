@@ -30,8 +30,8 @@ FIG_DIR = "docs/figures"
 
 
 def family():
-    from slippulse.continuation import run_family
-    from slippulse.params import DEFAULT
+    from slippulse.steady.continuation import run_family
+    from slippulse.core.params import DEFAULT
     print(run_family(DEFAULT, FAMILY, start=1.2, stop=1.03, step=0.005, n_points=3000))
     print(run_family(DEFAULT, UPPER, start=1.3, stop=1.2, step=0.01, n_points=3000))
 
@@ -39,8 +39,8 @@ def family():
 def _rows(name):
     """Rows of the finished cases of scan ``name`` (case keys + ``stability.read_row``), in case
     order; unfinished cases are skipped, so a report can be drawn while a scan runs."""
-    from slippulse.scan import case_state, load_scan
-    from slippulse.stability import read_row
+    from slippulse.stability.scan import case_state, load_scan
+    from slippulse.stability.perturbation import read_row
 
     scan = load_scan(os.path.join("dynamic", "scans", name + ".toml"))
     out = []
@@ -73,8 +73,8 @@ def _variant(p, base):
 
 
 def report():
-    from slippulse.plotting import stability_figures
-    from slippulse.stability import pair_table
+    from slippulse.plotting.stability import stability_figures
+    from slippulse.stability.perturbation import pair_table
 
     all_rows, table = [], []
     for name in SCANS:
@@ -113,7 +113,7 @@ def report():
         print(f"{name}: s = {b:.4g}/L (base); relative changes: "
               + ", ".join(f"{k}: {v:+.1%}" for k, v in dev.items()))
     # how closely the runs of each base pair follow the steady line c_p⁰(L)
-    from slippulse.stability import line_deviation, read_series, smoothed_c_p, steady_curve
+    from slippulse.stability.perturbation import line_deviation, read_series, smoothed_c_p, steady_curve
     curve = steady_curve(*[f for f in (FAMILY, UPPER) if os.path.exists(f)])
     print("\n| τ_d/τ_min | run | fate | L range (m) | c_p/c_s range | median of abs(c_p/c_p⁰(L) − 1) | "
           "max | fraction of samples in the line's L range |")

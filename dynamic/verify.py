@@ -6,7 +6,7 @@ Run (from the repository root)::
     python dynamic/verify.py --only td1.0500 # one pulse
 
 1. Computes the steady family 1.2 → 1.05 τ_min at N = 3000 into runs/family_n3000.h5 if absent
-   (``slippulse.continuation.run_family``, ~70 s).
+   (``slippulse.steady.continuation.run_family``, ~70 s).
 2. Runs ``slippulse dynamic verify`` for each case (outputs runs/verify_<label>_dx<mm>.h5 + .png) and
    prints a markdown table of the end-of-run errors, the growth rate of |v_max − v_max⁰| per pulse
    length and the wall time (the table in BENCHMARKS.md, "Seeded steady pulses" §1, comes from this script).
@@ -35,8 +35,8 @@ def main():
     ap.add_argument("--only", help="run only this label")
     args = ap.parse_args()
     if not os.path.exists(FAMILY):
-        from slippulse.continuation import run_family
-        from slippulse.params import DEFAULT
+        from slippulse.steady.continuation import run_family
+        from slippulse.core.params import DEFAULT
         run_family(DEFAULT, FAMILY, start=1.2, stop=1.05, step=0.005, n_points=3000)
     rows = []
     for label, dx, dist in CASES:

@@ -8,12 +8,12 @@ Reads the converged pulses of a family file and the arclength steps of `steady/d
 
 1. the pulses of the deep march (τ_d, β, L, N, grid-check differences);
 2. the fit-window study: the power laws L = A d^−m_L, 1 − β = B d^m_β, d = τ_d/τ_min − τ̃*
-   (:func:`slippulse.analysis.divergence_fit`, joint and single), the paper's Eqs. 3–4 fitted for
-   (τ̃*, a_v, a_G) (:func:`~slippulse.analysis.scaling_fit`), and the τ̃*-free form in 1 − β
-   (:func:`~slippulse.analysis.beta_parametrised_fit`), over windows in τ_d and in L;
+   (:func:`slippulse.steady.analysis.divergence_fit`, joint and single), the paper's Eqs. 3–4 fitted for
+   (τ̃*, a_v, a_G) (:func:`~slippulse.steady.analysis.scaling_fit`), and the τ̃*-free form in 1 − β
+   (:func:`~slippulse.steady.analysis.beta_parametrised_fit`), over windows in τ_d and in L;
 3. local exponents d ln L/d ln(1−β) and d ln(q − τ̃*)/d ln(1−β) along the family;
 4. the paper's Eqs. 3–4 (τ̃* = 1.0087, a_v = 1.15, a_G = 0.69) evaluated on the same pulses;
-5. edge structure against L (:func:`~slippulse.analysis.edge_structure`, Ḡ at fixed δ) and the
+5. edge structure against L (:func:`~slippulse.steady.analysis.edge_structure`, Ḡ at fixed δ) and the
    distance of each edge profile from that of the longest pulse.
 
 6. with --compare: two marches from the same pulse at N and 2N − 1 (`deep_march.py` without and
@@ -34,11 +34,11 @@ import sys
 import numpy as np
 from matplotlib.figure import Figure
 
-from slippulse import analysis as an
-from slippulse.h5io import Pulse, list_pulses, read_pulse
-from slippulse.params import DEFAULT
-from slippulse.plotting import PAPER_SCALING
-from slippulse.steady import SteadyProblem
+from slippulse.steady import analysis as an
+from slippulse.core.h5io import Pulse, list_pulses, read_pulse
+from slippulse.core.params import DEFAULT
+from slippulse.plotting.steady import PAPER_SCALING
+from slippulse.steady.equations import SteadyProblem
 
 Q_WINDOWS = ((1.0, 1.0113), (1.0, 1.0125), (1.0, 1.015), (1.0, 1.02), (1.0, 1.03))
 L_MIN = (100.0, 200.0, 400.0)
@@ -59,7 +59,8 @@ def load(family, deep_dir):
         z = np.load(fn)
         xi, x = z["xi"], z["x"]
         prob = SteadyProblem(P, float(x[-1]), xi, int(z["pin_index"]), float(z["y_pin"]),
-                             free="both")
+                             free="both",
+                             state_order=int(z["state_order"]) if "state_order" in z else 2)
         v, phi, tau, _ = prob.fields(x)
         res = prob.residual(x)[:-1]
         extra = {"source": os.path.basename(fn)}

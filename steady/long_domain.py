@@ -14,8 +14,8 @@ import os
 
 import numpy as np
 
-from slippulse.h5io import read_pulse, write_pulse
-from slippulse.solver import GridSpec, solve_pulse
+from slippulse.core.h5io import read_pulse, write_pulse
+from slippulse.steady.solver import GridSpec, solve_pulse
 
 
 def main():

@@ -25,9 +25,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from slippulse.h5io import read_pulse
-from slippulse.solver import GridSpec, refine_nested, solve_pulse
-from slippulse.spectrum import pulse_spectrum
+from slippulse.core.h5io import read_pulse
+from slippulse.steady.solver import GridSpec, refine_nested, solve_pulse
+from slippulse.stability.spectrum import pulse_spectrum
 
 
 def variants(n):

@@ -41,8 +41,8 @@ def scan_pairs(name):
         from stability import _rows  # dynamic/stability.py
     except Exception:
         return []
-    from slippulse.stability import pair_growth, pair_rows, read_series
-    from slippulse.scan import load_scan
+    from slippulse.stability.perturbation import pair_growth, pair_rows, read_series
+    from slippulse.stability.scan import load_scan
     try:
         rows = _rows(name)
     except Exception:
@@ -64,7 +64,7 @@ def scan_pairs(name):
 
 
 def main(argv=None):
-    from slippulse.spectrum_plots import family_spectra
+    from slippulse.plotting.spectrum import family_spectra
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("file")
     ap.add_argument("--nested", nargs="*", default=[],
@@ -183,8 +183,8 @@ def plot_modes(path, sp, modes, out):
     with the eigenmode of the same pulse drawn over them, both scaled to unit maximum modulus."""
     import matplotlib.pyplot as plt
 
-    from slippulse.h5io import read_pulse
-    from slippulse.spectrum_plots import front_frame_mode
+    from slippulse.core.h5io import read_pulse
+    from slippulse.plotting.spectrum import front_frame_mode
     by = {round(o["tau_d_ratio"], 4): o for o in sp}
     taus = sorted({r["tau"] for r in modes}, reverse=True)
     fig, ax = plt.subplots(1, len(taus), figsize=(4.2 * len(taus), 3.6), squeeze=False)

@@ -116,8 +116,8 @@ def run_kostrov(n, v_r_ratio, policy="full", lam=1.0, dtau=1e6, a_end=0.3, histo
     """Kostrov crack from the centre of a periodic domain λ until its half-length is a_end·λ.
 
     Returns (relative error max|δ − δ_K| / max δ_K over |x − x0| < 0.8 a, stepper)."""
-    from slippulse.params import DEFAULT as P
-    from slippulse.stepper import KostrovInterface, PredictorCorrector
+    from slippulse.core.params import DEFAULT as P
+    from slippulse.dynamics.stepper import KostrovInterface, PredictorCorrector
     x0 = 0.5 * lam
     v_r = v_r_ratio * P.c_s
     law = KostrovInterface(P, v_r, dtau, x0)
@@ -137,8 +137,8 @@ def run_steady(n, beta, policy="full", lam=1.0, V_amp=1e-3, a=0.03, t_end=None, 
     the SOE history); compare τ at the end with ``steady_translating_stress``.
 
     Returns (error vs exact/​max|τ_ss − τ_d|, deviation from the steady operator alone/​same, stepper)."""
-    from slippulse.params import DEFAULT as P
-    from slippulse.stepper import PredictorCorrector, PrescribedInterface, TimeStepRule
+    from slippulse.core.params import DEFAULT as P
+    from slippulse.dynamics.stepper import PredictorCorrector, PrescribedInterface, TimeStepRule
     tau_d = tau_d_ratio * P.tau_min
     vs = P.v_stick(tau_d)
     eta = P.mu / (2 * P.c_s)

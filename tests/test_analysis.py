@@ -5,10 +5,11 @@ import h5py
 import numpy as np
 import pytest
 
-from slippulse import analysis as an
-from slippulse import h5io, modeii
-from slippulse.friction import RateStateFriction
-from slippulse.params import DEFAULT, G_C_STAR
+from slippulse.steady import analysis as an
+from slippulse.core import h5io
+from slippulse.steady import modeii
+from slippulse.core.friction import RateStateFriction
+from slippulse.core.params import DEFAULT, G_C_STAR
 
 P = DEFAULT
 V_STAR = P.v_star
@@ -416,7 +417,7 @@ def test_analyse_family_fits_skip_unconverged_pulses(tmp_path):
 def test_divergence_fit_recovers_a_power_law_divergence():
     """Exact power laws L = A d^−m_L, 1 − β = B d^m_β (d = x − τ̃*) with a little deterministic
     noise: the joint and the single fits return the constants within their stated errors."""
-    from slippulse.analysis import divergence_fit
+    from slippulse.steady.analysis import divergence_fit
     ts, A, mL, B, mb = 1.0093, 3.2e-4, 2.7, 45.0, 1.6
     x = 1.0093 + np.geomspace(2e-4, 1.5e-2, 25)
     d = x - ts
@@ -437,7 +438,7 @@ def test_divergence_fit_recovers_a_power_law_divergence():
 def test_beta_parametrised_fit_recovers_known_laws_with_noise():
     """q = τ̃* + B(1−β)^p and L = A(1−β)^(−r) with 1e-6 (q) and 0.3 % (L) deterministic noise:
     the constants come back within 4σ and the errors are small."""
-    from slippulse.analysis import beta_parametrised_fit
+    from slippulse.steady.analysis import beta_parametrised_fit
     om = np.geomspace(1e-3, 1.9e-2, 30)
     ts, B, p, A, r = 1.0089, 0.05, 0.5, 2.0, 1.4
     wig = np.sin(np.arange(om.size) * 2.3)
@@ -457,7 +458,7 @@ def test_edge_structure_on_an_analytic_pulse():
     (steepest slope Δ/(4w) there), v − v_stick decays ahead of the peak as exp(−(ξ − x_p)/ℓ), and
     τ peaks at x_t. The measures return x_b, 4w/Δ, ℓ, x_t − x_p and τ_max (to the grid's
     accuracy: centred differences at spacing w/20 at the back)."""
-    from slippulse.analysis import edge_structure, profile_distance
+    from slippulse.steady.analysis import edge_structure, profile_distance
     v_star, v_s = 1e-7, 1e-9
     x_b, w, x_p, ell, x_t = -50.0, 0.5, 0.0, 0.02, 0.05
     xi = np.unique(np.concatenate([np.linspace(-200, -1, 8000), np.linspace(-1, 1, 4001),

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from slippulse.continuation import run_family
-from slippulse.h5io import list_pulses, read_pulse
-from slippulse.params import ParameterError
+from slippulse.steady.continuation import run_family
+from slippulse.core.h5io import list_pulses, read_pulse
+from slippulse.core.params import ParameterError
 
 
 def test_short_family_and_resume(params, tmp_path):
@@ -37,8 +37,8 @@ def test_family_refuses_bad_ranges(params, tmp_path):
 
 def test_beta_mode_inverts_tau_d_mode(params):
     """Fixing β at the speed found at τ_d = 1.2 τ_min and solving for τ_d gives back 1.2."""
-    from slippulse.continuation import solve_at_beta
-    from slippulse.solver import solve_pulse
+    from slippulse.steady.continuation import solve_at_beta
+    from slippulse.steady.solver import solve_pulse
     a = solve_pulse(params, 1.2, n_points=600)
     assert a.stats.converged
     b = solve_at_beta(params, (a.xi, a.x[:-1]), 1.199, a.beta, 600)
@@ -79,7 +79,7 @@ class _Injector:
         self.real, self.fail, self.injected = real, fail, 0
 
     def __call__(self, problem, x0, **kw):
-        from slippulse.newton import SolveStats
+        from slippulse.steady.newton import SolveStats
         if self.fail(problem):
             self.injected += 1
             return np.array(x0, float), SolveStats(False, "injected failure", 0, np.inf)
@@ -87,8 +87,8 @@ class _Injector:
 
 
 def _inject(monkeypatch, fail):
-    import slippulse.continuation as cont
-    import slippulse.newton as nw
+    import slippulse.steady.continuation as cont
+    import slippulse.steady.newton as nw
     inj = _Injector(nw.newton, fail)
     monkeypatch.setitem(nw.SOLVERS, "newton", inj)
     monkeypatch.setattr(cont, "newton", inj)
@@ -136,7 +136,7 @@ def test_family_command_final_line_names_where_why_and_how_to_go_further(tmp_pat
 
 def test_progress_moves_on_beta_steps_and_counts_failures():
     from types import SimpleNamespace
-    from slippulse.cli_steady import FamilyProgress
+    from slippulse.cli.steady import FamilyProgress
     prog = FamilyProgress(1.2, 1.0, 0.005)
     assert prog.total == 41
     prog(1.2, SimpleNamespace(tau_d_ratio=1.2, beta=0.007, L=1.0), "ok")
@@ -154,9 +154,9 @@ def test_progress_moves_on_beta_steps_and_counts_failures():
 def test_arclength_row_and_tangent(params):
     """The appended arclength row is the derivative of the arclength condition (central
     differences), and the tangent lies in the null space of the steady Jacobian."""
-    from slippulse.continuation import ArclengthProblem, family_tangent
-    from slippulse.solver import default_guess
-    from slippulse.steady import SteadyProblem
+    from slippulse.steady.continuation import ArclengthProblem, family_tangent
+    from slippulse.steady.solver import default_guess
+    from slippulse.steady.equations import SteadyProblem
     xi, y, beta = default_guess(params, 1.2, 120)
     k = int(np.argmin(np.abs(xi)))
     base = SteadyProblem(params, 1.2, xi, k, float(y[k]), free="both")
@@ -180,8 +180,8 @@ def test_arclength_row_and_tangent(params):
 def test_arclength_steps_stay_on_the_family(params):
     """Two pseudo-arclength steps from the 1.2 pulse: each a converged pulse (β and τ_d both
     unknown) that a fixed-τ_d solve at its τ_d reproduces, moving toward τ_min and larger β."""
-    from slippulse.continuation import DeepSettings, march_arclength
-    from slippulse.solver import solve_pulse
+    from slippulse.steady.continuation import DeepSettings, march_arclength
+    from slippulse.steady.solver import solve_pulse
     a = solve_pulse(params, 1.2, n_points=500)
     steps = []
     deep = DeepSettings(ds=0.004, ds_max=0.004, max_iter=20)
@@ -205,8 +205,8 @@ def test_family_arclength_writes_grid_checked_pulses_and_resumes(params, tmp_pat
     """deep='arclength' from the first pulse on (beta_switch=0): arclength pulses are grid-checked
     (2N at fixed β, converted to fixed τ_d) and the 2N solutions written with the check's numbers,
     one per label, at least fine/2 apart; a rerun resumes below the deepest."""
-    from slippulse.continuation import DeepSettings
-    from slippulse.solver import solve_pulse
+    from slippulse.steady.continuation import DeepSettings
+    from slippulse.steady.solver import solve_pulse
     out = str(tmp_path / "arc.h5")
     deep = DeepSettings(ds=0.001, ds_max=0.001, fine=0.002, tol_beta=1e-4, tol_L=1e-2,
                         n_max=1000, max_iter=20)
@@ -251,8 +251,8 @@ class _ToyFold:
 def test_arclength_follows_a_fold():
     """The arclength pieces (tangent, closure row, Newton) pass a fold in q: q first decreases,
     then increases, while β keeps increasing; fixed-q stepping could not pass it."""
-    from slippulse.continuation import ArclengthProblem, family_tangent
-    from slippulse.newton import newton
+    from slippulse.steady.continuation import ArclengthProblem, family_tangent
+    from slippulse.steady.newton import newton
     toy = _ToyFold()
     x = np.array([0.2, 0.2, 1.09])
     kappa, orient = 0.3, (1.0, 0.0, 0.3)
@@ -277,17 +277,18 @@ def test_arclength_follows_a_fold():
 def test_grid_check_equals_fixed_tau_d_difference(params):
     """check_grid_2n solves the 2N pulse on the normal to the tangent and converts the change
     to fixed τ_d along the tangent; a fixed-τ_d solve on the same 2N grid gives the same Δβ, ΔL/L."""
-    from slippulse.continuation import _as_both, check_grid_2n, solve_at_beta
-    from slippulse.solver import solve_pulse
-    a = solve_pulse(params, 1.19, n_points=400)
-    coarse = solve_at_beta(params, (a.xi, a.x[:-1]), 1.19, a.beta, 400)     # τ_d ≈ 1.19 at this β
+    from slippulse.steady.continuation import _as_both, check_grid_2n, solve_at_beta
+    from slippulse.steady.solver import solve_pulse
+    # N = 300: with the order-4 state integration N = 400 and 800 agree in τ_d to 3e-8 only
+    a = solve_pulse(params, 1.19, n_points=300)
+    coarse = solve_at_beta(params, (a.xi, a.x[:-1]), 1.19, a.beta, 300)     # τ_d ≈ 1.19 at this β
     assert coarse.stats.converged
     sol = _as_both(params, coarse)
-    fine, db, dl = check_grid_2n(params, sol, 400)
-    assert fine.stats.converged and fine.problem.n == 800
+    fine, db, dl = check_grid_2n(params, sol, 300)
+    assert fine.stats.converged and fine.problem.n == 600
     q = float(sol.x[-1])
     assert abs(float(fine.x[-1]) - q) > 1e-7              # the grids disagree measurably
-    direct = solve_pulse(params, q, n_points=800, guess=(fine.xi, fine.x[:-2], sol.beta),
+    direct = solve_pulse(params, q, n_points=600, guess=(fine.xi, fine.x[:-2], sol.beta),
                          passes=0, adapt_guess=False)
     assert direct.stats.converged
     p0, p2 = sol.to_pulse(), direct.to_pulse()
@@ -298,7 +299,7 @@ def test_grid_check_equals_fixed_tau_d_difference(params):
 def test_stretch_grid_lengthens_the_body_and_keeps_both_edges():
     """The nodes within a of the front stay, the healing-front zone and all behind it move by
     exactly −shift, the body between stretches monotonically; shift = 0 is the identity."""
-    from slippulse.continuation import stretch_grid
+    from slippulse.steady.continuation import stretch_grid
     xi = np.sort(np.concatenate([np.linspace(-300, 50, 3000), np.linspace(-0.5, 0.5, 500)]))
     x0, a, x_back, w = 0.0, 1.0, -100.0, 5.0
     for shift in (-8.0, 0.0, 12.0):
@@ -331,7 +332,7 @@ def test_solve_robust_falls_back_on_the_residual_homotopy():
     """Two Newton iterations from y = 0 cannot reach 1e-13 on the cubic; the homotopy
     F(x) = s F(x0), s = 1 − k/8, reaches the root, and the iterations of all stages are counted.
     With one iteration per stage it fails and says at which stage."""
-    from slippulse.continuation import solve_robust
+    from slippulse.steady.continuation import solve_robust
     x, st = solve_robust(_Cubic(), np.array([0.0, 0.0]), stages=8, max_iter=2)
     assert st.converged and abs(x[0] + 0.5 * x[0] ** 3 - 3.0) <= 1e-13 and x[1] == 1.0
     assert st.iterations > 2
@@ -344,8 +345,8 @@ def test_stretched_march_and_nested_grid_check(params):
     the front kept, the healing front and tail shifted), the steps are converged pulses on the family
     (fixed-τ_d solve on the step's grid returns its β); the nested check (2N − 1 nodes, the
     N-grid's nodes kept) gives small N-vs-2N differences that a handoff carries into the march."""
-    from slippulse.continuation import DeepSettings, check_grid_2n, march_arclength
-    from slippulse.solver import solve_pulse
+    from slippulse.steady.continuation import DeepSettings, check_grid_2n, march_arclength
+    from slippulse.steady.solver import solve_pulse
     a = solve_pulse(params, 1.2, n_points=500)
     deep = DeepSettings(ds=0.004, ds_max=0.004, max_iter=20, stretch=True)
     handoff = {}

@@ -7,10 +7,12 @@ figure smoke test needs; the numbers are tested in test_analysis.py.
 """
 import numpy as np
 
-from slippulse import analysis as an
-from slippulse import cli, h5io, plotting
-from slippulse import friction as fr
-from slippulse.params import DEFAULT
+from slippulse.steady import analysis as an
+from slippulse import cli
+from slippulse.core import h5io
+from slippulse.plotting import steady as plotting
+from slippulse.core import friction as fr
+from slippulse.core.params import DEFAULT
 
 PAPER = dict(tau_star=1.0087, a_v=1.15, a_G=0.69)
 

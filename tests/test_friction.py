@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from slippulse import friction as fr
-from slippulse.params import ParameterError, Parameters
+from slippulse.core import friction as fr
+from slippulse.core.params import ParameterError, Parameters
 
 
 def test_state_steady_state_is_root_of_g(params):

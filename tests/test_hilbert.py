@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from scipy.special import dawsn
 
-from slippulse.hilbert import hilbert_matrix, spline_slopes
+from slippulse.steady.hilbert import hilbert_matrix, spline_slopes
 
 
 def graded(n, half=12.0):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.special import dawsn
 
-from slippulse.hilbert import HILBERT_KINDS, hilbert_matrix, hilbert_matrix_fft
+from slippulse.steady.hilbert import HILBERT_KINDS, hilbert_matrix, hilbert_matrix_fft
 
 
 def _gauss_err(H, x):

@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 import pytest
 
-from slippulse.cli import main
+from slippulse.cli.app import main
 
 CONFIG = """
 [grid]

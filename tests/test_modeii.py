@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from slippulse import modeii
-from slippulse.params import DEFAULT
+from slippulse.steady import modeii
+from slippulse.core.params import DEFAULT
 
 C_S = DEFAULT.c_s
 KAPPAS = modeii.CD_OVER_CS + (1.05, 3.0, 10.0)

@@ -28,17 +28,17 @@ BENCHMARKS.md ("Seeded steady pulses")), so 1.2 τ_min cannot be "preserved" ove
 import numpy as np
 import pytest
 
-from slippulse.pulse_verify import verify_pulse
-from slippulse.seeding import DomainSpec
-from slippulse.stepper import TimeStepRule
+from slippulse.stability.verify import verify_pulse
+from slippulse.stability.seeding import DomainSpec
+from slippulse.dynamics.stepper import TimeStepRule
 
 TOL = 2e-3
 
 
 @pytest.fixture(scope="module")
 def pulse105(params, tmp_path_factory):
-    from slippulse.continuation import run_family
-    from slippulse.h5io import read_pulse
+    from slippulse.steady.continuation import run_family
+    from slippulse.core.h5io import read_pulse
     path = str(tmp_path_factory.mktemp("fam") / "fam.h5")
     run_family(params, path, start=1.2, stop=1.05, step=0.025, n_points=1000)
     return read_pulse(path, "td1.0500")[0]
@@ -71,7 +71,7 @@ def test_unstable_mode_growth_rate_is_converged(params):
     for Δt halved (ξ_s = 0.25) although the seed changes sign — a property of the pulse, not of the
     time step. Measured γ = 22.2 and 22.9 per L (fit where 3e-4 ≤ |error| ≤ 3e-2); 22.9 at Δx = 1 mm.
     ~60 s."""
-    from slippulse.solver import solve_pulse
+    from slippulse.steady.solver import solve_pulse
     pulse = solve_pulse(params, 1.2, n_points=3000).to_pulse()
     rates = []
     for xi_stab in (0.5, 0.25):

@@ -9,9 +9,9 @@ import h5py
 import numpy as np
 import pytest
 
-from slippulse import h5io
-from slippulse.cli import main
-from slippulse.params import DEFAULT as P
+from slippulse.core import h5io
+from slippulse.cli.app import main
+from slippulse.core.params import DEFAULT as P
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from test_analysis import _synthetic_pulse  # noqa: E402

@@ -9,9 +9,9 @@ import h5py
 import numpy as np
 import pytest
 
-from slippulse.cli import UsageError, main
-from slippulse.dynconfig import DEFAULTS, build_stepper, load_config, parse_set
-from slippulse.params import ParameterError
+from slippulse.cli.app import UsageError, main
+from slippulse.dynamics.config import DEFAULTS, build_stepper, load_config, parse_set
+from slippulse.core.params import ParameterError
 
 CONFIG = """
 [grid]

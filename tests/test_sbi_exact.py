@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from sbi_exact import run_kostrov, run_steady
 
-from slippulse.params import DEFAULT as P
-from slippulse.stepper import (PredictorCorrector, PrescribedInterface, RateStateInterface,
+from slippulse.core.params import DEFAULT as P
+from slippulse.dynamics.stepper import (PredictorCorrector, PrescribedInterface, RateStateInterface,
                                TimeStepRule)
 
 TAU_D = 1.2 * P.tau_min
@@ -169,8 +169,8 @@ def test_steady_translating_slip_order_to_1024(beta):
 
 def test_steady_limit_matches_steady_solver_operator():
     # the SBI stress of steadily translating slip against the steady solver's own PV operator
-    # (slippulse.hilbert, infinite line) plus the closed-form periodic-image correction
-    hilbert = pytest.importorskip("slippulse.hilbert")
+    # (slippulse.steady.hilbert, infinite line) plus the closed-form periodic-image correction
+    hilbert = pytest.importorskip("slippulse.steady.hilbert")
     from sbi_exact import periodic_distance, pv_gaussian_periodic, steady_translating_stress
     from scipy import special
     n, beta, lam, a, V_amp = 512, 0.5, 1.0, 0.03, 1e-3

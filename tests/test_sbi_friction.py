@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from slippulse import friction as fr
-from slippulse.params import DEFAULT as P, ParameterError
-from slippulse.stepper import PredictorCorrector, RateStateInterface, _solve_point
+from slippulse.core import friction as fr
+from slippulse.core.params import DEFAULT as P, ParameterError
+from slippulse.dynamics.stepper import PredictorCorrector, RateStateInterface, _solve_point
 
 TAU_D = 1.2 * P.tau_min
 

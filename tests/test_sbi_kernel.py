@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from scipy import integrate, special
 
-from slippulse.fft import RealFFT
-from slippulse.sbi import kernel_K, kernel_P, soe_nodes, step_weights
+from slippulse.dynamics.fft import RealFFT
+from slippulse.dynamics.sbi import kernel_K, kernel_P, soe_nodes, step_weights
 
 
 def _K_quad(T):
@@ -83,7 +83,7 @@ def test_real_fft_numpy_backend():
 
 
 def test_fft_wisdom_is_cached(tmp_path, monkeypatch):
-    import slippulse.fft as sfft
+    import slippulse.dynamics.fft as sfft
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     F = RealFFT(128, planner="measure")
     assert F.backend == "pyfftw"
@@ -94,7 +94,7 @@ def test_fft_wisdom_is_cached(tmp_path, monkeypatch):
 
 
 def test_fft_falls_back_to_numpy_with_a_warning(monkeypatch):
-    import slippulse.fft as sfft
+    import slippulse.dynamics.fft as sfft
     monkeypatch.setattr(sfft, "HAVE_PYFFTW", False)
     with pytest.warns(RuntimeWarning, match="numpy.fft"):
         F = sfft.RealFFT(16)

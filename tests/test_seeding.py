@@ -1,4 +1,4 @@
-"""Seeding the SBI with a steady pulse (slippulse.seeding, docs/dynamic.md §9): the t = 0 state.
+"""Seeding the SBI with a steady pulse (slippulse.stability.seeding, docs/dynamic.md §9): the t = 0 state.
 
 Measured at τ_d = 1.2 τ_min, domain 4 L ahead + 4 L behind (λ = 8.6 L), Δx = 2 mm:
 * far field added (default): max|τ_SBI(0) − τ_steady|/τ_d over ξ − ξ_front ∈ [−2 L, 1 L] is
@@ -14,15 +14,15 @@ import math
 import numpy as np
 import pytest
 
-from slippulse.h5io import read_pulse, write_pulse
-from slippulse.seeding import (DomainSpec, dislocated_slip, follow_pulse, interpolate_log,
+from slippulse.core.h5io import read_pulse, write_pulse
+from slippulse.stability.seeding import (DomainSpec, dislocated_slip, follow_pulse, interpolate_log,
                                periodic_slip, seed_from_file, seed_pulse, stress_mismatch)
-from slippulse.sbi import elastic_functional
+from slippulse.dynamics.sbi import elastic_functional
 
 
 @pytest.fixture(scope="module")
 def pulse1500(params):
-    from slippulse.solver import solve_pulse
+    from slippulse.steady.solver import solve_pulse
     return solve_pulse(params, 1.2, n_points=1500).to_pulse()
 
 
@@ -129,7 +129,7 @@ def test_verify_cli_writes_errors_series_and_figure(tmp_path, pulse12, params, c
     """`slippulse dynamic verify`: HDF5 attributes + time series, PNG beside it, one-line summary."""
     import h5py
 
-    from slippulse.cli import main
+    from slippulse.cli.app import main
     src = str(tmp_path / "fam.h5")
     pu = pulse12.to_pulse()
     write_pulse(src, pu, params)
@@ -174,7 +174,7 @@ def test_quasi_dynamic_seed_has_static_stress_plus_radiation_damping(pulse12, pa
 
 
 def test_seed_cli_writes_state_and_mismatch(tmp_path, pulse12, params, capsys):
-    from slippulse.cli import main
+    from slippulse.cli.app import main
     src = str(tmp_path / "fam.h5")
     write_pulse(src, pulse12.to_pulse(), params)
     out = str(tmp_path / "seed.h5")

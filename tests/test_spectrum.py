@@ -1,4 +1,4 @@
-"""The linear stability spectrum (slippulse.spectrum): operator against exact transforms, the
+"""The linear stability spectrum (slippulse.stability.spectrum): operator against exact transforms, the
 neutral modes, the eigen-solver's convergence, the command and its bad-input errors."""
 import math
 import subprocess
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy.special import erfc, kv
 
-from slippulse.grid import build_grid
-from slippulse.spectrum import (ElasticOperator, StabilityOperator, neutral_modes, pulse_spectrum,
+from slippulse.steady.grid import build_grid
+from slippulse.stability.spectrum import (ElasticOperator, StabilityOperator, neutral_modes, pulse_spectrum,
                                 symbol, _translation_check)
-from slippulse.spectrum_kernels import KernelTables, kernel_series, slip_coefficients, times_D
+from slippulse.stability.spectrum_kernels import KernelTables, kernel_series, slip_coefficients, times_D
 
 BETA, CS, MU = 0.6, 1.0, 2.0
 
@@ -172,7 +172,7 @@ def test_translation_mode_and_leading_eigenvalue_at_1p2(op12):
 
 
 def test_cli_bad_input(tmp_path, pulse12, params):
-    from slippulse.h5io import write_pulse
+    from slippulse.core.h5io import write_pulse
     junk = tmp_path / "junk.h5"
     junk.write_text("not hdf5")
     foreign = tmp_path / "foreign.h5"
@@ -196,8 +196,8 @@ def test_cli_bad_input(tmp_path, pulse12, params):
 
 
 def test_cli_stores_and_resumes(tmp_path, pulse12, params):
-    from slippulse.h5io import write_pulse
-    from slippulse.spectrum import read_spectrum
+    from slippulse.core.h5io import write_pulse
+    from slippulse.stability.spectrum import read_spectrum
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
     cmd = [sys.executable, "-m", "slippulse.cli", "steady", "stability", str(f), "-q", "--no-extra"]
@@ -219,7 +219,7 @@ def test_leading_eigenvalue_converged_in_N_and_domain(pulse12, params):
     half the domain ahead and behind — the leading σ within 1 % (measured: 1.4e-3 and 3e-5)."""
     from dataclasses import replace
 
-    from slippulse.solver import GridSpec, refine_nested, solve_pulse
+    from slippulse.steady.solver import GridSpec, refine_nested, solve_pulse
     p0 = pulse12.to_pulse()
     ref = pulse_spectrum(p0, params, extra=False)
     s0 = ref.leading
@@ -239,8 +239,8 @@ def test_leading_eigenvalue_converged_in_N_and_domain(pulse12, params):
 
 def test_spectrum_group_opens_in_xarray(tmp_path, pulse12, params):
     xr = pytest.importorskip("xarray")
-    from slippulse.h5io import write_pulse
-    from slippulse.spectrum import run_spectrum
+    from slippulse.core.h5io import write_pulse
+    from slippulse.stability.spectrum import run_spectrum
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
     run_spectrum(str(f), extra=False)
@@ -255,7 +255,7 @@ def test_spectrum_group_opens_in_xarray(tmp_path, pulse12, params):
 def test_translation_eigenvalue_at_N2000_below_1e_6_of_the_leading(params):
     """The issue's bound on the neutral translation mode, on the default grid (N = 2000, 1.2 τ_min):
     measured σ_t = 1.2e-7 σ₁ (2.7e-6 c_p/L). At N = 700 it is 1e-5 σ₁ (second order)."""
-    from slippulse.solver import solve_pulse
+    from slippulse.steady.solver import solve_pulse
     p = solve_pulse(params, 1.2, n_points=2000).to_pulse()
     res = pulse_spectrum(p, params, extra=False)
     assert res.status == "converged"
@@ -265,8 +265,8 @@ def test_translation_eigenvalue_at_N2000_below_1e_6_of_the_leading(params):
 
 def test_failed_eigen_solve_is_reported_and_stores_no_eigenvalue(tmp_path, pulse12, params,
                                                                  monkeypatch):
-    import slippulse.spectrum as spm
-    from slippulse.h5io import write_pulse
+    import slippulse.stability.spectrum as spm
+    from slippulse.core.h5io import write_pulse
 
     def never(op, sigma0, x0, **kw):
         return spm.Eigen(complex(sigma0), x0, False, 12, float("nan"), "no convergence (test)")

@@ -1,4 +1,4 @@
-"""Instability measurement (stability.py): growth fits on exact exponentials, the ±ε protocol on
+"""Instability measurement (stability/perturbation.py): growth fits on exact exponentials, the ±ε protocol on
 real runs of the unstable 1.2 τ_min pulse, and a real perturbation scan through a Dask LocalCluster.
 
 The 1.2 τ_min pulse of the shared fixture is coarse (steady N = 700, SBI Δx = 8 mm): cheap runs whose
@@ -12,8 +12,8 @@ import h5py
 import numpy as np
 import pytest
 
-from slippulse.params import ParameterError
-from slippulse.stability import (check_case, fit_growth, pair_growth, pair_rows, read_row,
+from slippulse.core.params import ParameterError
+from slippulse.stability.perturbation import (check_case, fit_growth, pair_growth, pair_rows, read_row,
                                  read_series, run_case)
 
 
@@ -95,7 +95,7 @@ def test_case_validation_names_the_key():
 
 @pytest.fixture(scope="module")
 def steady12(pulse12, params, tmp_path_factory):
-    from slippulse.h5io import write_pulse
+    from slippulse.core.h5io import write_pulse
     path = str(tmp_path_factory.mktemp("st") / "fam.h5")
     write_pulse(path, pulse12.to_pulse(), params)
     return path
@@ -139,9 +139,9 @@ def test_perturbed_pair_departs_both_ways_at_one_rate(pair12):
 
 
 def test_tau_d_perturbation_changes_the_load_only(steady12):
-    from slippulse.h5io import read_pulse
-    from slippulse.pulse_verify import perturb_seed
-    from slippulse.seeding import DomainSpec, seed_pulse
+    from slippulse.core.h5io import read_pulse
+    from slippulse.stability.verify import perturb_seed
+    from slippulse.stability.seeding import DomainSpec, seed_pulse
     pulse, params = read_pulse(steady12, "td1.2000")
     seed = seed_pulse(pulse, params, DomainSpec(dx=8e-3, ahead=1.5, behind=2.0))
     load0, V0 = np.array(seed.stepper.law.tau_load, copy=True), seed.stepper.V.copy()
@@ -153,7 +153,7 @@ def test_tau_d_perturbation_changes_the_load_only(steady12):
 def test_real_scan_through_dask_localcluster_resumes(steady12, tmp_path):
     """≥ 4 real perturbation runs (tiny settings) through a Dask LocalCluster; a rerun redoes none."""
     distributed = pytest.importorskip("distributed")
-    from slippulse.scan import load_scan, run_scan
+    from slippulse.stability.scan import load_scan, run_scan
     toml = tmp_path / "scan.toml"
     toml.write_text(f"""
 [scan]
@@ -191,8 +191,8 @@ eps = [1e-3, -1e-3, 3e-3, -3e-3]
 def test_growth_rate_at_1_2_converges_under_refinement(params, tmp_path):
     """The ±ε protocol at 1.2 τ_min, steady N = 3000: s at (Δx, ξ_s) = (2 mm, 0.5) and (1 mm, 0.25)
     agree within 5 % (docs/stability.md: 23.5 and 23.4 per L). ~4 min."""
-    from slippulse.h5io import write_pulse
-    from slippulse.solver import solve_pulse
+    from slippulse.core.h5io import write_pulse
+    from slippulse.steady.solver import solve_pulse
     steady = str(tmp_path / "st.h5")
     write_pulse(steady, solve_pulse(params, 1.2, n_points=3000).to_pulse(), params)
     rates = []

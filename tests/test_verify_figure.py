@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from slippulse.pulse_verify import (DEV_POINTS, GROWTH_TOLERANCE, MODE_GROWTH, VerifyResult,
-                                    drift_verdict, growth_rate, mode_growth, plot_result, summary)
+from slippulse.plotting.stability import plot_verify_result
+from slippulse.stability.verify import (DEV_POINTS, GROWTH_TOLERANCE, MODE_GROWTH, VerifyResult,
+                                    drift_verdict, growth_rate, mode_growth, summary)
 
 
 def test_mode_growth_table_and_interpolation():
@@ -65,12 +66,12 @@ def test_drift_verdict():
     assert ok is None and "ended after 2 measurement(s) (pulse lost: grew)" in text
 
 
-def test_plot_result_writes_three_panels(tmp_path, monkeypatch):
+def test_plot_verify_result_writes_three_panels(tmp_path, monkeypatch):
     import matplotlib.figure
 
     res = _result(1.2, 23.5)
 
-    class _P:                                      # the fields plot_result reads
+    class _P:                                      # the fields plot_verify_result reads
         xi = np.linspace(-4, 4, 400)
         v = 1e-4 * np.exp(-xi ** 2) + 1e-7
         L, c_p, tau_d_ratio = 1.0, 20.0, 1.2
@@ -88,7 +89,7 @@ def test_plot_result_writes_three_panels(tmp_path, monkeypatch):
 
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", spy)
     png = tmp_path / "v.png"
-    plot_result(str(png), res, _P(), _Prm())
+    plot_verify_result(str(png), res, _P(), _Prm())
     assert png.stat().st_size > 10_000
     titles = [t for t in seen["titles"] if t]
     assert len(titles) == 3 and "drift = unstable mode" in titles[2]
@@ -96,5 +97,5 @@ def test_plot_result_writes_three_panels(tmp_path, monkeypatch):
     # outside the table no growth line is drawn
     res.info["tau_d_ratio"] = 1.3
     _P.tau_d_ratio = 1.3
-    plot_result(str(png), res, _P(), _Prm())
+    plot_verify_result(str(png), res, _P(), _Prm())
     assert seen["lines"][2] == 1

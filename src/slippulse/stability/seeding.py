@@ -29,12 +29,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from . import friction as fr
-from .analysis import pulse_length
-from .h5io import Pulse, read_pulse
-from .params import ParameterError, Parameters
-from .sbi import elastic_functional
-from .stepper import PredictorCorrector, RateStateInterface, TimeStepRule
+from ..core import friction as fr
+from ..steady.analysis import pulse_length
+from ..core.h5io import Pulse, read_pulse
+from ..core.params import ParameterError, Parameters
+from ..dynamics.sbi import elastic_functional
+from ..dynamics.stepper import PredictorCorrector, RateStateInterface, TimeStepRule
 
 #: The cheaper SOE node set of docs/dynamic.md §3 (36 nodes, kernel integral error ≤ 2e-5).
 SOE_CHEAP = {"x_min": 1e-6, "x_max": 1e6, "h": 0.8}
@@ -509,7 +509,7 @@ def write_seed(path: str, seed: SeededPulse, source: str = "", label: str = "") 
     grid (n, dx, length), the pulse (tau_d_ratio, beta, c_p, L), x_front0, xi_shift, net_slip and
     the SOE history size.
     """
-    from .h5io import atomic_update, coordinate, describe, stamp_format, write_parameters
+    from ..core.h5io import atomic_update, coordinate, describe, stamp_format, write_parameters
 
     mis = stress_mismatch(seed)
     st, pulse = seed.stepper, seed.pulse

@@ -5,13 +5,12 @@ import math
 import os
 import sys
 
-import numpy as np
 from tqdm import tqdm
 
-from .h5io import pulse_label, write_pulse
-from .newton import SOLVERS
-from .params import DEFAULT, ParameterError
-from .solver import check_points, solve_pulse
+from ..core.h5io import pulse_label, write_pulse
+from ..steady.newton import SOLVERS
+from ..core.params import DEFAULT, ParameterError
+from ..steady.solver import check_points, solve_pulse
 
 
 def summary_line(pulse, params) -> str:
@@ -39,7 +38,7 @@ def _ratio(text: str) -> float:
 def _check_out(out: str) -> None:
     """Refuse, before solving, an --out that could not take a pulse (not a directory, not an
     HDF5 steady file, a newer format version)."""
-    from .h5io import check_writable, format_version, open_h5
+    from ..core.h5io import check_writable, format_version, open_h5
 
     check_writable(out, "out")
     if os.path.exists(out):
@@ -70,7 +69,7 @@ def cmd_solve(args) -> int:
     pulse = sol.to_pulse()
     write_pulse(out, pulse, params)
     if not args.no_figure:
-        from .quicklook import plot_pulse
+        from ..plotting.quicklook import plot_pulse
         plot_pulse(pulse, params, os.path.splitext(out)[0] + ".png")
     print(summary_line(pulse, params))
     if not pulse.converged:
@@ -119,7 +118,7 @@ def final_status(rep, start, stop, out) -> str:
 
 
 def cmd_family(args) -> int:
-    from .continuation import run_family
+    from ..steady.continuation import run_family
     params = DEFAULT
     start, stop = _ratio(args.from_), _ratio(args.to)
     if not (math.isfinite(args.step) and args.step > 0):
@@ -130,7 +129,7 @@ def cmd_family(args) -> int:
     bar = tqdm(total=prog.total, desc="family", unit="pulse", disable=args.quiet, file=sys.stderr,
                bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}{postfix}]")
     prog.bar = bar
-    from .continuation import DeepSettings
+    from ..steady.continuation import DeepSettings
     if args.max_points < args.points:
         raise ParameterError(f"max-points={args.max_points} is invalid: must be >= points={args.points}")
     if not (0 < args.ds_min < 0.4):
@@ -164,7 +163,7 @@ def spectrum_line(label, res) -> str:
 
 
 def cmd_stability(args) -> int:
-    from .spectrum import check_family_file, run_spectrum
+    from ..stability.spectrum import check_family_file, run_spectrum
     labels = args.labels or None
     chosen, _ = check_family_file(args.file, labels)      # bad input fails here, before any work
     bar = tqdm(total=len(chosen), desc="spectrum", unit="pulse", disable=args.quiet,
@@ -191,7 +190,7 @@ def cmd_stability(args) -> int:
           f"{len(rep.failed)} failed; {span}; unstable modes per pulse: {n_unst}; "
           f"wall={rep.wall_time:.1f} s")
     if args.figure:
-        from .spectrum_plots import plot_family_spectrum
+        from ..plotting.spectrum import plot_family_spectrum
         plot_family_spectrum(args.file, args.figure)
         print(f"figure: {args.figure}")
     return 1 if rep.failed else 0
@@ -256,7 +255,7 @@ def register(sub) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_stability)
 
-    from .analysis import cmd_analyse
+    from ..steady.analysis import cmd_analyse
     p = ss.add_parser("analyse", help="analyse a pulse family file",
                       description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "
                                   "singularity; family scaling fit, G_c, delta_c, mode II. Results "

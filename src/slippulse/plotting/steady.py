@@ -13,10 +13,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from matplotlib.figure import Figure
 
-from . import analysis as an
-from . import h5io, modeii
-from .friction import RateStateFriction
-from .params import Parameters
+from ..steady import analysis as an
+from ..core import h5io
+from ..steady import modeii
+from ..core.friction import RateStateFriction
+from ..core.params import Parameters
 
 #: τ_d/τ_min of the curves of Figs. 2 and S2 (nearest available are drawn).
 FIG2_TARGETS = (1.015, 1.02, 1.03, 1.05, 1.1, 1.2)
@@ -422,103 +423,6 @@ def save_all(data, outdir, formats=("png", "pdf"), dpi=150):
             out = os.path.join(outdir, f"{name}.{ext}")
             fig.savefig(out, dpi=dpi)
             written.append(out)
-    return written
-
-
-# --------------------------------------------------------------------------------------------
-# Instability study (stability.py, ``slippulse dynamic scan``)
-
-def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_steady=()):
-    """Figures of a perturbation scan; returns the paths.
-
-    File names start with ``prefix``:
-
-    * ``stab_deviation.png``: |v_max/v_max⁰ − 1| against the distance travelled (in L⁰), every
-      run (solid +ε, dashed −ε), coloured by τ_d;
-    * ``stab_trajectories.png``: each run in the (L, c_p/c_s) plane over the steady curve β(L) of
-      its steady family file;
-    * ``stab_modes.png``: the unstable mode of each ±ε pair (antisymmetric deviation of
-      ln(v/v*+1) per unit v_max deviation, co-moving frame), ``stability.pair_growth``.
-    """
-    from .stability import read_series, smoothed_c_p, steady_curve
-
-    os.makedirs(out_dir, exist_ok=True)
-    runs = [r for r in rows if r.get("file") and os.path.exists(str(r["file"]))]
-    if not runs:
-        return []
-    ratios = sorted({round(float(r["tau_d_ratio"]), 6) for r in runs})
-    cmap = matplotlib_cmap("viridis")
-    colour = {q: cmap(i / max(1, len(ratios) - 1)) for i, q in enumerate(ratios)}
-    series = {r["file"]: read_series(r["file"]) for r in runs}
-    written = []
-
-    fig = Figure(figsize=(6.4, 4.2))
-    ax = fig.add_subplot()
-    for r in runs:
-        s = series[r["file"]]
-        ls = "-" if float(r["eps"]) > 0 else ("--" if float(r["eps"]) < 0 else ":")
-        ax.semilogy(s["distance"], np.abs(s["v_max_error"]), ls=ls, lw=0.9,
-                    color=colour[round(float(r["tau_d_ratio"]), 6)])
-    for q in ratios:
-        ax.plot([], [], color=colour[q], label=f"τ_d = {q:.4g} τ_min")
-    ax.plot([], [], "k-", label="+ε")
-    ax.plot([], [], "k--", label="−ε")
-    ax.set_xlabel("distance travelled / L⁰")
-    ax.set_ylabel("|v_max/v_max⁰ − 1|")
-    ax.set_ylim(1e-6, 30)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    written.append(os.path.join(out_dir, f"{prefix}deviation.png"))
-    fig.savefig(written[-1], dpi=dpi)
-
-    fig = Figure(figsize=(6.4, 4.6))
-    ax = fig.add_subplot()
-    steady_files = sorted({str(r["steady"]) for r in runs if r.get("steady")} | set(extra_steady))
-    cur = steady_curve(*[p for p in steady_files if os.path.exists(p)])
-    cur = cur[np.argsort(cur[:, 2])]                  # along the family (τ_d), not by L
-    ax.plot(cur[:, 0], cur[:, 3], "k-", lw=3, alpha=0.3, label="steady pulses β(L)")
-    for r in runs:
-        s = series[r["file"]]
-        cs = float(s["attrs"]["c_p"]) / float(s["attrs"]["beta"])
-        cp = smoothed_c_p(s)
-        ls = "-" if float(r["eps"]) > 0 else "--"
-        ax.plot(s["L"][2:-2], cp[2:-2] / cs, ls=ls, lw=1,
-                color=colour[round(float(r["tau_d_ratio"]), 6)])
-        ax.plot([s["attrs"]["L"]], [s["attrs"]["beta"]], "o", ms=4,
-                color=colour[round(float(r["tau_d_ratio"]), 6)])
-    for q in ratios:
-        ax.plot([], [], color=colour[q], label=f"τ_d = {q:.4g} τ_min (dot: the steady pulse)")
-    ax.plot([], [], "k-", lw=1, label="+ε")
-    ax.plot([], [], "k--", lw=1, label="−ε")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("pulse length L (m)")
-    ax.set_ylabel("c_p / c_s")
-    ax.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
-    written.append(os.path.join(out_dir, f"{prefix}trajectories.png"))
-    fig.savefig(written[-1], dpi=dpi)
-
-    modes = [p for p in pairs if p["_growth"].get("mode") is not None]
-    if modes:
-        taus = sorted({round(float(p["tau_d_ratio"]), 6) for p in modes}, reverse=True)
-        fig = Figure(figsize=(3.2 * len(taus) + 0.6, 3.8))
-        axes = np.atleast_1d(fig.subplots(1, len(taus), sharey=False))
-        for ax, q in zip(axes, taus):
-            for p in modes:
-                if round(float(p["tau_d_ratio"]), 6) != q:
-                    continue
-                g = p["_growth"]
-                ax.plot(g["mode_xi"], g["mode"], lw=1,
-                        label=f"ε={p['eps']:g}, Δx={1e3 * float(p['dx']):g} mm, "
-                              f"{float(p['behind']):g}+{float(p['ahead']):g} L, {p['history']}")
-            ax.set_title(f"τ_d = {q:.4g} τ_min", fontsize=9)
-            ax.set_xlabel("(ξ − ξ_front)/L⁰")
-            ax.legend(fontsize=5)
-        axes[0].set_ylabel("δ ln(v/v*+1) per unit δv_max/v_max")
-        fig.tight_layout()
-        written.append(os.path.join(out_dir, f"{prefix}modes.png"))
-        fig.savefig(written[-1], dpi=dpi)
     return written
 
 

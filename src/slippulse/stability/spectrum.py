@@ -26,10 +26,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
-from . import friction as fr
-from .hilbert import _tail_columns, add_times_slopes, hilbert_matrix
-from .spectrum_kernels import (KernelTables, assemble_w, slip_coefficients, state_rows,
-                               times_D)
+from ..core import friction as fr
+from ..steady.hilbert import _tail_columns, add_times_slopes, hilbert_matrix
+from .spectrum_kernels import KernelTables, assemble_w, slip_coefficients, state_rows, times_D
 
 
 # ----------------------------------------------------------------------- spline helpers
@@ -47,7 +46,7 @@ class ElasticOperator:
 
     H: PV Hilbert matrix of the cubic spline with the algebraic far-field tails (the steady
     solver's operator), H₀: the same without tails, 𝒲̃: product integration of the kernel W̃
-    (:mod:`slippulse.spectrum_kernels`). At σ = 0, K_0 = (λ/π) H S is the steady operator acting on
+    (:mod:`slippulse.stability.spectrum_kernels`). At σ = 0, K_0 = (λ/π) H S is the steady operator acting on
     V = −c δ′.
     """
 
@@ -147,8 +146,10 @@ class StabilityOperator:
         # the σ-independent O(h²) difference that makes Φ(0) the exact derivative ∂φ/∂v of the steady
         # solver's discrete state map, so that M(0) is exactly the linearised discrete steady
         # problem (measured at 1.05 τ_min, N = 2000: the translation eigenvalue drops 3×).
-        from .steady import SteadyProblem
-        probe = SteadyProblem(p, pulse.tau_d_ratio, self.xi, 0, 0.0, H=np.zeros((1, 1)))
+        from ..steady.equations import SteadyProblem
+        # the state integrator the pulse was solved with (files before issue 11: order 2)
+        probe = SteadyProblem(p, pulse.tau_d_ratio, self.xi, 0, 0.0, H=np.zeros((1, 1)),
+                              state_order=int(pulse.extra.get("state_order", 2)))
         P = probe.state(v, self.beta)[1] / v[None, :]
         Phi0 = np.empty((self.n, self.n), complex)
         state_rows(self.xi, self.c, self.w, self.src, 0j, np.eye(self.n, dtype=complex), Phi0,
@@ -489,7 +490,7 @@ def write_spectrum(path, res: PulseSpectrum, settings: dict):
     ``delta_*``, ``V_*``, ``phi_*``, ``lnv_*`` on (eigenvalue, xi), xi being the pulse's own
     coordinate in the parent group; scalars and the status as attributes.
     """
-    from .h5io import atomic_update, coordinate, describe, upgrade_steady
+    from ..core.h5io import atomic_update, coordinate, describe, upgrade_steady
 
     def fill(h5):
         upgrade_steady(h5)                       # xi of every pulse group a dimension scale
@@ -573,7 +574,7 @@ def check_family_file(path, labels=None):
     parameters and converged mode-III pulses. Raises SchemaError naming the problem."""
     import h5py
 
-    from .h5io import SchemaError, read_parameters
+    from ..core.h5io import SchemaError, read_parameters
     try:
         h5 = h5py.File(path, "r")
     except (OSError, FileNotFoundError) as exc:
@@ -621,7 +622,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
     settings is kept (resume) unless `overwrite`. A failed eigen-solve stores its status and
     message and no eigenvalues. progress(label, result or None, stored dict or None).
     """
-    from .h5io import read_pulse
+    from ..core.h5io import read_pulse
     t0 = time.perf_counter()
     chosen, params = check_family_file(path, labels)
     settings = {"tol": tol, "extra": int(bool(extra)), "min_re_c_over_L": MIN_RE}

@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from . import friction as fr
+from ..core import friction as fr
 from .fft import RealFFT
-from .params import ParameterError, Parameters
+from ..core.params import ParameterError, Parameters
 from .sbi import HISTORY_POLICIES, elastic_functional, make_history, wavenumbers
 
 #: Largest grid of the SBI: 2^22 points hold ≈ 5 GB in the SOE history alone (n/2 modes × 75
@@ -386,32 +386,46 @@ class PredictorCorrector:
         return self.fft.inverse(elastic_functional(self.params.mu, self.kabs, delta_k, H)).copy()
 
     def _step_impl(self, dt):
-        law, t1 = self.law, self.t + dt
+        """One step t → t + Δt in four named stages (module docstring, docs/dynamic.md §4)."""
+        t1 = self.t + dt
         self.history.begin_step(dt)                                  # sum the stored past once
-        # predict: V̄ = V^n, δ* = δ^n + Δt V̄
+        w_n, phi_star, f_star = self._predict(dt)
+        v_star, _, it1 = self._solve_friction(f_star, phi_star, t1, self.V)
+        vbar, vbar_k, delta_k, phi, f_new = self._correct(dt, w_n, v_star)
+        v_new, tau_new, it2 = self._solve_friction(f_new, phi, t1, v_star)
+        self._update_history(dt, vbar, vbar_k, delta_k, phi, v_new, tau_new)
+        self.iters = max(it1, it2)
+
+    def _predict(self, dt):
+        """Predict: V̄ = V^n, δ* = δ^n + Δt V̄, φ* = S(φ^n, w(V^n), Δt), f* = f[δ*, V̄].
+
+        Returns (w(V^n) or None, φ*, f*)."""
         vbar_k = self.V_k
         f_star = self._functional(self.delta_k + dt * vbar_k, vbar_k)
-        if law.has_state:
-            # predict state: φ* = S(φ^n, w(V^n), Δt)
-            w_n = law.heal_rate(self.V)
-            phi_star = fr.state_step(self.phi, w_n, dt)
-        else:
-            phi_star = self.phi
-        # solve the interface law at each point: σ f(V*, φ*) + ηV* = τ_load + f*
-        v_star, _, it1 = law.solve(law.tau_load + f_star, phi_star, t1, self.x, self.V)
-        # correct: V̄ = (V^n + V*)/2, δ^{n+1} = δ^n + Δt V̄
+        if not self.law.has_state:
+            return None, self.phi, f_star
+        w_n = self.law.heal_rate(self.V)
+        return w_n, fr.state_step(self.phi, w_n, dt), f_star
+
+    def _solve_friction(self, f, phi, t1, v_guess):
+        """Solve the interface law at each point: σ f(V, φ) + ηV = τ_load + f. Returns (V, τ, its)."""
+        law = self.law
+        return law.solve(law.tau_load + f, phi, t1, self.x, v_guess)
+
+    def _correct(self, dt, w_n, v_star):
+        """Correct: V̄ = (V^n + V*)/2, δ^{n+1} = δ^n + Δt V̄, φ^{n+1} = S(φ^n, (w(V^n) + w(V*))/2, Δt),
+        f = f[δ^{n+1}, V̄]. Returns (V̄, V̄_k, δ^{n+1}_k, φ^{n+1}, f)."""
         vbar = 0.5 * (self.V + v_star)
         vbar_k = 0.5 * (self.V_k + self.fft.forward(v_star))
         delta_k = self.delta_k + dt * vbar_k
-        if law.has_state:
-            # correct state: φ^{n+1} = S(φ^n, (w(V^n) + w(V*))/2, Δt)
-            phi = fr.state_step(self.phi, 0.5 * (w_n + law.heal_rate(v_star)), dt)
+        if self.law.has_state:
+            phi = fr.state_step(self.phi, 0.5 * (w_n + self.law.heal_rate(v_star)), dt)
         else:
             phi = self.phi
-        f_new = self._functional(delta_k, vbar_k)
-        # solve the interface law with the corrected stress and state
-        v_new, tau_new, it2 = law.solve(law.tau_load + f_new, phi, t1, self.x, v_star)
-        # commit: the history stores the step average V̄
+        return vbar, vbar_k, delta_k, phi, self._functional(delta_k, vbar_k)
+
+    def _update_history(self, dt, vbar, vbar_k, delta_k, phi, v_new, tau_new):
+        """Commit: the history stores the step average V̄; δ, φ, V, τ take their n+1 values."""
         self.history.commit(vbar_k, dt)
         self.delta = self.delta + dt * vbar
         self.delta_k = delta_k
@@ -419,7 +433,6 @@ class PredictorCorrector:
         self.V = v_new
         self.V_k = self.fft.forward(v_new).copy()
         self.tau = tau_new
-        self.iters = max(it1, it2)
 
     # ------------------------------------------------------------------ checkpoints
     def state(self) -> dict:

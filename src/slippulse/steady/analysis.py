@@ -17,8 +17,8 @@ import h5py
 import numpy as np
 from scipy.optimize import brentq, least_squares, minimize_scalar
 
-from . import h5io
-from .friction import RateStateFriction
+from ..core import h5io
+from ..core.friction import RateStateFriction
 
 #: τ_d/τ_min window of the scaling fit (Eqs. 3–4): "near τ_*", both ends inclusive.
 SCALING_WINDOW = (1.0, 1.05)

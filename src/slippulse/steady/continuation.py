@@ -15,12 +15,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .h5io import list_pulses, read_pulse, write_pulse
-from .params import ParameterError, Parameters
+from ..core.h5io import list_pulses, read_pulse, write_pulse
+from ..core.params import ParameterError, Parameters
 from .analysis import pulse_length
 from .newton import newton
 from .solver import GridSpec, SteadySolution, front_pin, fwhm, interpolate, regrid_guess, solve_pulse
-from .steady import SteadyProblem
+from .equations import SteadyProblem
 
 
 @dataclass
@@ -229,53 +229,24 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         follows a fold in τ_d, with pulses written at every multiple of ``deep_settings.fine`` and
         each grid-checked at N vs 2N; see :class:`DeepSettings`).
     """
-    if deep not in ("beta", "arclength"):
-        raise ParameterError(f"deep={deep!r} is invalid: must be 'beta' or 'arclength'")
-    deep_settings = DeepSettings() if deep_settings is None else deep_settings
-    for name, val in (("from", start), ("to", stop)):
-        if not math.isfinite(val):
-            raise ParameterError(f"{name}={val!r} is invalid: must be a finite tau_d/tau_min")
-        params.check_tau_d(val * params.tau_min)
-    if not (stop < start):
-        raise ParameterError(f"to={stop} is invalid: must be < from={start} (continuation goes down)")
-    if not (0 < step <= start - stop + 1e-12) or not math.isfinite(step):
-        raise ParameterError(f"step={step} is invalid: must be in (0, from - to = {start - stop:.4g}]")
+    deep_settings = _check_family_args(params, start, stop, step, deep, deep_settings)
     if min_step is None:
         min_step = 0.5 * step          # two failed τ_d steps in a row switch to stepping in β
     t0 = time.perf_counter()
     rep = FamilyReport()
-    guess = None
-    current = None
-    if os.path.exists(out):
-        done = []
-        for label in list_pulses(out):
-            pu, p_file = read_pulse(out, label)
-            if p_file != params:
-                raise ParameterError(f"{out}: stored parameters differ from this run's; use another --out")
-            if pu.converged:
-                done.append(pu)
-        if done:
-            last = min(done, key=lambda p: p.tau_d_ratio)
-            current = last.tau_d_ratio
-            guess = (last.xi, np.log(last.v), last.beta)
-            rep.resumed_from = last.label
-            rep.reached, rep.reached_beta, rep.reached_L = current, last.beta, last.L
+    # resume: continue below the deepest converged pulse already in `out`
+    current, guess = _resume(params, out, rep)
     targets = [t for t in _targets(start, stop, step) if current is None or t < current - 1e-12]
     if current is None:
         # the first pulse from the built-in guess
         first = targets.pop(0)
-        sol = solve_pulse(params, first, n_points=n_points, spec=spec)
-        pulse, ok, msg = _judge(sol)
-        rep.record(first, ok, msg)
-        if progress:
-            progress(first, pulse if ok else None, msg)
+        sol, pulse, ok, msg = _attempt(params, first, rep, progress, n_points=n_points, spec=spec)
         if not ok:
             rep.stop(f"the first pulse, at tau_d/tau_min={first:.4f}, from the built-in guess "
                      f"failed ({msg})", _hint_first(first, n_points))
             rep.wall_time = time.perf_counter() - t0
             return rep
-        write_pulse(out, pulse, params)
-        rep.wrote(pulse)
+        _write(params, out, pulse, rep)
         current = first
         guess = (sol.xi, sol.x[:-1].copy(), sol.beta)
     h = step
@@ -310,17 +281,16 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
             h *= 0.5
             continue
         tried.add((current, trial))
-        sol = solve_pulse(params, trial, n_points=n_points, guess=_predict(guess, prev, current, trial),
-                          spec=spec, passes=0, max_iter=max_iter)
-        pulse, ok, msg = _judge(sol)
-        rep.record(trial, ok, msg)
-        if progress:
-            progress(trial, pulse if ok else None, msg)
+        # predict (secant in τ_d through the last two pulses, on the last grid), then solve
+        sol, pulse, ok, msg = _attempt(params, trial, rep, progress, n_points=n_points,
+                                       guess=_predict(guess, prev, current, trial), spec=spec,
+                                       passes=0, max_iter=max_iter)
+        # accept, or halve the step and retry
         if not ok:
             h *= 0.5
             continue
-        write_pulse(out, pulse, params)
-        rep.wrote(pulse)
+        # write the accepted pulse; it becomes the base of the next prediction
+        _write(params, out, pulse, rep)
         prev = (current, guess[0], guess[1], guess[2])
         current = trial
         guess = (sol.xi, sol.x[:-1].copy(), sol.beta)
@@ -329,6 +299,58 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         h = min(step, 2.0 * h)
     rep.wall_time = time.perf_counter() - t0
     return rep
+
+
+def _check_family_args(params, start, stop, step, deep, deep_settings) -> DeepSettings:
+    """Bad input of :func:`run_family` as ParameterError naming the argument and its valid range."""
+    if deep not in ("beta", "arclength"):
+        raise ParameterError(f"deep={deep!r} is invalid: must be 'beta' or 'arclength'")
+    for name, val in (("from", start), ("to", stop)):
+        if not math.isfinite(val):
+            raise ParameterError(f"{name}={val!r} is invalid: must be a finite tau_d/tau_min")
+        params.check_tau_d(val * params.tau_min)
+    if not (stop < start):
+        raise ParameterError(f"to={stop} is invalid: must be < from={start} (continuation goes down)")
+    if not (0 < step <= start - stop + 1e-12) or not math.isfinite(step):
+        raise ParameterError(f"step={step} is invalid: must be in (0, from - to = {start - stop:.4g}]")
+    return DeepSettings() if deep_settings is None else deep_settings
+
+
+def _resume(params, out, rep: FamilyReport):
+    """(τ_d/τ_min, (ξ, ln v, β)) of the deepest converged pulse already in ``out``, or
+    (None, None); a file of other parameters is an error."""
+    if not os.path.exists(out):
+        return None, None
+    done = []
+    for label in list_pulses(out):
+        pu, p_file = read_pulse(out, label)
+        if p_file != params:
+            raise ParameterError(f"{out}: stored parameters differ from this run's; use another --out")
+        if pu.converged:
+            done.append(pu)
+    if not done:
+        return None, None
+    last = min(done, key=lambda p: p.tau_d_ratio)
+    rep.resumed_from = last.label
+    rep.reached, rep.reached_beta, rep.reached_L = last.tau_d_ratio, last.beta, last.L
+    return last.tau_d_ratio, (last.xi, np.log(last.v), last.beta)
+
+
+def _attempt(params, ratio, rep: FamilyReport, progress, **solve_args):
+    """Solve at τ_d/τ_min = ``ratio`` and judge it; the attempt is counted in ``rep`` and shown
+    by ``progress``. Returns (solution, pulse, ok, message)."""
+    sol = solve_pulse(params, ratio, **solve_args)
+    pulse, ok, msg = _judge(sol)
+    rep.record(ratio, ok, msg)
+    if progress:
+        progress(ratio, pulse if ok else None, msg)
+    return sol, pulse, ok, msg
+
+
+def _write(params, out, pulse, rep: FamilyReport) -> None:
+    """Append a converged pulse to the family file (atomic per pulse) and count it."""
+    write_pulse(out, pulse, params)
+    rep.wrote(pulse)
 
 
 # ---------------------------------------------------------------- pseudo-arclength (deep family)

@@ -39,9 +39,9 @@ import shutil
 import h5py
 import numpy as np
 
-from . import __version__
-from .h5io import SchemaError, coordinate, describe, dimension, format_version, stamp_format
-from .params import Parameters
+from .. import __version__
+from ..core.h5io import SchemaError, coordinate, describe, dimension, format_version, stamp_format
+from ..core.params import Parameters
 
 SNAP_FIELDS = {"V": "m/s", "phi": "s", "tau": "Pa", "delta": "m"}
 SCALARS = {"t": "s", "dt": "s", "v_max": "m/s", "x_vmax": "m", "iters": "1"}

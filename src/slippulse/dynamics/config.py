@@ -6,7 +6,7 @@ the wrong type. The resolved configuration is a plain nested dict, stored in the
 Sections and keys (units SI):
 
 ``[grid]``      n (points, even), length (periodic domain λ, m)
-``[params]``    the Table-I parameters (see slippulse.params.Parameters)
+``[params]``    the Table-I parameters (see slippulse.core.params.Parameters)
 ``[load]``      tau_d_ratio (τ_d/τ_min; τ_load = τ_d + η v_stick so that creep has τ = τ_d)
 ``[initial]``   kind ("creep" | "gaussian"), amplitude (m/s), width (m), position (m)
 ``[time]``      stepping ("fixed" | "adaptive"), beta_cfl, xi, xi_stab, growth, ladder,
@@ -24,8 +24,8 @@ import math
 import tomllib
 from dataclasses import fields
 
-from .cli import UsageError
-from .params import Parameters
+from ..core.errors import UsageError
+from ..core.params import Parameters
 
 DEFAULTS: dict = {
     "grid": {"n": 1024, "length": 1.0},
@@ -125,7 +125,7 @@ def diff_keys(a: dict, b: dict) -> list[str]:
 
 def build_stepper(cfg: dict):
     """Problem and solver from a resolved config: the stepper with its initial state set."""
-    from .params import ParameterError
+    from ..core.params import ParameterError
     from .stepper import RateStateInterface, TimeStepRule, make_stepper
 
     params = Parameters(**cfg["params"])

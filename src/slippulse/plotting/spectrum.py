@@ -7,7 +7,7 @@ import numpy as np
 
 def family_spectra(path):
     """Stored spectra of a file, by decreasing τ_d: list of dicts (see spectrum.read_spectrum)."""
-    from .spectrum import read_spectrum
+    from ..stability.spectrum import read_spectrum
     with h5py.File(path, "r") as h5:
         labels = [k for k in h5["pulses"] if "spectrum" in h5["pulses"][k]]
     out = [read_spectrum(path, lab) for lab in labels]
@@ -44,7 +44,7 @@ def plot_family_spectrum(path, out, mode_labels=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .h5io import read_pulse
+    from ..core.h5io import read_pulse
     sp = family_spectra(path)
     if not sp:
         raise ValueError(f"{path}: no stored converged spectrum (run 'slippulse steady stability')")

@@ -9,15 +9,12 @@ import argparse
 import importlib
 import sys
 
-from .h5io import SchemaError
-from .params import ParameterError
+from ..core.errors import UsageError
+from ..core.h5io import SchemaError
+from ..core.params import ParameterError
 
 #: Modules that add sub-commands: each defines ``register(subparsers)``.
-_PLUGINS = ("slippulse.cli_steady", "slippulse.cli_figures", "slippulse.cli_dynamic")
-
-
-class UsageError(ValueError):
-    """Bad command-line input (reported without a traceback, exit code 2)."""
+_PLUGINS = ("slippulse.cli.steady", "slippulse.cli.figures", "slippulse.cli.dynamic")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -52,10 +49,3 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("slippulse: interrupted", file=sys.stderr)
         return 130
-
-
-if __name__ == "__main__":
-    # run the package's module, not this copy named __main__: the sub-commands raise
-    # slippulse.cli.UsageError, which must be the class main() catches
-    from slippulse.cli import main as _main
-    sys.exit(_main())

@@ -1,6 +1,6 @@
 """Propagate a seeded steady pulse and measure its drift from the steady solution (issue 4).
 
-``verify_pulse`` seeds the SBI stepper with a steady pulse (:mod:`slippulse.seeding`), steps it over
+``verify_pulse`` seeds the SBI stepper with a steady pulse (:mod:`slippulse.stability.seeding`), steps it over
 a given number of pulse lengths with adaptive time steps, keeps it in a frame that follows it
 (``seeding.follow_pulse``) and measures, in the co-moving frame:
 
@@ -16,8 +16,8 @@ a given number of pulse lengths with adaptive time steps, keeps it in a frame th
 
 The references c_p⁰ and L⁰ are the steady file's values; v_max⁰ is the parabolic peak of the
 steady profile (:func:`reference_v_max`; the file's v_max is the largest node value).
-``write_result`` stores the final errors as root attributes and their time series; ``plot_result``
-draws v(ξ) at several times over the steady profile. CLI: ``slippulse dynamic verify`` (cli_dynamic.py).
+``write_result`` stores the final errors as root attributes and their time series; ``slippulse.plotting.stability.plot_verify_result``
+draws v(ξ) at several times over the steady profile. CLI: ``slippulse dynamic verify`` (cli/dynamic.py).
 """
 from __future__ import annotations
 
@@ -29,9 +29,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from .analysis import pulse_length
+from ..steady.analysis import pulse_length
 from .seeding import DomainSpec, SeededPulse, follow_pulse, seed_pulse
-from .stepper import TimeStepRule
+from ..dynamics.stepper import TimeStepRule
 
 #: Window of the ln v error, in steady pulse lengths relative to the front crossing.
 LNV_WINDOW = (-1.25, 0.25)
@@ -233,8 +233,6 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
     -------
     VerifyResult
     """
-    from tqdm import tqdm
-
     if far_field == "steady" and not follow:
         raise ValueError("far_field='steady' is attached to the frame: it needs follow=True")
     if not distance > 0:
@@ -242,6 +240,7 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
     if not follow:
         spec = DomainSpec(dx=spec.dx, ahead=spec.ahead, behind=spec.behind, travel=distance)
     wall0 = time.perf_counter()
+    # seed: the steady (or perturbed) pulse as if it had travelled forever
     seed = seed_pulse(pulse if perturbation is None else perturbed_pulse(pulse, *perturbation),
                       params, spec, rule=rule, far_field=far_field,
                       history_options=history_options, threads=threads,
@@ -249,95 +248,18 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
                       wrap_dislocation=wrap_dislocation)
     if perturbation is not None:
         perturb_seed(seed, pulse, *perturbation)
-    st, p = seed.stepper, params
-    _, _, xi_front = pulse_length(pulse.xi, pulse.v, p.v_star)
-    steady_y = PchipInterpolator(pulse.xi, np.log1p(pulse.v / p.v_star))
-    t_end = distance * pulse.L / pulse.c_p
-    t_samp = np.linspace(0.0, t_end, n_samples + 1)
-    t_snap = set(np.round(np.linspace(0, n_samples, n_snapshots)).astype(int))
-    rows = []
-    devs = []
-    rel_dev = np.linspace(DEV_WINDOW[0], DEV_WINDOW[1], DEV_POINTS) * pulse.L
-    slip_fix = [0.0]
-
-    def record(j):
-        X, L, vmax, err = measure(seed, steady_y, xi_front)
-        xr = X - seed.shift_cells * st.dx
-        raw = slip_across(st, xr, pulse.L)
-        if j == 0:      # the periodic slip's uniform gradient (seeding.periodic_slip) is constant
-            slip_fix[0] = steady_slip(pulse, xi_front) - raw
-        rows.append((st.t, X, L, vmax, err, raw + slip_fix[0]))
-        devs.append(deviation_field(st, xr, steady_y, xi_front, rel_dev, p.v_star))
-        if j in t_snap:
-            seed_snap.append((st.t, st.x - xr, st.V.copy()))
-
-    seed_snap = []
-    record(0)
-    bar = tqdm(total=t_end, unit="s", disable=not progress, file=sys.stderr,
-               mininterval=0.5 if sys.stderr.isatty() else 10.0,
-               bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
-    j = 1
-    status = "finished"
-    try:
-        while j <= n_samples:
-            dt = st.step()        # adaptive Δt; samples are taken at the first step past t_j
-            bar.update(min(dt, max(t_end - bar.n, 0.0)))
-            if follow and st.nstep % track_every == 0:
-                try:
-                    xr, _, _ = front_position(st.x, st.V, p.v_star)
-                except ValueError as exc:
-                    raise PulseLost(f"{_lost_how(st, pulse)}: {exc} at t = {st.t:.4g} s") from None
-                follow_pulse(seed, xr)
-            vtop = float(st.V.max())
-            if vtop > lost_factor * pulse.v_max:
-                raise PulseLost(f"grew: max V > {lost_factor:g} v_max0 at t = {st.t:.4g} s")
-            if vtop < pulse.v_max / lost_factor:
-                raise PulseLost(f"arrested: max V < v_max0/{lost_factor:g} at t = {st.t:.4g} s")
-            if st.t >= t_samp[j] * (1 - 1e-12):
-                try:
-                    record(j)
-                except ValueError as exc:
-                    # the FWHM no longer exists on both sides of the maximum
-                    raise PulseLost(f"{_lost_how(st, pulse)}: {exc} at t = {st.t:.4g} s") from None
-                if stop_check is not None:
-                    why = stop_check(rows)
-                    if why:
-                        status = f"stopped: {why}"
-                        break
-                if follow:
-                    follow_pulse(seed, rows[-1][1] - seed.shift_cells * st.dx)
-                bar.set_postfix_str(f"{st.nstep} steps, dt={dt:.3g} s", refresh=False)
-                j += 1
-    except FloatingPointError as exc:
-        status = f"failed: {exc}"
-    except PulseLost as exc:
-        status = f"pulse lost: {exc}"
-    finally:
-        bar.close()
+    # run: step to t_end = distance·L⁰/c_p⁰, sampling n_samples times
+    rec = _Recorder(seed, pulse, params, distance, n_samples, n_snapshots)
+    status = _run(seed, pulse, params, rec, follow, track_every, lost_factor, stop_check, progress)
     wall = time.perf_counter() - wall0
-    arr = np.array(rows)
-    t, X, L, vmax, lnv, slip = arr.T
-    cp = np.full_like(t, np.nan)
-    cp[1:] = np.diff(X) / np.diff(t) / pulse.c_p - 1.0
-    v_max0 = reference_v_max(pulse.xi, pulse.v)
-    series = {"c_p_error": cp, "v_max_error": vmax / v_max0 - 1.0,
-              "L_error": L / pulse.L - 1.0, "lnv_error": lnv,
-              "L": L, "v_max": vmax, "slip": slip, "distance": (X - X[0]) / pulse.L,
-              "c_p": np.r_[np.nan, np.diff(X) / np.diff(t)] if t.size > 1 else np.array([np.nan]),
-              "deviation": np.array(devs), "deviation_xi": rel_dev / pulse.L}
-    q = min(max(1, (t.size - 1) // 4), t.size - 1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cp_end = (X[-1] - X[-1 - q]) / (t[-1] - t[-1 - q]) / pulse.c_p - 1.0 if q > 0 else np.nan
-        cp_mean = (X[-1] - X[0]) / (t[-1] - t[0]) / pulse.c_p - 1.0 if q > 0 else np.nan
-    errors = {"c_p_error": float(cp_end),
-              "v_max_error": float(series["v_max_error"][-1]),
-              "L_error": float(series["L_error"][-1]),
-              "lnv_error": float(lnv[-1]),
-              "c_p_mean_error": float(cp_mean)}
+    # measure: the errors against the steady pulse, their series and the run's description
+    series, errors, (t, X, slip) = _measure(rec, pulse)
+    st = seed.stepper
     dist = (X - X[0]) / pulse.L
     info = {"status": status,
             "growth_rate_v_max": growth_rate(dist, series["v_max_error"]),
-            "growth_rate_lnv": growth_rate(dist, lnv), "wall_time": wall, "n_steps": st.nstep, "t_end": float(st.t),
+            "growth_rate_lnv": growth_rate(dist, series["lnv_error"]),
+            "wall_time": wall, "n_steps": st.nstep, "t_end": float(st.t),
             "distance": float(distance), "travelled": float((X[-1] - X[0]) / pulse.L),
             "n": st.n, "length": st.length, "dx": st.dx, "ahead": spec.ahead,
             "behind": spec.behind, "far_field": far_field, "follow": bool(follow),
@@ -348,12 +270,124 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
             "slip0": float(slip[0]),
             "shift_cells": seed.shift_cells, "tau_d_ratio": pulse.tau_d_ratio,
             "beta": pulse.beta, "c_p": pulse.c_p, "L": pulse.L, "v_max": pulse.v_max,
-            "v_max_ref": v_max0,
+            "v_max_ref": reference_v_max(pulse.xi, pulse.v),
             "beta_cfl": st.rule.beta_cfl, "xi": st.rule.xi, "xi_stab": st.rule.xi_stab,
             "t0_v_max_error": float(series["v_max_error"][0]),
-            "t0_L_error": float(series["L_error"][0]), "t0_lnv_error": float(lnv[0])}
+            "t0_L_error": float(series["L_error"][0]), "t0_lnv_error": float(series["lnv_error"][0])}
+    # write: the caller stores the result (write_result) and draws it (plotting.stability)
     return VerifyResult(t=t, x_front=X, series=series, errors=errors, info=info,
-                        snapshots=seed_snap, x=st.x.copy())
+                        snapshots=rec.snapshots, x=st.x.copy())
+
+
+class _Recorder:
+    """The measurements of a verification run: one row (t, X, L, v_max, lnv_error, slip) and one
+    deviation profile per sample time t_j = j t_end/n_samples, slip-rate snapshots at some of them."""
+
+    def __init__(self, seed, pulse, params, distance, n_samples, n_snapshots):
+        self.seed, self.pulse, self.v_star = seed, pulse, params.v_star
+        _, _, self.xi_front = pulse_length(pulse.xi, pulse.v, params.v_star)
+        self.steady_y = PchipInterpolator(pulse.xi, np.log1p(pulse.v / params.v_star))
+        self.t_end = distance * pulse.L / pulse.c_p
+        self.t_samp = np.linspace(0.0, self.t_end, n_samples + 1)
+        self.t_snap = set(np.round(np.linspace(0, n_samples, n_snapshots)).astype(int))
+        self.n_samples = n_samples
+        self.rows, self.devs, self.snapshots = [], [], []
+        self.rel_dev = np.linspace(DEV_WINDOW[0], DEV_WINDOW[1], DEV_POINTS) * pulse.L
+        self.slip_fix = 0.0
+
+    def record(self, j):
+        """Sample j: front X, FWHM L, v_max and the ln v error; the slip across the pulse (offset
+        so that sample 0 equals the steady slip: the periodic slip's uniform gradient is constant,
+        seeding.periodic_slip); the deviation profile; a snapshot when j is a snapshot index."""
+        seed, pulse, st = self.seed, self.pulse, self.seed.stepper
+        X, L, vmax, err = measure(seed, self.steady_y, self.xi_front)
+        xr = X - seed.shift_cells * st.dx
+        raw = slip_across(st, xr, pulse.L)
+        if j == 0:
+            self.slip_fix = steady_slip(pulse, self.xi_front) - raw
+        self.rows.append((st.t, X, L, vmax, err, raw + self.slip_fix))
+        self.devs.append(deviation_field(st, xr, self.steady_y, self.xi_front, self.rel_dev,
+                                         self.v_star))
+        if j in self.t_snap:
+            self.snapshots.append((st.t, st.x - xr, st.V.copy()))
+
+
+def _run(seed, pulse, params, rec: _Recorder, follow, track_every, lost_factor, stop_check,
+         progress) -> str:
+    """Step the seeded pulse to rec.t_end, sampling at the first step past each t_j, moving the
+    frame every ``track_every`` steps, stopping when the pulse is lost; returns the status."""
+    from tqdm import tqdm
+
+    st, t_end = seed.stepper, rec.t_end
+    rec.record(0)
+    bar = tqdm(total=t_end, unit="s", disable=not progress, file=sys.stderr,
+               mininterval=0.5 if sys.stderr.isatty() else 10.0,
+               bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
+    j = 1
+    status = "finished"
+    try:
+        while j <= rec.n_samples:
+            dt = st.step()        # adaptive Δt; samples are taken at the first step past t_j
+            bar.update(min(dt, max(t_end - bar.n, 0.0)))
+            if follow and st.nstep % track_every == 0:
+                try:
+                    xr, _, _ = front_position(st.x, st.V, params.v_star)
+                except ValueError as exc:
+                    raise PulseLost(f"{_lost_how(st, pulse)}: {exc} at t = {st.t:.4g} s") from None
+                follow_pulse(seed, xr)
+            vtop = float(st.V.max())
+            if vtop > lost_factor * pulse.v_max:
+                raise PulseLost(f"grew: max V > {lost_factor:g} v_max0 at t = {st.t:.4g} s")
+            if vtop < pulse.v_max / lost_factor:
+                raise PulseLost(f"arrested: max V < v_max0/{lost_factor:g} at t = {st.t:.4g} s")
+            if st.t >= rec.t_samp[j] * (1 - 1e-12):
+                try:
+                    rec.record(j)
+                except ValueError as exc:
+                    # the FWHM no longer exists on both sides of the maximum
+                    raise PulseLost(f"{_lost_how(st, pulse)}: {exc} at t = {st.t:.4g} s") from None
+                if stop_check is not None:
+                    why = stop_check(rec.rows)
+                    if why:
+                        status = f"stopped: {why}"
+                        break
+                if follow:
+                    follow_pulse(seed, rec.rows[-1][1] - seed.shift_cells * st.dx)
+                bar.set_postfix_str(f"{st.nstep} steps, dt={dt:.3g} s", refresh=False)
+                j += 1
+    except FloatingPointError as exc:
+        status = f"failed: {exc}"
+    except PulseLost as exc:
+        status = f"pulse lost: {exc}"
+    finally:
+        bar.close()
+    return status
+
+
+def _measure(rec: _Recorder, pulse):
+    """Series and final errors of a run: c_p error from the front's travel (last quarter of the
+    run for the final value, whole run for the mean), v_max error against the spline maximum of the
+    steady profile, L error, ln v error. Returns (series, errors, (t, X, slip))."""
+    arr = np.array(rec.rows)
+    t, X, L, vmax, lnv, slip = arr.T
+    cp = np.full_like(t, np.nan)
+    cp[1:] = np.diff(X) / np.diff(t) / pulse.c_p - 1.0
+    v_max0 = reference_v_max(pulse.xi, pulse.v)
+    series = {"c_p_error": cp, "v_max_error": vmax / v_max0 - 1.0,
+              "L_error": L / pulse.L - 1.0, "lnv_error": lnv,
+              "L": L, "v_max": vmax, "slip": slip, "distance": (X - X[0]) / pulse.L,
+              "c_p": np.r_[np.nan, np.diff(X) / np.diff(t)] if t.size > 1 else np.array([np.nan]),
+              "deviation": np.array(rec.devs), "deviation_xi": rec.rel_dev / pulse.L}
+    q = min(max(1, (t.size - 1) // 4), t.size - 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cp_end = (X[-1] - X[-1 - q]) / (t[-1] - t[-1 - q]) / pulse.c_p - 1.0 if q > 0 else np.nan
+        cp_mean = (X[-1] - X[0]) / (t[-1] - t[0]) / pulse.c_p - 1.0 if q > 0 else np.nan
+    errors = {"c_p_error": float(cp_end),
+              "v_max_error": float(series["v_max_error"][-1]),
+              "L_error": float(series["L_error"][-1]),
+              "lnv_error": float(lnv[-1]),
+              "c_p_mean_error": float(cp_mean)}
+    return series, errors, (t, X, slip)
 
 
 #: Growth rate s (per steady pulse length L⁰ travelled) of the pulse's unstable mode, with its
@@ -459,7 +493,7 @@ def write_result(path: str, res: VerifyResult, params, source: str = "", label: 
     (Version 1 stored one group per snapshot, snapshots/000/v ...; the readers of this package
     read only ``series`` and the root attributes, which are laid out as before.)
     """
-    from .h5io import atomic_update, coordinate, describe, stamp_format, write_parameters
+    from ..core.h5io import atomic_update, coordinate, describe, stamp_format, write_parameters
 
     def fill(h5):
         for key in list(h5.keys()):
@@ -513,86 +547,3 @@ def write_result(path: str, res: VerifyResult, params, source: str = "", label: 
                      "m", "front position on the grid x", dims=(tc,))
 
     atomic_update(path, fill, replace=True)
-
-
-def plot_result(path_png: str, res: VerifyResult, pulse, params) -> None:
-    """The verification figure (PNG), three panels against the steady pulse:
-
-    (a) v(ξ − ξ_front) at t = 0 and at the end over the steady profile (log scale);
-    (b) the deviation ln(v/v*+1) − steady against (ξ − ξ_front)/L⁰ at up to 9 measurement times,
-        coloured by the distance travelled;
-    (c) |v_max error| against the distance d travelled (log axis), with the growth e^{s d} of the
-        unstable mode (:func:`mode_growth`) drawn over it where s is known, through the samples of
-        the fit window of :func:`growth_rate`; the title gives :func:`drift_verdict`.
-    """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    _, _, xi_front = pulse_length(pulse.xi, pulse.v, params.v_star)
-    L = pulse.L
-    dist = np.asarray(res.series["distance"], dtype=float)
-    fig, axes = plt.subplots(3, 1, figsize=(7.0, 10.5))
-    # (a) profiles
-    ax = axes[0]
-    sel = (pulse.xi - xi_front > -3 * L) & (pulse.xi - xi_front < 1.5 * L)
-    ax.semilogy((pulse.xi[sel] - xi_front) / L, pulse.v[sel], "k-", lw=4, alpha=0.25,
-                label="steady")
-    for (t, xr, V), style in zip((res.snapshots[0], res.snapshots[-1]), ("C0--", "C3-")):
-        o = np.argsort(xr)
-        w = (xr[o] > -3 * L) & (xr[o] < 1.5 * L)
-        ax.semilogy(xr[o][w] / L, V[o][w], style, lw=1.2,
-                    label=f"SBI, d = {t * pulse.c_p / L:.3g} L")
-    ax.set_xlabel("(ξ − ξ_front)/L⁰")
-    ax.set_ylabel("v (m/s)")
-    ax.set_title("(a) slip rate: start and end of the run over the steady pulse", fontsize=9)
-    ax.legend(fontsize=8)
-    # (b) deviation field
-    ax = axes[1]
-    dev = np.asarray(res.series.get("deviation", np.empty((0, 0))))
-    if dev.size:
-        rel = np.asarray(res.series["deviation_xi"])
-        picks = np.unique(np.round(np.linspace(0, dev.shape[0] - 1, min(9, dev.shape[0]))))
-        cmap = plt.get_cmap("viridis")
-        dmax = max(float(np.nanmax(dist)), 1e-300)
-        for j in picks.astype(int):
-            ax.plot(rel, dev[j], color=cmap(dist[j] / dmax), lw=1.1)
-        sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0.0, dmax))
-        fig.colorbar(sm, ax=ax, label="distance travelled d (L⁰)")
-    ax.axhline(0.0, color="0.6", lw=0.6)
-    ax.set_xlabel("(ξ − ξ_front)/L⁰")
-    ax.set_ylabel("ln(v/v*+1) − steady")
-    ax.set_title("(b) deviation from the steady pulse in the frame of the front", fontsize=9)
-    # (c) v_max error against distance, and the mode's growth
-    ax = axes[2]
-    err = np.abs(np.asarray(res.series["v_max_error"], dtype=float))
-    ok = np.isfinite(err) & (err > 0)
-    ax.semilogy(dist[ok], err[ok], "C0o-", ms=3, lw=1, label="|v_max/v_max⁰ − 1| (SBI)")
-    known = mode_growth(res.info["tau_d_ratio"])
-    if known is not None and ok.sum() >= 2:
-        sv, serr, how = known
-        win = ok & (err >= 3e-4) & (err <= 3e-2)          # growth_rate's fit window
-        base = win if win.sum() >= 3 else ok & (dist >= 0.5 * np.nanmax(dist))
-        lnA = float(np.mean(np.log(err[base]) - sv * dist[base]))
-        dd = np.linspace(0.0, float(np.nanmax(dist)), 200)
-        ax.semilogy(dd, np.exp(lnA + sv * dd), "k--", lw=1.2,
-                    label=f"e^(s d), unstable mode s = {sv:.3g} ± {serr:.2g} per L ({how})")
-    ax.set_xlabel("distance travelled d (L⁰)")
-    ax.set_ylabel("|v_max error|")
-    verdict, text = drift_verdict(res)
-    tag = {True: "drift = unstable mode (physics)", False: "drift NOT the unstable mode",
-           None: "drift not attributed"}[verdict]
-    ax.set_title(f"(c) v_max drift against distance: {tag}", fontsize=9)
-    ax.legend(fontsize=8, loc="upper left")
-    e = res.errors
-    fig.suptitle(f"verify τ_d = {pulse.tau_d_ratio:.4g} τ_min, {res.info['travelled']:.3g} L: "
-                 f"c_p err {e['c_p_error']:.1e}, v_max err {e['v_max_error']:.1e}\n"
-                 + _wrap(text, 95), fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path_png, dpi=110)
-    plt.close(fig)
-
-
-def _wrap(text: str, width: int) -> str:
-    import textwrap
-    return "\n".join(textwrap.wrap(text, width))

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import os
 
-from .cli import UsageError
+from .app import UsageError
 
 
 def register(subparsers):
@@ -21,7 +21,8 @@ def register(subparsers):
 
 
 def run(args):
-    from . import analysis, plotting
+    from ..steady import analysis
+    from ..plotting import steady as plotting
 
     for f in [args.file] + ([args.compare] if args.compare else []):
         if not os.path.isfile(f):

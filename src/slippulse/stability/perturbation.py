@@ -1,7 +1,7 @@
 """Instability of steady pulses: perturbed runs, growth rate, unstable mode, fate (docs/stability.md).
 
 A run (:func:`run_perturbation`) seeds a steady pulse (``seeding.seed_pulse``) perturbed by a small
-relative amount ε of either sign (``pulse_verify.perturb_seed``: the slip-rate excess scaled by
+relative amount ε of either sign (``verify.perturb_seed``: the slip-rate excess scaled by
 1 + ε, or the driving stress raised by ε τ_d), propagates it with ``pulse_verify.verify_pulse`` in
 the frame that follows it, and stops at its fate:
 
@@ -15,9 +15,11 @@ the regime chosen by the stated rule of its docstring and returns s with an unce
 length and per unit time. :func:`mode_shape` extracts the normalised deviation field
 y − y⁰ (y = ln(v/v*+1)) in the co-moving frame over that regime.
 
-:func:`run_case` / :func:`read_row` / :func:`scan_figures` are the runner contract of
-``slippulse dynamic scan`` (scan.py): one flat dict of scalars in, one HDF5 file and one summary row
-out.
+:func:`run_case` / :func:`read_row` are the runner contract of ``slippulse dynamic scan``
+(scan.py): one flat dict of scalars in, one HDF5 file and one summary row out; its
+:func:`scan_figures` writes the pair table. The plots live in the plotting layer
+(:func:`slippulse.plotting.stability.scan_figures`, table + plots), which the command passes to
+``run_scan``.
 """
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ import time
 
 import numpy as np
 
-from .params import ParameterError
+from ..core.params import ParameterError
 
 #: Keys of a scan case (run_case) with their defaults and meaning.
 CASE_DEFAULTS = {
@@ -310,10 +312,10 @@ def _fate(status: str) -> str:
 
 def run_perturbation(case: dict, progress: bool = False):
     """Run one perturbed pulse to its fate; returns (pulse, params, VerifyResult, analysis dict)."""
-    from .h5io import read_pulse
-    from .pulse_verify import verify_pulse
+    from ..core.h5io import read_pulse
+    from .verify import verify_pulse
     from .seeding import DomainSpec
-    from .stepper import TimeStepRule
+    from ..dynamics.stepper import TimeStepRule
 
     c = check_case(case)
     pulse, params = read_pulse(c["steady"], c["label"])
@@ -369,7 +371,7 @@ def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
     """
     import h5py
 
-    from .pulse_verify import write_result
+    from .verify import write_result
     from .scan import case_json
 
     c = check_case(case)
@@ -392,7 +394,7 @@ def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
 
 def read_row(out_path: str) -> dict:
     """The summary row of a finished :func:`run_case` file."""
-    from .h5io import format_version, open_h5
+    from ..core.h5io import format_version, open_h5
 
     keys = ("fate", "status", "s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "fit_x0",
             "fit_x1", "fit_n", "fit_sign", "s_per_L_from_L", "mode_spread", "travelled",
@@ -409,7 +411,7 @@ def read_row(out_path: str) -> dict:
 
 def read_series(out_path: str) -> dict:
     """Time series of a run file: t, distance, L, c_p, v_max, slip, the errors, the deviation."""
-    from .h5io import format_version, open_h5
+    from ..core.h5io import format_version, open_h5
 
     with open_h5(out_path) as h5:
         format_version(h5, out_path)
@@ -464,30 +466,36 @@ def pair_table(rows: list[dict]) -> list[dict]:
     return out
 
 
-def scan_figures(rows: list[dict], out_dir: str) -> list[str]:
-    """Scan hook: the pair table (growth_pairs.csv) and the figures of plotting.stability_figures."""
+def write_pair_table(rows: list[dict], out_dir: str) -> list[str]:
+    """The pair table of a scan's rows (:func:`pair_table`) as ``out_dir/growth_pairs.csv``
+    (written atomically); the list of the paths written (empty when there is no ±ε pair)."""
     import csv
 
-    from .plotting import stability_figures
     os.makedirs(out_dir, exist_ok=True)
     pairs = pair_table(rows)
-    paths = []
-    if pairs:
-        path = os.path.join(out_dir, "growth_pairs.csv")
-        with open(path + ".part", "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(PAIR_COLUMNS), extrasaction="ignore")
-            w.writeheader()
-            for r in pairs:
-                w.writerow(r)
-        os.replace(path + ".part", path)
-        paths.append(path)
-    return paths + stability_figures(rows, pairs, out_dir)
+    if not pairs:
+        return []
+    path = os.path.join(out_dir, "growth_pairs.csv")
+    with open(path + ".part", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(PAIR_COLUMNS), extrasaction="ignore")
+        w.writeheader()
+        for r in pairs:
+            w.writerow(r)
+    os.replace(path + ".part", path)
+    return [path]
+
+
+def scan_figures(rows: list[dict], out_dir: str) -> list[str]:
+    """Scan hook of the runner contract, without plots: the pair table only
+    (:func:`write_pair_table`). ``slippulse dynamic scan`` passes
+    :func:`slippulse.plotting.stability.scan_figures` instead, which adds the figures."""
+    return write_pair_table(rows, out_dir)
 
 
 def steady_curve(*paths) -> np.ndarray:
     """(L, c_p, τ_d/τ_min, β) of every pulse in the steady family files (one per τ_d), sorted by
     L (m, m/s)."""
-    from .h5io import list_pulses, read_pulse
+    from ..core.h5io import list_pulses, read_pulse
     pts = {}
     for path in paths:
         for lab in list_pulses(path):

@@ -1,8 +1,8 @@
 """``slippulse dynamic run CONFIG.toml [--set section.key=value ...] [--resume] [--out FILE]``.
 
-Runs the mode-III SBI time stepper (docs/dynamic.md) from a TOML config (dynconfig.py), with a
+Runs the mode-III SBI time stepper (docs/dynamic.md) from a TOML config (dynamics/config.py), with a
 tqdm progress bar (simulated time, steps/s) and a one-line summary at the end. Output: an HDF5 file
-(dynio.py) with snapshots, per-step scalars and checkpoints; ``--resume`` continues a run from its
+(dynamics/runfile.py) with snapshots, per-step scalars and checkpoints; ``--resume`` continues a run from its
 last checkpoint, bit-identically to an uninterrupted run.
 """
 from __future__ import annotations
@@ -14,10 +14,10 @@ import time
 
 import numpy as np
 
-from .cli import UsageError
-from .dynconfig import RESUME_MUTABLE, build_stepper, diff_keys, load_config
-from .dynio import RunFile
-from .stepper import MAX_GRID_POINTS
+from .app import UsageError
+from ..dynamics.config import RESUME_MUTABLE, build_stepper, diff_keys, load_config
+from ..dynamics.runfile import RunFile
+from ..dynamics.stepper import MAX_GRID_POINTS
 
 
 def register(subparsers) -> None:
@@ -77,11 +77,11 @@ def register(subparsers) -> None:
                     help="add the isolated pulse's far field to the loading (default steady)")
     sd.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     sd.set_defaults(func=cmd_seed)
-    try:                                   # ``dynamic scan`` (cli_scan.py)
+    try:                                   # ``dynamic scan`` (cli/scan.py)
         import importlib
-        cli_scan = importlib.import_module("slippulse.cli_scan")
+        cli_scan = importlib.import_module("slippulse.cli.scan")
     except ModuleNotFoundError as exc:
-        if exc.name != "slippulse.cli_scan":
+        if exc.name != "slippulse.cli.scan":
             raise
     else:
         cli_scan.register(sub)
@@ -178,11 +178,12 @@ def _check_grid(dx: float, ahead: float, behind: float, L: float) -> None:
 
 def cmd_verify(args) -> int:
     """``slippulse dynamic verify``: seed, propagate, measure, write HDF5 + PNG, print one line."""
-    from .h5io import SchemaError, check_writable, read_pulse
-    from .params import ParameterError
-    from .pulse_verify import plot_result, summary, verify_pulse, write_result
-    from .seeding import DomainSpec
-    from .stepper import TimeStepRule
+    from ..core.h5io import SchemaError, check_writable, read_pulse
+    from ..core.params import ParameterError
+    from ..plotting.stability import plot_verify_result
+    from ..stability.verify import summary, verify_pulse, write_result
+    from ..stability.seeding import DomainSpec
+    from ..dynamics.stepper import TimeStepRule
 
     try:
         pulse, params = read_pulse(args.steady, args.label)
@@ -213,16 +214,16 @@ def cmd_verify(args) -> int:
         raise UsageError(str(exc))
     write_result(out, res, params, source=os.path.abspath(args.steady), label=label)
     png = os.path.splitext(out)[0] + ".png"
-    plot_result(png, res, pulse, params)
+    plot_verify_result(png, res, pulse, params)
     print(summary(res) + f"; output {out}, figure {png}")
     return 0 if res.info["status"] == "finished" else 2
 
 
 def cmd_seed(args) -> int:
     """``slippulse dynamic seed``: seed, write the t = 0 state, print the stress mismatch."""
-    from .h5io import SchemaError, read_pulse
-    from .params import ParameterError
-    from .seeding import DomainSpec, seed_pulse, write_seed
+    from ..core.h5io import SchemaError, read_pulse
+    from ..core.params import ParameterError
+    from ..stability.seeding import DomainSpec, seed_pulse, write_seed
 
     try:
         pulse, params = read_pulse(args.steady, args.label)

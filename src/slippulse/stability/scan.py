@@ -13,7 +13,7 @@ SCAN.toml
     [scan]
     name = "growth_td1.05"                   # required
     out_dir = "runs/scans/growth_td1.05"     # required; relative to the current directory
-    runner = "slippulse.stability:run_case"  # optional ("module:function", this default)
+    runner = "slippulse.stability.perturbation:run_case"  # optional ("module:function", this default)
     runner_path = ["tools"]                  # optional: directories prepended to sys.path (in the
                                              # main process and in every worker) to import runner
     [defaults]                               # keys shared by every case (any scalar)
@@ -30,7 +30,7 @@ Cases are the cartesian product of the ``[grid]`` lists (in TOML order, the last
 fastest), each merged over ``[defaults]``, followed by the ``[[case]]`` tables, each merged over
 ``[defaults]``. Values are str, int, float (finite) or bool; the keys ``id`` and ``status`` are
 reserved. Unknown top-level tables or ``[scan]`` keys, non-scalar values, an empty scan and duplicate
-cases are errors (:class:`slippulse.cli.UsageError`, naming the key and what is allowed).
+cases are errors (:class:`slippulse.core.errors.UsageError`, naming the key and what is allowed).
 
 Case ids and files
 ------------------
@@ -81,7 +81,7 @@ case key is dropped when the values agree, else stored as ``<key>_result``). ``s
 union of the columns (empty cells where a row lacks one); ``summary.h5`` has one dataset per column
 (bool, int64, float64 with NaN for missing values, or variable-length str), the attribute
 ``columns`` (their order) and the attributes ``scan_name``, ``scan_toml``, ``runner``, written
-atomically (:func:`slippulse.h5io.atomic_update`).
+atomically (:func:`slippulse.core.h5io.atomic_update`).
 """
 from __future__ import annotations
 
@@ -98,9 +98,9 @@ import time
 import tomllib
 from dataclasses import dataclass, field
 
-from .cli import UsageError
+from ..core.errors import UsageError
 
-DEFAULT_RUNNER = "slippulse.stability:run_case"
+DEFAULT_RUNNER = "slippulse.stability.perturbation:run_case"
 TOP_LEVEL = ("scan", "defaults", "grid", "case")
 SCAN_KEYS = {"name": "str, required", "out_dir": "str, required",
              "runner": f"'module:function', default {DEFAULT_RUNNER!r}",
@@ -541,7 +541,7 @@ def write_summary_h5(path: str, rows: list[dict], scan: Scan) -> None:
     """
     import h5py
 
-    from .h5io import atomic_update, describe, dimension, stamp_format
+    from ..core.h5io import atomic_update, describe, dimension, stamp_format
 
     cols = _columns(rows)
 
@@ -591,7 +591,7 @@ def read_summary_h5(path: str) -> list[dict]:
 
 
 def run_scan(scan: Scan, executor="local", workers: int = 1, overwrite: bool = False,
-             progress: bool = True) -> ScanResult:
+             progress: bool = True, figures=None) -> ScanResult:
     """Run the cases of ``scan`` that are not finished yet, then write the summary and figures.
 
     Parameters
@@ -608,6 +608,10 @@ def run_scan(scan: Scan, executor="local", workers: int = 1, overwrite: bool = F
         Rerun cases whose output file holds another case (default: error naming the file).
     progress : bool
         Show a tqdm bar over the cases.
+    figures : callable ``(rows, out_dir) -> list[str]`` or None
+        Draws the scan's figures after the summary; None: the runner module's ``scan_figures``
+        if it has one (the perturbation runner's is ``slippulse.plotting.stability.scan_figures``,
+        passed by ``slippulse dynamic scan``).
 
     Returns
     -------
@@ -685,8 +689,8 @@ def run_scan(scan: Scan, executor="local", workers: int = 1, overwrite: bool = F
     h5_path = os.path.join(scan.out_dir, "summary.h5")
     write_csv(csv_path, final)
     write_summary_h5(h5_path, final, scan)
+    draw = figures if figures is not None else getattr(module, "scan_figures", None)
     figures, fig_error = [], None
-    draw = getattr(module, "scan_figures", None)
     if callable(draw):
         try:
             figures = list(draw(final, scan.out_dir) or [])

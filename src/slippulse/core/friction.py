@@ -120,7 +120,7 @@ class RateStateFriction:
 
     Parameters
     ----------
-    params : slippulse.params.Parameters
+    params : slippulse.core.params.Parameters
         Table-I parameters (SI units).
     """
 

@@ -15,7 +15,7 @@ whose σ-derivative is ∂_σ W̃ = x F′(x)/(σ π r²), x F′ = sβx − x²
 This module holds what is compiled: the kernel tables in u = ln|r| (series for |x| ≤ 2, scaled
 Bessel functions beyond), the product integration of W̃ against the cubic-spline interpolant on a
 non-uniform grid (log part of near segments exact, Gauss–Legendre elsewhere), and the state
-recursion of the linearised ageing law. Orchestration lives in :mod:`slippulse.spectrum`.
+recursion of the linearised ageing law. Orchestration lives in :mod:`slippulse.stability.spectrum`.
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 from scipy.special import kve
 
-from .hilbert import _GL_N, _GL_NODES, _GL_RMIN, _GL_WEIGHTS
+from ..steady.hilbert import _GL_N, _GL_NODES, _GL_RMIN, _GL_WEIGHTS
 
 X_SERIES = 2.0          # |x| ≤ X_SERIES: power series; beyond: scaled Bessel functions
 DU = 0.005              # table step in u = ln|r| (cubic interpolation error ≲ 1e-10 relative)

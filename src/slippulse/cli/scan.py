@@ -1,6 +1,6 @@
 """``slippulse dynamic scan SCAN.toml [--workers N | --scheduler ADDRESS] [--dry-run] ...``.
 
-Runs the independent simulations of a scan (format and design: :mod:`slippulse.scan`) in local
+Runs the independent simulations of a scan (format and design: :mod:`slippulse.stability.scan`) in local
 worker processes or on an existing Dask cluster, reusing the cases already finished, with a tqdm
 bar over the cases and a one-line summary at the end. Exit codes: 0 all cases fine, 1 some case
 (or the runner's figures) failed, 2 bad input.
@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 import sys
 
-from .cli import UsageError
+from .app import UsageError
 
 
 def register(sub) -> None:
@@ -20,7 +20,7 @@ def register(sub) -> None:
         description="Run every case of SCAN.toml (cartesian product of [grid] over [defaults], "
                     "then the [[case]] tables) through the scan's runner, one HDF5 file per case "
                     "in scan.out_dir; finished cases are reused. Writes summary.csv and summary.h5 "
-                    "in scan.out_dir. Format: src/slippulse/scan.py, example: "
+                    "in scan.out_dir. Format: src/slippulse/stability/scan.py, example: "
                     "dynamic/scans/example.toml.")
     p.add_argument("scan", metavar="SCAN.toml", help="scan description (TOML)")
     p.add_argument("--workers", type=int, default=1, metavar="N",
@@ -46,8 +46,20 @@ def _show(path: str) -> str:
     return path if rel.startswith("..") else rel
 
 
+def _figures_hook(scan):
+    """The perturbation runner's figures (pair table + plots) live in the plotting layer; other
+    runners bring their own ``scan_figures`` (None here: run_scan looks it up)."""
+    from ..stability import perturbation
+    from ..stability.scan import load_runner
+
+    if load_runner(scan.runner, scan.runner_path)[0] is perturbation.run_case:
+        from ..plotting.stability import scan_figures
+        return scan_figures
+    return None
+
+
 def cmd_scan(args) -> int:
-    from .scan import load_scan, run_scan, scan_states
+    from ..stability.scan import load_scan, run_scan, scan_states
 
     scan = load_scan(args.scan)
     if args.dry_run:
@@ -77,7 +89,7 @@ def cmd_scan(args) -> int:
     old = signal.signal(signal.SIGTERM, _terminate)
     try:
         res = run_scan(scan, executor=executor, workers=args.workers, overwrite=args.overwrite,
-                       progress=not args.no_progress)
+                       progress=not args.no_progress, figures=_figures_hook(scan))
     finally:
         signal.signal(signal.SIGTERM, old)
     for row in res.rows:

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import h5py
 import numpy as np
 
-from . import __version__
+from .. import __version__
 from .params import Parameters
 
 #: Version of the file layouts written by this code (root attribute ``format_version``).

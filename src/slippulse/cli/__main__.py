@@ -1,0 +1,6 @@
+"""``python -m slippulse.cli`` runs the command."""
+import sys
+
+from .app import main
+
+sys.exit(main())

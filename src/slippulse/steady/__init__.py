@@ -1,0 +1,10 @@
+"""steady: steady pulses — the spline Hilbert transform, adapted grids, the residual and its exact
+Jacobian, Newton, the solver, continuation of the family, its analysis and the mode-II map."""
+from .equations import SteadyProblem, integrate_state
+from .solver import GridSpec, SteadySolution, solve_on_grid, solve_pulse
+from .continuation import DeepSettings, FamilyReport, march_arclength, run_family
+from .analysis import analyse_family, analyse_pulse, divergence_fit, pulse_length
+
+__all__ = ['SteadyProblem', 'integrate_state', 'GridSpec', 'SteadySolution', 'solve_on_grid',
+           'solve_pulse', 'DeepSettings', 'FamilyReport', 'march_arclength', 'run_family',
+           'analyse_family', 'analyse_pulse', 'divergence_fit', 'pulse_length']
