@@ -13,7 +13,8 @@ from slippulse.core.h5io import SchemaError, read_pulse, write_pulse
 from slippulse.steady.hilbert import hilbert_matrix
 from slippulse.core.params import ParameterError
 from slippulse.steady.solver import default_guess, solve_pulse
-from slippulse.steady.equations import SteadyProblem, integrate_state
+from slippulse.steady.equations import (RADAU_A, RADAU_C, SteadyProblem, integrate_state,
+                                        integrate_state_radau)
 
 
 def manufactured_state(params, n, beta_cs=20.0):
@@ -40,6 +41,56 @@ def test_state_integration_second_order_against_exact_solution(params):
     assert np.log2(errs[1] / errs[2]) > 1.9, errs
 
 
+def radau_state(params, xi, v, beta_cs, phi_end):
+    return integrate_state_radau(np.asarray(xi, float), np.log(np.asarray(v, float)), beta_cs,
+                                 phi_end, params.v_star, params.D, RADAU_A, RADAU_C)
+
+
+def test_state_integration_fourth_order_against_exact_solution(params):
+    errs = []
+    for n in (200, 400, 800):
+        xi, v, phi_ex, w, c = manufactured_state(params, n)
+        phi = radau_state(params, xi, v, c, phi_ex[-1])[0]
+        errs.append(np.max(np.abs(phi / phi_ex - 1.0)))
+    assert errs[-1] < 1e-8
+    assert np.log2(errs[0] / errs[1]) > 3.7 and np.log2(errs[1] / errs[2]) > 3.7, errs
+
+
+@pytest.mark.parametrize("order", [2, 4])
+def test_state_integration_exact_at_constant_slip_rate(params, order):
+    # constant v on a random non-uniform grid, rest state off φ_ss: φ relaxes as e^{−w t} exactly
+    rng = np.random.default_rng(1)
+    xi = np.sort(rng.uniform(-1.0, 1.0, 50))
+    v = np.full(xi.size, 3e-3)
+    w = fr.heal_rate(v, params.v_star, params.D)
+    c, phi_end = 5.0, 5e-4
+    exact = 1.0 / w + (phi_end - 1.0 / w) * np.exp(-w * (xi[-1] - xi) / c)
+    if order == 2:
+        phi = integrate_state(xi, v, c, phi_end, w, v * v / (params.D ** 2 * w))[0]
+    else:
+        phi = radau_state(params, xi, v, c, phi_end)[0]
+    assert np.max(np.abs(phi / exact - 1.0)) < 1e-13
+
+
+def test_state_integration_radau_is_stiff_accurate(params):
+    """v falls by 8 decades over five cells (an under-resolved leading edge): as w h → ∞ (β c_s → 0)
+    φ_i → 1/w_i at every node, the deviation falling ∝ 1/(w h); φ stays positive."""
+    xi = np.linspace(0.0, 1.0, 6)
+    v = np.array([1e-1, 1e-1, 1e-2, 1e-5, 1e-9, 1e-9])
+    w = fr.heal_rate(v, params.v_star, params.D)
+    phi_end = float(fr.phi_ss(1e-9, params.v_star, params.D))
+    dev = []
+    for c in (1e-4, 1e-6, 1e-8):
+        phi = radau_state(params, xi, v, c, phi_end)[0]
+        assert np.all(phi > 0.0)
+        dev.append(np.max(np.abs(phi * w - 1.0)))
+    assert dev[2] < 1e-6
+    assert dev[0] / dev[1] > 50 and dev[1] / dev[2] > 50, dev
+    # the cell of constant v next to node 0 lands on φ_ss exactly in the limit
+    phi = radau_state(params, [0.0, 1.0, 2.0], [1e-1, 1e-1, 1e-7], 1e-9, 3.0)[0]
+    assert phi[0] == pytest.approx(fr.phi_ss(1e-1, params.v_star, params.D), rel=1e-12)
+
+
 def test_state_integration_is_stiff_accurate(params):
     # v jumps by 6 orders of magnitude across one long cell: φ must land on φ_ss(v), not overshoot
     xi = np.array([0.0, 1.0, 2.0])
@@ -49,20 +100,24 @@ def test_state_integration_is_stiff_accurate(params):
     assert phi[0] == pytest.approx(fr.phi_ss(1e-1, params.v_star, params.D), rel=1e-12)
 
 
+@pytest.mark.parametrize("order", [2, 4])
 @pytest.mark.parametrize("free", ["beta", "tau_d", "both"])
-def test_jacobian_matches_finite_differences(params, free):
+def test_jacobian_matches_finite_differences(params, free, order):
     xi, y, beta = default_guess(params, 1.2, 120)
     k = int(np.argmin(np.abs(xi)))
-    prob = SteadyProblem(params, 1.2, xi, k, float(y[k]), free=free, beta=beta)
+    prob = SteadyProblem(params, 1.2, xi, k, float(y[k]), free=free, beta=beta, state_order=order)
     x = np.concatenate([y, {"beta": [beta], "tau_d": [1.2], "both": [beta, 1.2]}[free]])
     r, J = prob.residual_and_jacobian(x)
     assert np.allclose(r, prob.residual(x), rtol=0, atol=1e-14)
     Jfd = np.empty_like(J)
     for j in range(x.size):
+        # fourth-order central difference (the order-4 state makes ∂Δ/∂y curved enough that the
+        # second-order one is off by 2e-7 of max|J| at this step)
         h = 1e-6 * max(1.0, abs(x[j]))
         e = np.zeros_like(x)
         e[j] = h
-        Jfd[:, j] = (prob.residual(x + e) - prob.residual(x - e)) / (2 * h)
+        Jfd[:, j] = (8.0 * (prob.residual(x + e) - prob.residual(x - e))
+                     - (prob.residual(x + 2 * e) - prob.residual(x - 2 * e))) / (12 * h)
     scale = np.abs(J).max()
     assert np.max(np.abs(J - Jfd)) / scale < 1e-7
     assert np.max(np.abs(J[:, -1] - Jfd[:, -1])) / np.abs(J[:, -1]).max() < 1e-7

@@ -147,7 +147,9 @@ class StabilityOperator:
         # solver's discrete state map, so that M(0) is exactly the linearised discrete steady
         # problem (measured at 1.05 τ_min, N = 2000: the translation eigenvalue drops 3×).
         from ..steady.equations import SteadyProblem
-        probe = SteadyProblem(p, pulse.tau_d_ratio, self.xi, 0, 0.0, H=np.zeros((1, 1)))
+        # the state integrator the pulse was solved with (files before issue 11: order 2)
+        probe = SteadyProblem(p, pulse.tau_d_ratio, self.xi, 0, 0.0, H=np.zeros((1, 1)),
+                              state_order=int(pulse.extra.get("state_order", 2)))
         P = probe.state(v, self.beta)[1] / v[None, :]
         Phi0 = np.empty((self.n, self.n), complex)
         state_rows(self.xi, self.c, self.w, self.src, 0j, np.eye(self.n, dtype=complex), Phi0,

@@ -7,14 +7,22 @@ Unknowns x = (y_1..y_N, β) with y_i = ln v_i. Equations (N + 1):
 
 The state φ_i(v, β) follows from −β c_s dφ/dξ = g(v, φ) = 1 − w(v) φ, w = √(v²+v*²)/D, integrated
 from the rest state φ_N = φ_ss(v_stick) at the front end (ξ_N, ahead of the pulse) backward. A
-material point crosses the cell [ξ_i, ξ_{i+1}] in the time h = (ξ_{i+1} − ξ_i)/(β c_s). The update
-is exact for w frozen at w_{i+1} over the first half of the crossing and at w_i over the second:
+material point crosses the cell [ξ_i, ξ_{i+1}] in the time h = (ξ_{i+1} − ξ_i)/(β c_s). Two
+integrators (``SteadyProblem(state_order=...)``):
 
-    φ_i = φ_{i+1} e^{−x_a − x_b} + (h/2) [E(x_a) e^{−x_b} + E(x_b)],   x_a = w_{i+1} h/2,
-    x_b = w_i h/2,  E(x) = (1 − e^{−x})/x.
+* order 4 (default, :func:`integrate_state_radau`): exactly φ_i = φ_{i+1} e^{−Ω} + (1 − e^{−Ω})/w_i
+  + ψ(h), Ω = ∫w over the crossing, ψ' = −wψ + 1 − w/w_i from ψ = 0; ψ by one step of 3-stage
+  Radau IIA (stage equations linear, solved exactly), w at the inner stages from the cubic of ln v
+  through the four nodes around the cell;
+* order 2 (:func:`integrate_state`): exact for w frozen at w_{i+1} over the first half of the
+  crossing and at w_i over the second:
 
-It is second-order accurate, unconditionally stable and stiff-accurate (φ_i → 1/w_i when w_i h → ∞),
-so under-resolved Newton iterates do not heal spuriously. See docs/steady.md for the Jacobian.
+      φ_i = φ_{i+1} e^{−x_a − x_b} + (h/2) [E(x_a) e^{−x_b} + E(x_b)],   x_a = w_{i+1} h/2,
+      x_b = w_i h/2,  E(x) = (1 − e^{−x})/x.
+
+Both are exact at constant v, unconditionally stable and stiff-accurate (φ_i → 1/w_i when
+w h → ∞), so under-resolved Newton iterates do not heal spuriously. See docs/steady.md §3 for the
+derivation and the Jacobians.
 """
 from __future__ import annotations
 
@@ -84,6 +92,145 @@ def integrate_state(xi, v, beta_cs, phi_end, w, dw_dy, with_jacobian=True):
     return phi, P, dphi_dc, G
 
 
+# ------------------------------------------------------------------ order 4: Radau IIA on the remainder
+_S6 = math.sqrt(6.0)
+#: Radau IIA, 3 stages (order 5, stage order 3, L-stable, stiffly accurate: the last row is b)
+RADAU_C = np.array([(4.0 - _S6) / 10.0, (4.0 + _S6) / 10.0, 1.0])
+RADAU_A = np.array([[(88.0 - 7.0 * _S6) / 360.0, (296.0 - 169.0 * _S6) / 1800.0, (-2.0 + 3.0 * _S6) / 225.0],
+                    [(296.0 + 169.0 * _S6) / 1800.0, (88.0 + 7.0 * _S6) / 360.0, (-2.0 - 3.0 * _S6) / 225.0],
+                    [(16.0 - _S6) / 36.0, (16.0 + _S6) / 36.0, 1.0 / 9.0]])
+
+
+@njit(cache=True, inline="always")
+def _lagrange(xi, j0, m, x, out):
+    """Lagrange weights of the m nodes xi[j0:j0+m] at x (into out[:m])."""
+    for k in range(m):
+        lk = 1.0
+        for l in range(m):
+            if l != k:
+                lk *= (x - xi[j0 + l]) / (xi[j0 + k] - xi[j0 + l])
+        out[k] = lk
+
+
+@njit(cache=True)
+def integrate_state_radau(xi, y, beta_cs, phi_end, v_star, D, A, c, with_jacobian=True):
+    """State φ_i of order 4: φ_i = φ_{i+1} e^{−Ω} + (1 − e^{−Ω})/w_i + ψ_i (see Notes).
+
+    Parameters
+    ----------
+    xi : grid (ascending), m; y : ln v at the nodes; beta_cs : β c_s, m/s; phi_end : φ at ξ_N, s;
+    v_star, D : friction constants (w = √(v² + v*²)/D); A, c : Radau IIA tableau (RADAU_A, RADAU_C).
+
+    Returns
+    -------
+    φ, ∂φ_i/∂y_j (nonzero for j ≥ i − 1; 1×1 without the Jacobian), ∂φ/∂(β c_s), ∂φ/∂φ_N.
+
+    Notes
+    -----
+    Across the cell a material point moves from ξ_{i+1} (s = 0) to ξ_i (s = h = Δξ/(β c_s)), with
+    dφ/ds = 1 − w(s) φ. Exactly, with Ω = ∫₀ʰ w ds and p_i = 1/w_i,
+
+        φ(h) = φ(0) e^{−Ω} + p_i (1 − e^{−Ω}) + ψ(h),   ψ' = −w ψ + (1 − w/w_i),  ψ(0) = 0.
+
+    ψ is advanced by one step of 3-stage Radau IIA, whose stage equations are linear and solved
+    exactly: (I + h A W) Ψ = h A f, f_k = 1 − w_k/w_i, W = diag(w_k), ψ(h) = Ψ_3; Ω = h Σ b_k w_k
+    (b the last row of A). w at the interior stages s = c_k h comes from ln v interpolated by the
+    cubic through the four nodes around the cell. Properties: exact at constant v (f = 0, ψ = 0);
+    stiffly accurate (w h → ∞: e^{−Ω} → 0 and Ψ → W⁻¹ f, so ψ(h) → f_3/w_3 = 0 and φ_i → 1/w_i);
+    unconditionally stable (Radau IIA is AN-stable); order 4 in h (the cubic interpolant of ln v;
+    Radau alone is order 5).
+    Derivatives: with λ = M⁻ᵀ e_3, μ = h Aᵀ λ: ∂ψ/∂w_k = −μ_k (1/w_3 + Ψ_k) (k < 3),
+    ∂ψ/∂w_3 = (μ_1 w_1 + μ_2 w_2)/w_3² − μ_3 Ψ_3, ∂ψ/∂h = Σ_j μ_j (f_j − w_j Ψ_j)/h.
+    """
+    n = xi.size
+    phi = np.empty(n)
+    P = np.zeros((n, n) if with_jacobian else (1, 1))
+    dphi_dc = np.zeros(n)
+    G = np.empty(n)
+    G[n - 1] = 1.0
+    phi[n - 1] = phi_end
+    m = 4 if n >= 4 else n
+    lw = np.empty((2, 4))
+    wk = np.empty(3)
+    dwk = np.empty(3)
+    f = np.empty(3)
+    M = np.empty((3, 3))
+    Mi = np.empty((3, 3))
+    psi = np.empty(3)
+    mu = np.empty(3)
+    rhs = np.empty(3)
+    D2 = D * D
+    vs2 = v_star * v_star
+    for i in range(n - 2, -1, -1):
+        dx = xi[i + 1] - xi[i]
+        h = dx / beta_cs
+        j0 = min(max(i - 1, 0), n - m)
+        # w at the stages: interior ones from the cubic of ln v, the last one at node i
+        for k in range(2):
+            _lagrange(xi, j0, m, xi[i + 1] - c[k] * dx, lw[k])
+            yk = 0.0
+            for l in range(m):
+                yk += lw[k, l] * y[j0 + l]
+            v2 = math.exp(2.0 * yk)
+            wk[k] = math.sqrt(v2 + vs2) / D
+            dwk[k] = v2 / (D2 * wk[k])
+        v2 = math.exp(2.0 * y[i])
+        wk[2] = math.sqrt(v2 + vs2) / D
+        dwk[2] = v2 / (D2 * wk[2])
+        w3 = wk[2]
+        for k in range(3):
+            f[k] = 1.0 - wk[k] / w3
+        f[2] = 0.0
+        # M = I + h A W, rhs = h A f; Mi = M⁻¹ by the adjugate
+        for r in range(3):
+            rhs[r] = 0.0
+            for k in range(3):
+                M[r, k] = h * A[r, k] * wk[k] + (1.0 if r == k else 0.0)
+                rhs[r] += h * A[r, k] * f[k]
+        Mi[0, 0] = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]
+        Mi[0, 1] = M[0, 2] * M[2, 1] - M[0, 1] * M[2, 2]
+        Mi[0, 2] = M[0, 1] * M[1, 2] - M[0, 2] * M[1, 1]
+        Mi[1, 0] = M[1, 2] * M[2, 0] - M[1, 0] * M[2, 2]
+        Mi[1, 1] = M[0, 0] * M[2, 2] - M[0, 2] * M[2, 0]
+        Mi[1, 2] = M[0, 2] * M[1, 0] - M[0, 0] * M[1, 2]
+        Mi[2, 0] = M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]
+        Mi[2, 1] = M[0, 1] * M[2, 0] - M[0, 0] * M[2, 1]
+        Mi[2, 2] = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+        det = M[0, 0] * Mi[0, 0] + M[0, 1] * Mi[1, 0] + M[0, 2] * Mi[2, 0]
+        for r in range(3):
+            psi[r] = (Mi[r, 0] * rhs[0] + Mi[r, 1] * rhs[1] + Mi[r, 2] * rhs[2]) / det
+        omega = h * (A[2, 0] * wk[0] + A[2, 1] * wk[1] + A[2, 2] * wk[2])
+        ex = math.exp(-omega)
+        one_m = -math.expm1(-omega)
+        phi[i] = phi[i + 1] * ex + one_m / w3 + psi[2]
+        # derivatives: λ = row 3 of M⁻¹, μ = h Aᵀ λ
+        for k in range(3):
+            mu[k] = h * (Mi[2, 0] * A[0, k] + Mi[2, 1] * A[1, k] + Mi[2, 2] * A[2, k]) / det
+        d_om = ex * (1.0 / w3 - phi[i + 1])                   # ∂φ_i/∂Ω
+        dw0 = d_om * h * A[2, 0] - mu[0] * (1.0 / w3 + psi[0])
+        dw1 = d_om * h * A[2, 1] - mu[1] * (1.0 / w3 + psi[1])
+        dw2 = (d_om * h * A[2, 2] + (mu[0] * wk[0] + mu[1] * wk[1]) / (w3 * w3) - mu[2] * psi[2]
+               - one_m / (w3 * w3))
+        dh = d_om * omega / h
+        for k in range(3):
+            dh += mu[k] * (f[k] - wk[k] * psi[k]) / h
+        a = ex                                                  # ∂φ_i/∂φ_{i+1}
+        dphi_dc[i] = a * dphi_dc[i + 1] - h * dh / beta_cs      # h ∝ 1/(β c_s)
+        G[i] = a * G[i + 1]
+        if with_jacobian:
+            for j in range(max(i - 2, 0), n):       # row i+1 is nonzero from column i − 1 on
+                P[i, j] = a * P[i + 1, j]
+            for l in range(m):
+                P[i, j0 + l] += (dw0 * dwk[0] * lw[0, l] + dw1 * dwk[1] * lw[1, l])
+            P[i, i] += dw2 * dwk[2]
+    return phi, P, dphi_dc, G
+
+
+#: State integrators by order: 2, the exponential update with w frozen on half cells
+#: (:func:`integrate_state`); 4, Radau IIA on the remainder (:func:`integrate_state_radau`).
+STATE_ORDERS = (2, 4)
+
+
 class SteadyProblem:
     """The discrete steady-pulse equations on a fixed grid (problem apart from solver).
 
@@ -107,12 +254,19 @@ class SteadyProblem:
         pseudo-arclength condition (:mod:`slippulse.steady.continuation`); the Jacobian is (N+1)×(N+2).
     beta : float
         The fixed speed when ``free="tau_d"``.
+    state_order : {4, 2}
+        State integrator (:data:`STATE_ORDERS`): 4, Radau IIA on the remainder
+        (:func:`integrate_state_radau`, default); 2, the exponential update with w frozen on half
+        cells (:func:`integrate_state`, the scheme before issue 11).
     """
 
     def __init__(self, params, tau_d_ratio, xi, pin_index, y_pin, hilbert="cubic", H=None,
-                 free="beta", beta=None):
+                 free="beta", beta=None, state_order=4):
         if free not in ("beta", "tau_d", "both"):
             raise ValueError(f"free={free!r}: must be 'beta', 'tau_d' or 'both'")
+        if state_order not in STATE_ORDERS:
+            raise ValueError(f"state_order={state_order!r}: must be one of {STATE_ORDERS}")
+        self.state_order = int(state_order)
         if free == "tau_d" and not (beta is not None and 0.0 < beta < 1.0):
             raise ValueError("free='tau_d' needs a fixed 0 < beta < 1")
         self.params = params
@@ -157,6 +311,9 @@ class SteadyProblem:
     def state(self, v, beta, with_jacobian=True):
         """(φ, ∂φ/∂y, ∂φ/∂(βc_s), ∂φ/∂φ_N); ∂φ/∂y is a 1×1 placeholder without the Jacobian."""
         p = self.params
+        if self.state_order == 4:
+            return integrate_state_radau(self.xi, np.log(v), beta * p.c_s, self.phi_end, p.v_star,
+                                         p.D, RADAU_A, RADAU_C, with_jacobian)
         w = fr.heal_rate(v, p.v_star, p.D)
         dw_dy = v * v / (p.D * p.D * w)
         return integrate_state(self.xi, v, beta * p.c_s, self.phi_end, w, dw_dy, with_jacobian)

@@ -81,6 +81,7 @@ class SteadySolution:
             extra={"status": "converged" if self.stats.converged else "failed",
                    "message": self.stats.message, "iterations": int(self.stats.iterations),
                    "hilbert": prob.hilbert, "pin_index": int(prob.pin_index),
+                   "state_order": int(prob.state_order),
                    "n_humps": int(count_humps(v)),
                    "y_pin": float(prob.y_pin)})
 
@@ -194,12 +195,13 @@ def check_points(n_points: int) -> None:
 
 
 def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, hilbert="cubic",
-                  max_iter=60):
+                  max_iter=60, state_order=4):
     """One solve on a fixed grid from (y, β); the phase condition is placed on the guess's front."""
     v_st = params.v_stick(tau_d_ratio * params.tau_min)
     k, ymid = front_pin(xi, y, math.log(v_st))
     # pin at the node with the value the guess has there (keeps the pulse where it is)
-    prob = SteadyProblem(params, tau_d_ratio, xi, k, float(y[k]), hilbert=hilbert)
+    prob = SteadyProblem(params, tau_d_ratio, xi, k, float(y[k]), hilbert=hilbert,
+                         state_order=state_order)
     x0 = np.concatenate([y, [beta]])
     x, stats = SOLVERS[method](prob, x0, tol=tol, max_iter=max_iter)
     return prob, x, stats
@@ -208,7 +210,8 @@ def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, 
 def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, guess=None,
                 method: str = "newton", tol: float = 1e-13, hilbert: str = "cubic",
                 spec: GridSpec = GridSpec(), passes: int = 2, coarse_points: int = 500,
-                progress=None, max_iter: int = 60, adapt_guess: bool = True) -> SteadySolution:
+                progress=None, max_iter: int = 60, adapt_guess: bool = True,
+                state_order: int = 4) -> SteadySolution:
     """Solve the steady pulse at τ_d = tau_d_ratio τ_min.
 
     Parameters
@@ -220,6 +223,7 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
     adapt_guess : lay the first grid out from a given guess (with n_points when passes = 0);
         otherwise solve on the guess's own grid.
     progress : callable(str), optional, told about each pass.
+    state_order : state integrator of every pass (:class:`slippulse.steady.equations.SteadyProblem`).
     """
     check_points(n_points)
     params.check_tau_d(tau_d_ratio * params.tau_min)
@@ -234,7 +238,8 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
         if adapt_guess:
             n0 = min(coarse_points, n_points) if passes > 0 else n_points
             xi, y = regrid_guess(params, tau_d_ratio, xi, y, beta, n0, spec)
-    prob, x, stats = solve_on_grid(params, tau_d_ratio, xi, y, beta, method, tol, hilbert, max_iter)
+    prob, x, stats = solve_on_grid(params, tau_d_ratio, xi, y, beta, method, tol, hilbert, max_iter,
+                                   state_order)
     if progress:
         progress(f"pass 0: N={xi.size} {stats.message}")
     npass = 0
@@ -246,7 +251,7 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
         xi_new = adapted_grid(prob.xi, x[:-1], phi, x[-1], params, v_st, n_k, spec)
         y_new = interpolate(prob.xi, x[:-1], xi_new, v_st)
         prob, x, stats = solve_on_grid(params, tau_d_ratio, xi_new, y_new, float(x[-1]), method,
-                                       tol, hilbert, max_iter)
+                                       tol, hilbert, max_iter, state_order)
         npass += 1
         if progress:
             progress(f"pass {npass}: N={xi_new.size} {stats.message}")
@@ -260,13 +265,14 @@ def regrid_guess(params, tau_d_ratio, xi, y, beta, n_points, spec: GridSpec = Gr
     """Lay out a grid of n_points adapted to a guess (ln v on xi, speed β; its state follows from
     the steady state equation) and move ln v onto it. Returns (xi_new, y_new)."""
     v_st = params.v_stick(tau_d_ratio * params.tau_min)
-    probe = SteadyProblem(params, tau_d_ratio, xi, 0, 0.0, H=np.zeros((1, 1)))   # no Hilbert needed
+    # no Hilbert matrix needed; φ only shapes the grid, from the robust order-2 update
+    probe = SteadyProblem(params, tau_d_ratio, xi, 0, 0.0, H=np.zeros((1, 1)), state_order=2)
     phi = probe.state(np.exp(y), beta, False)[0]
     xi_new = adapted_grid(xi, y, phi, beta, params, v_st, n_points, spec)
     return xi_new, interpolate(xi, y, xi_new, v_st)
 
 
-def refine_nested(params, pulse, method="newton", tol=1e-13):
+def refine_nested(params, pulse, method="newton", tol=1e-13, state_order=4):
     """The pulse re-solved on its own grid with the midpoints inserted (N → 2N − 1), started from
     its ln v interpolated there: a nested refinement, whose errors fall smoothly with the level
     (unlike re-adapted grids), for convergence studies. Returns a :class:`SteadySolution`."""
@@ -275,5 +281,6 @@ def refine_nested(params, pulse, method="newton", tol=1e-13):
     xin = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
     v_st = params.v_stick(pulse.tau_d_ratio * params.tau_min)
     y = interpolate(xi, np.log(pulse.v), xin, v_st)
-    prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, xin, y, pulse.beta, method, tol)
+    prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, xin, y, pulse.beta, method, tol,
+                                   state_order=state_order)
     return SteadySolution(prob, x, stats, time.perf_counter() - t0, 0)
