@@ -433,3 +433,49 @@ def test_divergence_fit_recovers_a_power_law_divergence():
     assert np.isnan(fl["m_beta"]) and abs(fl["m_L"] - mL) < 1e-2
     with pytest.raises(ValueError, match="needs more pulses"):
         divergence_fit(x[:2], beta[:2], L[:2], window=(1.0, 1.03))
+
+
+def test_beta_parametrised_fit_recovers_known_laws_with_noise():
+    """q = τ̃* + B(1−β)^p and L = A(1−β)^(−r) with 1e-6 (q) and 0.3 % (L) deterministic noise:
+    the constants come back within 4σ and the errors are small."""
+    from slippulse.steady.analysis import beta_parametrised_fit
+    om = np.geomspace(1e-3, 1.9e-2, 30)
+    ts, B, p, A, r = 1.0089, 0.05, 0.5, 2.0, 1.4
+    wig = np.sin(np.arange(om.size) * 2.3)
+    q = ts + B * om ** p + 1e-6 * wig
+    L = A * om ** (-r) * np.exp(3e-3 * np.cos(np.arange(om.size) * 1.1))
+    f = beta_parametrised_fit(q, 1.0 - om, L, max_one_minus_beta=0.02)
+    assert f["n"] == 30
+    for name, true in (("tau_star", ts), ("p", p), ("r", r), ("ln_A", math.log(A))):
+        assert abs(f[name] - true) < 4 * f[name + "_err"], name
+    assert f["tau_star_err"] < 2e-5 and f["r_err"] < 5e-3
+    with pytest.raises(ValueError, match=">= 5 pulses"):
+        beta_parametrised_fit(q, 1.0 - om, L, max_one_minus_beta=1.5e-3)
+
+
+def test_edge_structure_on_an_analytic_pulse():
+    """A pulse built from known pieces: ln v rises at the back as a logistic of width w about x_b
+    (steepest slope Δ/(4w) there), v − v_stick decays ahead of the peak as exp(−(ξ − x_p)/ℓ), and
+    τ peaks at x_t. The measures return x_b, 4w/Δ, ℓ, x_t − x_p and τ_max (to the grid's
+    accuracy: centred differences at spacing w/20 at the back)."""
+    from slippulse.steady.analysis import edge_structure, profile_distance
+    v_star, v_s = 1e-7, 1e-9
+    x_b, w, x_p, ell, x_t = -50.0, 0.5, 0.0, 0.02, 0.05
+    xi = np.unique(np.concatenate([np.linspace(-200, -1, 8000), np.linspace(-1, 1, 4001),
+                                   np.linspace(1, 50, 500)]))
+    y_lo, y_hi = math.log(1e-7), math.log(1e-2)
+    # a slight rise toward the front (slope 4e-4 /m against 5.75 /m at x_b) puts max v at x_p
+    body = y_lo + (y_hi - y_lo) / (1.0 + np.exp(-(xi - x_b) / w)) + 0.02 * (xi - x_p) / (x_p - x_b)
+    v = np.where(xi <= x_p, np.exp(body), v_s + (math.exp(y_hi) - v_s) * np.exp(-np.maximum(xi - x_p, 0.0) / ell))
+    tau = 3e5 + 1e5 * np.exp(-((xi - x_t) / 0.01) ** 2)
+    e = edge_structure(xi, v, tau, v_star, v_s)
+    assert abs(e["x_back"] - x_b) < 1e-3                   # a fiftieth of the spacing there
+    assert abs(e["x_front"] - x_p) < 1e-3                 # the kink of ln v at the peak
+    assert abs(e["back_efold"] - 4 * w / (y_hi - y_lo)) < 1e-3 * 4 * w / (y_hi - y_lo)
+    assert abs(e["front_efold"] - ell) < 1e-3 * ell
+    assert abs(e["ell"] - (x_t - x_p)) < 1e-3 and abs(e["tau_max"] - 4e5) < 1.0
+    assert e["x_vmax"] <= x_p and e["heal_width"] > 0
+    # the same profile shifted by 3 m is at distance ~0 relative to its own edge, not absolutely
+    y = np.log(v)
+    assert profile_distance(xi, y, x_b, xi + 3.0, y, x_b + 3.0, 5.0) < 1e-9
+    assert profile_distance(xi, y, x_b, xi + 3.0, y, x_b, 5.0) > 1.0

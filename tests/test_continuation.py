@@ -313,3 +313,105 @@ def test_tangent_step_converges_by_chord_iterations_to_the_direct_solution(param
     x, st = newton(prob, a.x)
     assert st.converged and st.iterations >= 2
     assert abs(sol.beta / x[-1] - 1) < 1e-10 and np.max(np.abs(sol.x[:-1] - x[:-1])) < 1e-8
+
+
+def test_stretch_grid_lengthens_the_body_and_keeps_both_edges():
+    """The nodes within a of the front stay, the healing-front zone and all behind it move by
+    exactly −shift, the body between stretches monotonically; shift = 0 is the identity."""
+    from slippulse.steady.continuation import stretch_grid
+    xi = np.sort(np.concatenate([np.linspace(-300, 50, 3000), np.linspace(-0.5, 0.5, 500)]))
+    x0, a, x_back, w = 0.0, 1.0, -100.0, 5.0
+    for shift in (-8.0, 0.0, 12.0):
+        xn = stretch_grid(xi, x0, shift, a, x_back, w)
+        assert np.all(np.diff(xn) > 0)
+        u = x0 - xi
+        np.testing.assert_array_equal(xn[u <= a], xi[u <= a])
+        behind = u >= (x0 - x_back) - w
+        np.testing.assert_allclose(xn[behind], xi[behind] - shift, rtol=0, atol=1e-12)
+        body = (u > 2 * a) & (u < (x0 - x_back) - 2 * w)
+        h, hn = np.diff(xi)[body[1:]], np.diff(xn)[body[1:]]
+        if shift:
+            assert np.all(np.sign(hn - h) == np.sign(shift))
+
+
+class _Cubic:
+    """x = (y, z): y + 0.5 y³ − 3 = 0 (root y = 1.5700...) and z − 1 = 0."""
+
+    def valid(self, x):
+        return True
+
+    def residual(self, x):
+        return np.array([x[0] + 0.5 * x[0] ** 3 - 3.0, x[1] - 1.0])
+
+    def residual_and_jacobian(self, x):
+        return self.residual(x), np.array([[1.0 + 1.5 * x[0] ** 2, 0.0], [0.0, 1.0]])
+
+
+def test_solve_robust_falls_back_on_the_residual_homotopy():
+    """Two Newton iterations from y = 0 cannot reach 1e-13 on the cubic; the homotopy
+    F(x) = s F(x0), s = 1 − k/8, reaches the root, and the iterations of all stages are counted.
+    With one iteration per stage it fails and says at which stage."""
+    from slippulse.steady.continuation import solve_robust
+    x, st = solve_robust(_Cubic(), np.array([0.0, 0.0]), stages=8, max_iter=2)
+    assert st.converged and abs(x[0] + 0.5 * x[0] ** 3 - 3.0) <= 1e-13 and x[1] == 1.0
+    assert st.iterations > 2
+    x, st = solve_robust(_Cubic(), np.array([0.0, 0.0]), stages=2, max_iter=1)
+    assert not st.converged and "homotopy stage" in st.message
+
+
+def test_stretched_march_and_nested_grid_check(params):
+    """deep.stretch: the grid is deformed with the pulse every step (same N, the nodes ahead of
+    the front kept, the healing front and tail shifted), the steps are converged pulses on the family
+    (fixed-τ_d solve on the step's grid returns its β); the nested check (2N − 1 nodes, the
+    N-grid's nodes kept) gives small N-vs-2N differences that a handoff carries into the march."""
+    from slippulse.steady.continuation import DeepSettings, check_grid_2n, march_arclength
+    from slippulse.steady.solver import solve_pulse
+    a = solve_pulse(params, 1.2, n_points=500)
+    deep = DeepSettings(ds=0.004, ds_max=0.004, max_iter=20, stretch=True)
+    handoff = {}
+    steps = []
+    for sol, _ in march_arclength(params, (a.xi, a.x[:-1], a.beta, 1.2), 400, deep=deep,
+                                  handoff=handoff):
+        steps.append(sol)
+        if len(steps) == 1:
+            fine, db, dl = check_grid_2n(params, sol, 500, nested=True, stages=4)
+            assert fine.stats.converged and fine.problem.n == 999
+            assert np.array_equal(fine.xi[::2], sol.xi)
+            assert 0 < db < 1e-3 and 0 < dl < 1e-2
+            handoff["sol"] = fine
+        if len(steps) == 2:
+            break
+    assert steps[0].problem.n == 500 and steps[1].problem.n == 999
+    assert steps[0].xi[-1] == a.xi[-1] and steps[0].xi[0] != a.xi[0]
+    qs = [float(s.x[-1]) for s in steps]
+    assert 1.2 > qs[0] > qs[1]
+    s = steps[0]
+    b = solve_pulse(params, qs[0], n_points=500, guess=(s.xi, s.x[:-2], s.beta * 1.01),
+                    passes=0, adapt_guess=False)
+    assert b.stats.converged and b.beta == pytest.approx(s.beta, rel=1e-8)
+
+
+def test_deep_march_script_writes_steps_and_resumes(params, tmp_path):
+    """steady/deep_march.py --stretch: two steps from a family pulse, each an npz with the state
+    order and the unknowns; a second run resumes from the last npz (its first step continues the
+    march: τ_d lower than the last written) instead of starting over."""
+    import importlib.util
+    import os
+    from slippulse.core.h5io import write_pulse
+    from slippulse.steady.solver import solve_pulse
+    spec = importlib.util.spec_from_file_location(
+        "deep_march", os.path.join(os.path.dirname(__file__), "..", "steady", "deep_march.py"))
+    dm = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(dm)
+    fam = str(tmp_path / "fam.h5")
+    write_pulse(fam, solve_pulse(params, 1.2, n_points=500).to_pulse(), params)
+    out = str(tmp_path / "deep")
+    args = [fam, "td1.2000", "--stretch", "--ds-max", "0.004", "--outdir", out]
+    assert dm.main(args + ["--steps", "2"]) == 0
+    assert sorted(os.listdir(out)) == ["arc_001.npz", "arc_002.npz"]
+    z2 = np.load(os.path.join(out, "arc_002.npz"))
+    assert int(z2["state_order"]) == 4 and z2["x"].size == 502 and float(z2["x"][-1]) < 1.2
+    assert dm.main(args + ["--steps", "1"]) == 0
+    z3 = np.load(os.path.join(out, "arc_003.npz"))
+    assert float(z3["x"][-1]) < float(z2["x"][-1])
+    assert np.array_equal(z3["xi"][-1], z2["xi"][-1])        # the same (deformed) grid family

@@ -669,6 +669,138 @@ def divergence_fit(tau_d_ratio, beta, L, window=(1.0, 1.02), quantities="both"):
     return out
 
 
+def beta_parametrised_fit(tau_d_ratio, beta, L, max_one_minus_beta=0.02):
+    """The deep family parametrised by 1 − β: q = τ̃* + B (1 − β)^p and L = A (1 − β)^(−r).
+
+    Parameters
+    ----------
+    tau_d_ratio, beta, L : array_like
+        τ_d/τ_min, c_p/c_s and pulse length (m).
+    max_one_minus_beta : float
+        Fit the pulses with 1 − β ≤ this.
+
+    Returns
+    -------
+    dict
+        tau_star, B, p (with ``_err``, 1σ) of the q law; r, ln_A (with ``_err``) of the L law; n.
+
+    Notes
+    -----
+    The L law holds no τ̃*, so its exponent r = d ln L / d ln(1/(1 − β)) does not trade off
+    against τ̃* as m_L does in :func:`divergence_fit`. The paper's Eqs. 3–4 give, as β → 1,
+    √(1−β²) = d/(a_v C) (d = q − τ̃*), hence 1 − β = d²/(2 a_v² C²): p = 1/2; and
+    L̃ = a_G √(1−β²)/(π d²) = a_G/(π a_v C d) ∝ (1 − β)^(−1/2): r = 1/2 (m_L = 1, m_β = 2).
+    q law: ``scipy.optimize.least_squares`` on q (absolute residuals); L law: straight line in
+    logarithms; errors s² (JᵀJ)⁻¹.
+    """
+    q, b, Lm = _as_arrays(tau_d_ratio, beta, L)
+    sel = (1.0 - b <= max_one_minus_beta) & (b < 1) & (Lm > 0)
+    q, om, Lm = q[sel], 1.0 - b[sel], Lm[sel]
+    if q.size < 5:
+        raise ValueError(f"beta-parametrised fit needs >= 5 pulses with 1 - beta <= "
+                         f"{max_one_minus_beta}; found {q.size}")
+
+    def res_q(pp):
+        return pp[0] + pp[1] * om ** pp[2] - q
+    c = np.polyfit(np.sqrt(om), q, 1)
+    fq = least_squares(res_q, [c[1], c[0], 0.5], xtol=1e-15, ftol=1e-15, gtol=1e-15,
+                       max_nfev=5000)
+    cov = np.linalg.pinv(fq.jac.T @ fq.jac) * (fq.fun @ fq.fun) / max(q.size - 3, 1)
+    eq = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    cL, covL = np.polyfit(np.log(om), np.log(Lm), 1, cov=True)
+    return {"tau_star": float(fq.x[0]), "tau_star_err": float(eq[0]), "B": float(fq.x[1]),
+            "B_err": float(eq[1]), "p": float(fq.x[2]), "p_err": float(eq[2]),
+            "r": float(-cL[0]), "r_err": float(math.sqrt(covL[0, 0])), "ln_A": float(cL[1]),
+            "ln_A_err": float(math.sqrt(covL[1, 1])), "n": int(q.size)}
+
+
+def _vertex(x, f, i):
+    """Abscissa of the extremum of the parabola through (x, f) at nodes i−1, i, i+1 (i at the end:
+    x[i])."""
+    if i <= 0 or i >= x.size - 1:
+        return float(x[i])
+    x0, x1, x2 = x[i - 1:i + 2]
+    f0, f1, f2 = f[i - 1:i + 2]
+    d01, d12 = (f1 - f0) / (x1 - x0), (f2 - f1) / (x2 - x1)
+    c = (d12 - d01) / (x2 - x0)
+    if c == 0.0:
+        return float(x1)
+    # f ≈ f1 + b (x − x1) + c (x − x1)², b from the two divided differences
+    b = d01 + c * (x1 - x0)
+    return float(np.clip(x1 - b / (2.0 * c), x0, x2))
+
+
+def edge_structure(xi, v, tau, v_star, v_stick):
+    """Widths, positions and peaks of the leading and the healing edge of one pulse.
+
+    Parameters
+    ----------
+    xi, v, tau : array_like
+        ξ (m, ascending), slip rate (m/s), shear stress (Pa).
+    v_star, v_stick : float
+        Regularisation and rest slip rates (m/s).
+
+    Returns
+    -------
+    dict (lengths in m)
+        L, x_left, x_right (FWHM of ln(v/v*+1)); x_vmax, v_max; x_taumax, tau_max (the stress peak
+        ahead); ell = x_taumax − x_vmax (the leading-edge region); front_efold, the smallest
+        e-folding length of v − v_stick between the slip-rate and the stress peaks; x_front, the
+        steepest point of ln v ahead of x_vmax; x_back, the steepest point of ln v in the back half
+        of the pulse (the healing front); back_efold = 1/max ∂ξ ln v there; tau_back_min, the
+        smallest stress behind x_vmax; heal_width, the distance over which ln(v/v*+1) falls from
+        90 % to 10 % of its maximum behind x_left + L/4 (the tail behind the healing front).
+
+    Notes
+    -----
+    Derivatives are centred differences on the non-uniform grid (``np.gradient``); the steepest
+    points are located between nodes by the vertex of the parabola through the three nodes about
+    the extreme slope, so that profiles can be aligned on them to a fraction of a cell. The back
+    half is ξ < x_left + L/2.
+    """
+    xi, v, tau = _as_arrays(xi, v, tau)
+    _check_grid(xi)
+    L, xl, xr = pulse_length(xi, v, v_star)
+    iv = int(np.argmax(v))
+    ahead = np.arange(xi.size) >= iv
+    it = int(np.nonzero(ahead)[0][np.argmax(tau[ahead])])
+    u = np.log(np.maximum(v - v_stick, 1e-300))
+    if it > iv + 2:
+        seg = slice(iv, it + 1)
+        front_efold = float(1.0 / np.max(np.abs(np.gradient(u[seg], xi[seg]))))
+    else:
+        front_efold = float("nan")
+    y = np.log(v)
+    dy = np.gradient(y, xi)
+    front = np.nonzero(ahead)[0]
+    i_f = int(front[np.argmin(dy[front])])
+    back = np.nonzero(xi < xl + 0.5 * L)[0]
+    ib = int(back[np.argmax(dy[back])])
+    z = np.log1p(v / v_star)
+    tail = xi < xl + 0.25 * L
+    zb, xb = z[tail], xi[tail]
+    order = np.argsort(zb)
+    x90 = float(np.interp(0.9 * z.max(), zb[order], xb[order]))
+    x10 = float(np.interp(0.1 * z.max(), zb[order], xb[order]))
+    return {"L": float(L), "x_left": float(xl), "x_right": float(xr),
+            "x_vmax": float(xi[iv]), "v_max": float(v[iv]),
+            "x_taumax": float(xi[it]), "tau_max": float(tau[it]),
+            "ell": float(xi[it] - xi[iv]), "front_efold": front_efold,
+            "x_front": _vertex(xi, dy, i_f),
+            "x_back": _vertex(xi, dy, ib), "back_efold": float(1.0 / dy[ib]),
+            "tau_back_min": float(tau[:iv + 1].min()), "heal_width": x90 - x10}
+
+
+def profile_distance(xi_a, y_a, x_a, xi_b, y_b, x_b, half_width, n=801):
+    """max |y_a(x_a + s) − y_b(x_b + s)| over s ∈ [−half_width, half_width]: how far two edge
+    profiles, each taken relative to its own edge position, are from one another (y linearly
+    interpolated on n points)."""
+    s = np.linspace(-half_width, half_width, n)
+    ya = np.interp(x_a + s, xi_a, y_a)
+    yb = np.interp(x_b + s, xi_b, y_b)
+    return float(np.max(np.abs(ya - yb)))
+
+
 # --------------------------------------------------------------------------- drivers
 def analyse_pulse(pulse, params, tau_m=None, edge_window=None):
     """Scalar measures of one pulse.

@@ -17,13 +17,13 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-
 import scipy.linalg as sla
 
 from ..core.h5io import list_pulses, read_pulse, write_pulse
 from ..core.params import ParameterError, Parameters
+from .analysis import pulse_length
 from .newton import newton
-from .solver import GridSpec, SteadySolution, front_pin, fwhm, regrid_guess, solve_pulse
+from .solver import GridSpec, SteadySolution, front_pin, fwhm, interpolate, regrid_guess, solve_pulse
 from .equations import SteadyProblem
 
 
@@ -519,6 +519,15 @@ class DeepSettings:
     n_max : largest N tried by the check.
     max_length : stop once L exceeds this (m).
     regrid : a new grid is laid out when L has changed by more than this fraction since the last.
+    stretch : instead of laying out new grids, deform the current one every step with
+        :func:`stretch_grid` (both edges kept, the body lengthened with L) and keep the nodal
+        ln v: no interpolation, so no jump of the discrete family at a regrid (measured with the
+        re-laid grids: each regrid moves τ_d/τ_min by ~1e-5 at β ≈ 0.995, comparable to a step).
+    front_zone : width of the leading-edge zone kept by :func:`stretch_grid`, in L.
+    back_zone : width of the zone about the healing front (the back half-maximum crossing) that
+        :func:`stretch_grid` moves rigidly, in L.
+    homotopy : stages of the residual homotopy (:func:`solve_robust`) when Newton fails from an
+        interpolated guess (grid checks, new grids).
     """
 
     ds: float = 0.1
@@ -532,6 +541,10 @@ class DeepSettings:
     max_length: float = math.inf
     max_iter: int = 15
     regrid: float = 0.05
+    stretch: bool = False
+    front_zone: float = 0.01
+    back_zone: float = 0.05
+    homotopy: int = 8
 
 
 def _stretch(xi, y, x0, s):
@@ -542,8 +555,91 @@ def _stretch(xi, y, x0, s):
     return out
 
 
+def _smoothstep(t):
+    t = np.clip(t, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def stretch_grid(xi, x0, shift, a, x_back, w):
+    """Grid with the pulse body lengthened by `shift` and both edges kept.
+
+    Parameters
+    ----------
+    xi : grid (ascending); x0 : the leading edge (the pin node); shift : how much longer the
+    body gets (m); a : width of the leading-edge zone kept fixed; x_back, w : the healing front
+    and the width of the zone about it moved rigidly.
+
+    Notes
+    -----
+    With u = x0 − ξ (distance behind the front) and the weight
+    φ(u) = S((u − a)/a) · [1 − S((u − u_b + 2w)/w)], u_b = x0 − x_back, S the C¹ smoothstep
+    3t² − 2t³ on [0, 1], the nodes move to ξ − shift · G(u)/G(∞), G(u) = ∫_0^u φ. So the nodes within
+    a of the front stay, the healing front (from u_b − w on) and the tail behind it are shifted
+    rigidly by −shift, and only the body between is stretched: the structures whose widths do not
+    grow with L keep their nodes (measured: stretching the healing front with the body lost its
+    resolution and stopped the march at L ≈ 540 m, N = 2000). The map is smooth and, for
+    shift > −G(∞), monotone; node count and order are kept.
+    """
+    xi = np.asarray(xi, float)
+    u = x0 - xi
+    ub = x0 - x_back
+    phi = _smoothstep((u - a) / a) * (1.0 - _smoothstep((u - ub + 2.0 * w) / w))
+    # G(u) on the nodes by the trapezoid rule, from the front (largest ξ) backward
+    seg = 0.5 * (phi[1:] + phi[:-1]) * np.diff(xi)
+    G = np.concatenate([np.cumsum(seg[::-1])[::-1], [0.0]])
+    G -= G[np.searchsorted(xi, x0)]
+    G = np.maximum(G, 0.0)
+    return xi - shift * G / G[0]
+
+
+class _Shifted:
+    """F(x) − s r0: the residual homotopy's problem at stage s (same Jacobian)."""
+
+    def __init__(self, prob, r0, s):
+        self.prob, self.r0, self.s = prob, r0, s
+
+    def valid(self, x):
+        return self.prob.valid(x)
+
+    def residual(self, x):
+        return self.prob.residual(x) - self.s * self.r0
+
+    def residual_and_jacobian(self, x):
+        r, J = self.prob.residual_and_jacobian(x)
+        return r - self.s * self.r0, J
+
+
+def solve_robust(problem, x0, stages=8, max_iter=15, tol=1e-13):
+    """Newton from x0; if it fails, the residual homotopy F(x) = s F(x0), s = 1 − k/stages.
+
+    Notes
+    -----
+    Near τ_min the family is soft: a residual of 1e-5 (the interpolation error of a new grid)
+    moves the healing edge by ~0.2 m, farther than Newton's linear model holds, so the damped
+    iteration creeps (measured at 1.0125 τ_min, N = 2000: 3 % residual reduction per iteration,
+    not converged after 40). Following s from 1 to 0 in `stages` equal steps, each a Newton
+    solve from the last (tolerance 1e-10 on the way, `tol` at s = 0), converged there in 66–73
+    iterations in all. Returns (x, stats) of the last solve, stats.iterations the total.
+    """
+    x, st = newton(problem, x0, tol=tol, max_iter=max_iter)
+    if st.converged:
+        return x, st
+    r0 = problem.residual(np.asarray(x0, float))
+    x, total = np.array(x0, float), st.iterations
+    for k in range(1, stages + 1):
+        s_k = 1.0 - k / stages
+        x, st = newton(_Shifted(problem, r0, s_k), x, tol=tol if k == stages else 1e-10,
+                       max_iter=4 * max_iter)
+        total += st.iterations
+        if not st.converged:
+            st.message = f"homotopy stage {k}/{stages} failed: {st.message}"
+            break
+    st.iterations = total
+    return x, st
+
+
 def march_arclength(params, start, n_points, spec=GridSpec(), deep=DeepSettings(), progress=None,
-                    rep=None, why=None, n_of=None):
+                    rep=None, why=None, n_of=None, handoff=None):
     """Pseudo-arclength continuation from `start` = (xi, y, beta, q) toward β → 1.
 
     Yields converged (solution, tangent-unit (t_a, t_Q)) pairs with ``solution.x = (y, β, q)``.
@@ -553,6 +649,12 @@ def march_arclength(params, start, n_points, spec=GridSpec(), deep=DeepSettings(
     step halves ds; a step that converges in ≤ 4 iterations lets ds grow by 1.5. It gives up below
     ``ds_min`` (``why["reason"]``). Because the arclength runs along the curve, q may turn back
     (a fold in τ_d): the sign of the tangent's q-component is reported with each pulse.
+
+    With ``deep.stretch`` every step deforms the current grid (:func:`stretch_grid`: the body
+    lengthened by (s − 1) L, s = exp(ds · d ln L/ds), both edges moved rigidly) and keeps the nodal ln v as the predictor; ``n_of`` is
+    then ignored. `handoff` (a dict), when given, lets the caller replace the march's current
+    pulse between steps: a solution put in ``handoff["sol"]`` (x = (y, β, q), e.g. the refined
+    pulse of a grid check) becomes the base of the next step, grid included.
     """
     xi, y, beta, q = start
     n_cur = n_points if n_of is None else n_of()
@@ -580,12 +682,21 @@ def march_arclength(params, start, n_points, spec=GridSpec(), deep=DeepSettings(
         bp = 1.0 - (1.0 - beta) * math.exp(ds * t_a)
         qp = q + ds * kappa * t_Q
         n_cur = n_points if n_of is None else n_of()
+        if deep.stretch:
+            n_cur = base.n
         # keep the grid (and its Hilbert matrix) while L stays within `regrid` of the grid's L:
         # then the tangent predictor is exact to O(ds²) and no interpolation error enters
         same = (n_cur == base.n and abs(L_now / L_grid - 1.0) < deep.regrid)
         try:
             params.check_tau_d(qp * params.tau_min)
-            if same:
+            if deep.stretch:
+                # deform the grid with the pulse, nodal ln v kept (no interpolation)
+                x_pin = base.xi[base.pin_index]
+                x_left = pulse_length(base.xi, np.exp(x[:-2]), params.v_star)[1]
+                xn = stretch_grid(base.xi, x_pin, math.expm1(ds * dlnL) * L_now,
+                                  deep.front_zone * L_now, x_left, deep.back_zone * L_now)
+                yn, k, ky, H = x[:-2].copy(), base.pin_index, base.y_pin, None
+            elif same:
                 xn, yn, H = base.xi, yp, base.H
                 k, ky = base.pin_index, base.y_pin
             else:
@@ -631,9 +742,15 @@ def march_arclength(params, start, n_points, spec=GridSpec(), deep=DeepSettings(
         elif new.stats.iterations > 10:
             ds = max(0.7 * ds, deep.ds_min)
         yield new, (t_a, t_Q)
+        if handoff is not None and handoff.get("sol") is not None:
+            new = handoff.pop("sol")
+            base, x = new.problem, new.x.copy()
+            beta, q = float(x[-2]), float(x[-1])
+            L_grid = L_now = new.to_pulse().L
 
 
-def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30):
+def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
+                  nested=False, stages=0):
     """Grid check of an arclength pulse (x = (y, β, q)): re-solve on a grid of 2N adapted to it,
     on the line through it normal to the family tangent, and express the change at fixed τ_d.
 
@@ -650,17 +767,35 @@ def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_it
     n the tangent at the coarse pulse (its N → 2N change is of higher order), dL/ds by a finite
     difference of the FWHM along n. Hence, with dq = q₁ − q₀:
     Δβ = β₁ − β₀ − (n_β/n_q) dq, ΔL = L₁ − L₀ − (dL/ds)/n_q dq.
+
+    ``nested=True``: the fine grid is the pulse's own grid with the midpoints inserted (2N − 1
+    nodes; errors then fall smoothly with the level, and the N-pulse's grid, e.g. a deformed
+    one of :func:`stretch_grid`, is checked as it is); otherwise a grid of 2N adapted to the
+    pulse (``spec``). ``stages`` > 0: when Newton fails, :func:`solve_robust` with that many
+    homotopy stages.
     """
     p0 = sol.to_pulse()
     q, beta = float(sol.x[-1]), p0.beta
     n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
     t_a, t_Q = -n[-2] / (1.0 - beta), n[-1]
     t0 = time.perf_counter()
-    xn, yn = regrid_guess(params, q, sol.xi, sol.x[:-2], beta, 2 * n_points, spec)
-    k, _ = front_pin(xn, yn, math.log(params.v_stick(q * params.tau_min)))
-    base = SteadyProblem(params, q, xn, k, float(yn[k]), free="both")
+    if nested:
+        xi = sol.xi
+        xn = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
+        yn = interpolate(xi, sol.x[:-2], xn, params.v_stick(q * params.tau_min))
+        k = 2 * sol.problem.pin_index
+        y_pin = sol.problem.y_pin
+    else:
+        xn, yn = regrid_guess(params, q, sol.xi, sol.x[:-2], beta, 2 * n_points, spec)
+        k, _ = front_pin(xn, yn, math.log(params.v_stick(q * params.tau_min)))
+        y_pin = float(yn[k])
+    base = SteadyProblem(params, q, xn, k, y_pin, free="both")
     arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
-    xs, st = newton(arc, np.concatenate([yn, [beta, q]]), tol=1e-13, max_iter=max_iter)
+    x_start = np.concatenate([yn, [beta, q]])
+    if stages > 0:
+        xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter)
+    else:
+        xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter)
     fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
     if not st.converged or n[-1] == 0.0:
         return fine, math.inf, math.inf
