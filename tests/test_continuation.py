@@ -296,6 +296,25 @@ def test_grid_check_equals_fixed_tau_d_difference(params):
     assert dl == pytest.approx(abs(p2.L - p0.L) / p0.L, rel=1e-2)
 
 
+def test_tangent_step_converges_by_chord_iterations_to_the_direct_solution(params):
+    """A τ_d step of the family from 1.2 to 1.195 τ_min on the 1.2 pulse's grid: the tangent
+    predictor lands close enough for chord iterations with the tangent's LU alone, and the result
+    is the solution of a fresh Newton solve on the same grid."""
+    from slippulse.steady.continuation import _Base, tangent_step
+    from slippulse.steady.equations import SteadyProblem
+    from slippulse.steady.newton import newton
+    from slippulse.steady.solver import solve_pulse
+    a = solve_pulse(params, 1.2, n_points=500)
+    sol, base = tangent_step(params, _Base.of(a, a.to_pulse().L), 1.195, "tau_d", 500)
+    assert sol.stats.converged and sol.stats.iterations == 0 and sol.stats.chord_iterations > 0
+    assert sol.xi is a.xi and base.q == 1.195 and base.H is a.problem.H
+    # the same equations solved by plain Newton from the 1.2 pulse
+    prob = SteadyProblem(params, 1.195, a.xi, a.problem.pin_index, a.problem.y_pin, H=a.problem.H)
+    x, st = newton(prob, a.x)
+    assert st.converged and st.iterations >= 2
+    assert abs(sol.beta / x[-1] - 1) < 1e-10 and np.max(np.abs(sol.x[:-1] - x[:-1])) < 1e-8
+
+
 def test_stretch_grid_lengthens_the_body_and_keeps_both_edges():
     """The nodes within a of the front stay, the healing-front zone and all behind it move by
     exactly −shift, the body between stretches monotonically; shift = 0 is the identity."""

@@ -123,15 +123,17 @@ def cmd_family(args) -> int:
     start, stop = _ratio(args.from_), _ratio(args.to)
     if not (math.isfinite(args.step) and args.step > 0):
         raise ParameterError(f"step={args.step} is invalid: must be a number > 0")
-    check_points(args.points)
+    if args.points is not None:
+        check_points(args.points)
     out = args.out or os.path.join("runs", "steady", "family.h5")
     prog = FamilyProgress(start, stop, args.step)
     bar = tqdm(total=prog.total, desc="family", unit="pulse", disable=args.quiet, file=sys.stderr,
                bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}{postfix}]")
     prog.bar = bar
-    from ..steady.continuation import DeepSettings
-    if args.max_points < args.points:
-        raise ParameterError(f"max-points={args.max_points} is invalid: must be >= points={args.points}")
+    from ..steady.continuation import FAMILY_POINTS, DeepSettings
+    n_deep = FAMILY_POINTS[1] if args.points is None else args.points
+    if args.max_points < n_deep:
+        raise ParameterError(f"max-points={args.max_points} is invalid: must be >= points={n_deep}")
     if not (0 < args.ds_min < 0.4):
         raise ParameterError(f"ds-min={args.ds_min} is invalid: must be in (0, 0.4)")
     if not args.max_length > 0:
@@ -221,7 +223,8 @@ def register(sub) -> None:
     p.add_argument("--from", dest="from_", default="1.2", help="first tau_d/tau_min (default 1.2)")
     p.add_argument("--to", default="1.015", help="last tau_d/tau_min (default 1.015)")
     p.add_argument("--step", type=float, default=0.005, help="step in tau_d/tau_min (default 0.005)")
-    p.add_argument("--points", type=int, default=2000, help="grid points per pulse (default 2000)")
+    p.add_argument("--points", type=int, default=None,
+                   help="grid points per pulse (default: 1000 while beta <= 0.7, 1500 beyond)")
     p.add_argument("--out", default=None, help="output HDF5 (default runs/steady/family.h5)")
     p.add_argument("--deep", choices=("beta", "arclength"), default="beta",
                    help="continuation where tau_d steps stall near tau_min: steps in beta (default) "

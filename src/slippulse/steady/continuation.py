@@ -1,10 +1,13 @@
 """Natural-parameter continuation of the pulse family in τ_d, with remeshing and step halving.
 
-Each pulse is seeded by the previous converged one: its ln v is interpolated onto a grid adapted to
-it (the domain follows the pulse length L and the healing length c_p D/v_stick, so it grows as the
-pulse grows), solved, adapted again to the new solution and re-solved. A failed solve halves the
-step (down to `min_step`); every converged pulse is appended atomically to one HDF5 file, so a
-rerun with the same output resumes from the last converged pulse.
+Each pulse is predicted from the previous converged one along the tangent of the family (from the
+Jacobian of the steady equations with both β and τ_d free), on the previous grid while the pulse
+length L stays within `regrid` of the L that grid was laid out for, otherwise on a new grid adapted
+to the previous pulse (the domain follows L and the healing length c_p D/v_stick, so it grows as
+the pulse grows); it is corrected by chord iterations with the LU of that Jacobian, and by Newton
+when they stop contracting. A failed solve halves the step (down to `min_step`); every converged
+pulse is appended atomically to one HDF5 file, so a rerun with the same output resumes from the
+last converged pulse.
 """
 from __future__ import annotations
 
@@ -14,6 +17,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg as sla
 
 from ..core.h5io import list_pulses, read_pulse, write_pulse
 from ..core.params import ParameterError, Parameters
@@ -60,20 +64,99 @@ def _targets(start, stop, step):
     return [round(start - k * step, 10) for k in range(n + 1)]
 
 
-def _predict(guess, prev, current, trial):
-    """Secant predictor in τ_d: extrapolate ln v (on the current grid) and β from the last two pulses."""
-    xi, y, beta = guess
-    if prev is None:
-        return guess
-    r_prev, xi_p, y_p, beta_p = prev
-    s = (trial - current) / (current - r_prev)
-    if abs(s) > 3.0:               # neighbours too close for a safe extrapolation
-        return guess
-    y_prev_here = np.interp(xi, xi_p, y_p)
-    y_new = y + s * (y - y_prev_here)
-    b_new = beta + s * (beta - beta_p)
-    b_new = min(b_new, 1.0 - 0.5 * (1.0 - beta))     # stay below c_s
-    return xi, y_new, b_new
+@dataclass
+class _Base:
+    """A converged pulse on its grid, the base of the next tangent step: ln v on ξ, β, q = τ_d/τ_min,
+    the grid's Hilbert matrix (None: not built), the phase condition (pin node, ln v there) and
+    the pulse length the grid was laid out for."""
+
+    xi: np.ndarray
+    y: np.ndarray
+    beta: float
+    q: float
+    H: np.ndarray | None = None
+    pin: int = 0
+    y_pin: float = 0.0
+    L_grid: float = math.nan
+
+    @classmethod
+    def of(cls, sol: SteadySolution, L_grid=math.nan):
+        """The base of a converged solution (x = (y, β) at fixed τ_d or (y, q) at fixed β)."""
+        prob = sol.problem
+        q = float(sol.x[-1]) if prob.free == "tau_d" else float(prob.tau_d_ratio)
+        return cls(prob.xi, sol.x[:-1].copy(), sol.beta, q, prob.H, prob.pin_index, prob.y_pin,
+                   L_grid)
+
+
+#: Re-lay the grid once L differs from the L it was laid out for by more than this fraction.
+REGRID = 0.1
+
+
+def tangent_step(params, base: _Base, value, fixed, n_points, spec=GridSpec(), max_iter=12,
+                 regrid=REGRID):
+    """One continuation step from a converged pulse to τ_d/τ_min = value (fixed="tau_d"; unknowns
+    y, β) or to β = value (fixed="beta"; unknowns y, q). Returns (SteadySolution, its _Base).
+
+    Notes
+    -----
+    grid: the base's own (with its Hilbert matrix) while n_points is unchanged and
+    |L/L_grid − 1| ≤ regrid, else a grid adapted to the base pulse with ln v interpolated onto it.
+    tangent: J = ∂(Δ, pin)/∂(y, β, q) at the base (``SteadyProblem(free="both")``), split into the
+    columns of the unknowns J_x and of the stepped parameter J_p; LU of J_x; t = −J_x⁻¹ J_p.
+    predict: with dp = value − p_base, the scalar unknown + dp t; ln v stretched behind the pin by
+    s = exp(dp d ln L/dp) (d ln L/dp from t by a finite difference of the FWHM) plus dp times the
+    part of t_y that the stretch does not hold (t_y + (ξ − ξ_pin) y′ d ln L/dp behind the pin).
+    correct: :func:`newton` with the LU of J_x (chord iterations, then Newton if they stall).
+    """
+    t0 = time.perf_counter()
+    L = fwhm(base.xi, np.exp(base.y), params.v_star)
+    keep = (base.H is not None and base.xi.size == n_points and abs(L / base.L_grid - 1) <= regrid)
+    if keep:
+        xi, y, H, k, ky, L_grid = base.xi, base.y, base.H, base.pin, base.y_pin, base.L_grid
+    else:
+        xi, y = regrid_guess(params, base.q, base.xi, base.y, base.beta, n_points, spec)
+        k, _ = front_pin(xi, y, math.log(params.v_stick(base.q * params.tau_min)))
+        H, ky, L_grid = None, float(y[k]), L
+    # tangent: J_x t = −J_p at the base
+    both = SteadyProblem(params, base.q, xi, k, ky, free="both", H=H)
+    _, J = both.residual_and_jacobian(np.concatenate([y, [base.beta, base.q]]))
+    n = xi.size
+    if fixed == "tau_d":
+        cols, p, dp = np.arange(n + 1), n + 1, value - base.q
+    else:
+        cols, p, dp = np.r_[np.arange(n), n + 1], n, value - base.beta
+    lu = sla.lu_factor(J[:, cols], check_finite=False)
+    t = -sla.lu_solve(lu, J[:, p], check_finite=False)
+    # predict: ln v stretched behind the pin by s = e^{dp d ln L/dp} (near τ_min the healing edge
+    # moves by many of its own widths per step, which the linear tangent cannot carry), plus the
+    # part of the tangent the stretch does not hold; the scalar unknown along the tangent
+    eps = 1e-3 / max(float(np.abs(t[:n]).max()), 1e-12)
+    dlnL = (math.log(fwhm(xi, np.exp(y + eps * t[:n]), params.v_star)) -
+            math.log(fwhm(xi, np.exp(y), params.v_star))) / eps
+    if not math.isfinite(dlnL):            # FWHM not measurable on the perturbed profile
+        dlnL = 0.0
+    behind = xi < xi[k]
+    t_stretch = np.zeros(n)
+    t_stretch[behind] = -(xi[behind] - xi[k]) * np.gradient(y, xi)[behind] * dlnL
+    y = _stretch(xi, y, xi[k], math.exp(dp * dlnL)) + dp * (t[:n] - t_stretch)
+    t = t[n:]
+    if fixed == "tau_d":
+        x0 = np.concatenate([y, [base.beta]]) + np.r_[np.zeros(n), dp * t]
+        x0[-1] = min(max(x0[-1], 0.5 * base.beta), 1.0 - 0.5 * (1.0 - base.beta))
+        prob = SteadyProblem(params, value, xi, k, ky, H=both.H)
+    else:
+        x0 = np.concatenate([y, [base.q]]) + np.r_[np.zeros(n), dp * t]
+        if not _valid_q(params, x0[-1]):
+            x0[-1] = base.q
+        prob = SteadyProblem(params, x0[-1], xi, k, ky, H=both.H, free="tau_d", beta=value)
+    x, st = newton(prob, x0, tol=1e-13, max_iter=max_iter, lu=lu)
+    sol = SteadySolution(prob, x, st, time.perf_counter() - t0, 0)
+    return sol, _Base.of(sol, L_grid)
+
+
+def _valid_q(params, q):
+    """Whether τ_d = q τ_min lies in (τ_min, τ_peak)."""
+    return params.tau_min < q * params.tau_min < params.tau_peak
 
 
 def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_iter=40):
@@ -87,28 +170,21 @@ def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_i
     return SteadySolution(prob, x, st, time.perf_counter() - t0, 1)
 
 
-def march_in_beta(params, start, prev, target, n_points, spec=GridSpec(), shrink=0.92,
+def march_in_beta(params, start, target, n_points, spec=GridSpec(), shrink=0.92,
                   min_shrink=0.97, progress=None, rep=None, why=None):
-    """From solution `start` = (xi, y, beta, q), step β toward 1 (1−β ← shrink·(1−β)) with τ_d free,
-    until τ_d/τ_min ≤ target. Yields converged SteadySolutions; stops when a step below
-    `min_shrink` fails. Predictor: the last ln v (its shape: extrapolating it failed near β → 1,
-    measured) and a secant in ln(1−β) for q.
+    """From solution `start` (a :class:`_Base`), step β toward 1 (1−β ← shrink·(1−β)) with τ_d
+    free, until τ_d/τ_min ≤ target. Yields converged SteadySolutions; stops when a step below
+    `min_shrink` fails. Each step is a :func:`tangent_step` in β (tangent predictor, chord
+    corrector).
 
     Every attempt is counted in `rep` (a :class:`FamilyReport`), failed ones with their message;
     when the march gives up, ``why["reason"]`` says where and why.
     """
-    xi, y, beta, q = start
-    hist = prev
+    base = start
     f = shrink
-    while q > target:
-        bnew = 1.0 - (1.0 - beta) * f
-        yg, qg = y, q
-        if hist is not None:
-            s_prev, xi_p, y_p, q_p = hist
-            ds = (np.log(1 - bnew) - np.log(1 - beta)) / (np.log(1 - beta) - s_prev)
-            qg = q + min(ds, 3.0) * (q - q_p)
-        qg = max(qg, 1.0 + 1e-6)
-        sol = solve_at_beta(params, (xi, yg), qg, bnew, n_points, spec)
+    while base.q > target:
+        bnew = 1.0 - (1.0 - base.beta) * f
+        sol, new = tangent_step(params, base, bnew, "beta", n_points, spec, max_iter=40)
         ok = sol.stats.converged
         msg = f"beta-step to {bnew:.6f}: {sol.stats.message}"
         if rep is not None:
@@ -119,13 +195,12 @@ def march_in_beta(params, start, prev, target, n_points, spec=GridSpec(), shrink
             f = 1.0 - 0.5 * (1.0 - f)
             if f > min_shrink:
                 if why is not None:
-                    why["reason"] = (f"beta-steps stopped converging at beta={beta:.6f}: the step "
-                                     f"1-beta <- {1 - 2 * (1 - f):.4f}(1-beta), the smallest "
+                    why["reason"] = (f"beta-steps stopped converging at beta={base.beta:.6f}: the "
+                                     f"step 1-beta <- {1 - 2 * (1 - f):.4f}(1-beta), the smallest "
                                      f"allowed, failed ({sol.stats.message})")
                 return
             continue
-        hist = (np.log(1 - beta), xi, y, q)
-        xi, y, beta, q = sol.xi, sol.x[:-1].copy(), bnew, float(sol.x[-1])
+        base = new
         f = shrink
         yield sol
 
@@ -140,16 +215,14 @@ def _judge(sol):
     return pulse, ok, msg
 
 
-def _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_iter, rep,
-                 progress, why):
-    """March in β from `guess` (at τ_d/τ_min = current) until τ_d passes `target`, writing the
-    intermediate pulses, then solve at `target` from the interpolated bracketing solutions.
-    Returns (prev, guess, solution) for the continuation, or None on failure (reason in `why`)."""
-    start = (guess[0], guess[1], guess[2], current)
-    prev_b = None if prev is None else (np.log(1 - prev[3]), prev[1], prev[2], prev[0])
+def _beta_bridge(params, out, base, target, n_points, spec, max_iter, rep, progress, why):
+    """March in β from `base` (a :class:`_Base`) until τ_d passes `target`, writing the
+    intermediate pulses, then solve at `target` by a tangent step in τ_d from the first pulse past
+    it (if that fails, from the bracketing pair interpolated in τ_d). Returns (solution, its base)
+    for the continuation, or None on failure (reason in `why`)."""
     hi, lo = None, None
-    for bsol in march_in_beta(params, start, prev_b, target, n_points, spec, progress=progress,
-                              rep=rep, why=why):
+    for bsol in march_in_beta(params, base, target, n_points, spec, progress=progress, rep=rep,
+                              why=why):
         q = float(bsol.x[-1])
         if q > target:
             bp = bsol.to_pulse()
@@ -160,26 +233,36 @@ def _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_
             lo = bsol
     if lo is None:
         return None
-    if hi is None:
-        hi_xi, hi_y, hi_q, hi_b = guess[0], guess[1], current, guess[2]
-    else:
-        hi_xi, hi_y, hi_q, hi_b = hi.xi, hi.x[:-1], float(hi.x[-1]), hi.beta
-    w = (hi_q - target) / (hi_q - float(lo.x[-1]))
-    y_t = (1 - w) * np.interp(lo.xi, hi_xi, hi_y) + w * lo.x[:-1]
-    b_t = (1 - w) * hi_b + w * lo.beta
-    sol = solve_pulse(params, target, n_points=n_points, guess=(lo.xi, y_t, b_t), spec=spec,
-                      passes=0, max_iter=max_iter)
+    # tangent step in τ_d from the pulse just past the target
+    sol, new = tangent_step(params, _Base.of(lo, math.inf), target, "tau_d", n_points, spec,
+                            max_iter=max_iter, regrid=math.inf)
     pulse, ok, msg = _judge(sol)
     rep.record(target, ok, msg)
     if progress:
         progress(target, pulse if ok else None, msg)
+    if not ok:
+        # the bracketing pair interpolated in τ_d, solved on a grid adapted to it
+        if hi is None:
+            hi_xi, hi_y, hi_q, hi_b = base.xi, base.y, base.q, base.beta
+        else:
+            hi_xi, hi_y, hi_q, hi_b = hi.xi, hi.x[:-1], float(hi.x[-1]), hi.beta
+        w = (hi_q - target) / (hi_q - float(lo.x[-1]))
+        y_t = (1 - w) * np.interp(lo.xi, hi_xi, hi_y) + w * lo.x[:-1]
+        b_t = (1 - w) * hi_b + w * lo.beta
+        sol = solve_pulse(params, target, n_points=n_points, guess=(lo.xi, y_t, b_t), spec=spec,
+                          passes=0, max_iter=max_iter)
+        pulse, ok, msg = _judge(sol)
+        rep.record(target, ok, msg)
+        if progress:
+            progress(target, pulse if ok else None, msg)
+        new = _Base.of(sol, pulse.L)
     if not ok:
         why["reason"] = (f"the solve at the target tau_d/tau_min={target:.4f} from the two "
                          f"bracketing beta-step pulses failed ({msg})")
         return None
     write_pulse(out, pulse, params)
     rep.wrote(pulse)
-    return (hi_q, hi_xi, hi_y, hi_b), (sol.xi, sol.x[:-1].copy(), sol.beta), sol
+    return sol, new
 
 
 def _hint_first(first, n_points):
@@ -210,8 +293,16 @@ def _hint_arc(why, n_points, deep):
             f"{deep.ds_min}); the run resumes from the file")
 
 
+#: Grid points per pulse of the family by default: (while β ≤ FAMILY_POINTS_BETA, beyond). With
+#: the order-4 state both are within 1e-5 in β and 1e-4 in L of N = 4000 (docs/steady.md §3.3);
+#: N = 1000 leaves ripples of 0.05 in ln v behind the peak near τ_min (20 "humps" at 1.015; τ_d
+#: steps to 1.03 rejected as 11- and 2-hump solutions, measured), 1500 not.
+FAMILY_POINTS = (1000, 1500)
+FAMILY_POINTS_BETA = 0.7
+
+
 def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1.015,
-               step: float = 0.005, n_points: int = 2000, min_step: float | None = None,
+               step: float = 0.005, n_points: int | None = None, min_step: float | None = None,
                spec: GridSpec = GridSpec(), progress=None, max_iter: int = 12,
                beta_switch: float = 0.85, deep: str = "beta",
                deep_settings: DeepSettings | None = None) -> FamilyReport:
@@ -219,6 +310,8 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
 
     Parameters
     ----------
+    n_points : grid points of every pulse; None: :data:`FAMILY_POINTS` (fewer while β ≤
+        :data:`FAMILY_POINTS_BETA`, more beyond, in the β-steps and the deep continuation).
     progress : callable(ratio, pulse_or_None, message), optional
         Called after every attempted solve.
     max_iter : Newton iterations allowed per predicted step (converging steps take ≤ 6).
@@ -230,70 +323,70 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         each grid-checked at N vs 2N; see :class:`DeepSettings`).
     """
     deep_settings = _check_family_args(params, start, stop, step, deep, deep_settings)
+    n_tau, n_deep = FAMILY_POINTS if n_points is None else (n_points, n_points)
     if min_step is None:
         min_step = 0.5 * step          # two failed τ_d steps in a row switch to stepping in β
     t0 = time.perf_counter()
     rep = FamilyReport()
     # resume: continue below the deepest converged pulse already in `out`
-    current, guess = _resume(params, out, rep)
-    targets = [t for t in _targets(start, stop, step) if current is None or t < current - 1e-12]
-    if current is None:
+    base = _resume(params, out, rep)
+    targets = [t for t in _targets(start, stop, step) if base is None or t < base.q - 1e-12]
+    if base is None:
         # the first pulse from the built-in guess
         first = targets.pop(0)
-        sol, pulse, ok, msg = _attempt(params, first, rep, progress, n_points=n_points, spec=spec)
+        sol, pulse, ok, msg = _attempt(params, first, rep, progress, n_points=n_tau, spec=spec)
         if not ok:
             rep.stop(f"the first pulse, at tau_d/tau_min={first:.4f}, from the built-in guess "
-                     f"failed ({msg})", _hint_first(first, n_points))
+                     f"failed ({msg})", _hint_first(first, n_tau))
             rep.wall_time = time.perf_counter() - t0
             return rep
         _write(params, out, pulse, rep)
-        current = first
-        guess = (sol.xi, sol.x[:-1].copy(), sol.beta)
+        base = _Base.of(sol, pulse.L)
     h = step
-    prev = None            # (ratio, xi, y, beta) of the pulse before `current`, for the predictor
     tried = set()
     while targets:
         target = targets[0]
-        if h < min_step - 1e-15 or guess[2] > beta_switch:
+        if h < min_step - 1e-15 or base.beta > beta_switch:
             # natural continuation stalls near τ_min: step in β with τ_d free past the target,
-            # then solve at the exact target from the two β-solutions that bracket it
+            # then solve at the exact target from the β-solutions that bracket it
             why = {}
             if deep == "arclength":
-                reached = _arc_bridge(params, out, guess, current, stop, n_points, spec,
-                                      deep_settings, rep, progress, why)
+                reached = _arc_bridge(params, out, (base.xi, base.y, base.beta), base.q, stop,
+                                      n_deep, spec, deep_settings, rep, progress, why)
                 if not reached:
                     rep.stop(why.get("reason", "arclength continuation failed"),
-                             _hint_arc(why, n_points, deep_settings))
+                             _hint_arc(why, n_deep, deep_settings))
                 targets = []
                 break
-            res = _beta_bridge(params, out, guess, prev, current, target, n_points, spec, max_iter,
-                               rep, progress, why)
+            res = _beta_bridge(params, out, base, target, n_deep, spec, max_iter, rep, progress,
+                               why)
             if res is None:
-                rep.stop(why.get("reason", "beta-stepping failed"), _hint_deep(n_points))
+                rep.stop(why.get("reason", "beta-stepping failed"), _hint_deep(n_deep))
                 break
-            prev, guess, sol = res
-            current = target
+            sol, base = res
             targets.pop(0)
             h = step
             continue
-        trial = max(target, round(current - h, 10))
-        if (current, trial) in tried:
+        trial = max(target, round(base.q - h, 10))
+        if (base.q, trial) in tried:
             h *= 0.5
             continue
-        tried.add((current, trial))
-        # predict (secant in τ_d through the last two pulses, on the last grid), then solve
-        sol, pulse, ok, msg = _attempt(params, trial, rep, progress, n_points=n_points,
-                                       guess=_predict(guess, prev, current, trial), spec=spec,
-                                       passes=0, max_iter=max_iter)
+        tried.add((base.q, trial))
+        # predict along the family tangent (on the last grid while L is within REGRID of the
+        # L it was laid out for), correct by chord and Newton iterations
+        n_here = n_tau if base.beta <= FAMILY_POINTS_BETA else n_deep
+        sol, new = tangent_step(params, base, trial, "tau_d", n_here, spec, max_iter=max_iter)
+        pulse, ok, msg = _judge(sol)
+        rep.record(trial, ok, msg)
+        if progress:
+            progress(trial, pulse if ok else None, msg)
         # accept, or halve the step and retry
         if not ok:
             h *= 0.5
             continue
-        # write the accepted pulse; it becomes the base of the next prediction
+        # write the accepted pulse; it becomes the base of the next step
         _write(params, out, pulse, rep)
-        prev = (current, guess[0], guess[1], guess[2])
-        current = trial
-        guess = (sol.xi, sol.x[:-1].copy(), sol.beta)
+        base = new
         if abs(trial - target) < 1e-12:
             targets.pop(0)
         h = min(step, 2.0 * h)
@@ -317,10 +410,10 @@ def _check_family_args(params, start, stop, step, deep, deep_settings) -> DeepSe
 
 
 def _resume(params, out, rep: FamilyReport):
-    """(τ_d/τ_min, (ξ, ln v, β)) of the deepest converged pulse already in ``out``, or
-    (None, None); a file of other parameters is an error."""
+    """The deepest converged pulse already in ``out`` as a :class:`_Base` (no Hilbert matrix: the
+    first step lays out a new grid), or None; a file of other parameters is an error."""
     if not os.path.exists(out):
-        return None, None
+        return None
     done = []
     for label in list_pulses(out):
         pu, p_file = read_pulse(out, label)
@@ -329,11 +422,11 @@ def _resume(params, out, rep: FamilyReport):
         if pu.converged:
             done.append(pu)
     if not done:
-        return None, None
+        return None
     last = min(done, key=lambda p: p.tau_d_ratio)
     rep.resumed_from = last.label
     rep.reached, rep.reached_beta, rep.reached_L = last.tau_d_ratio, last.beta, last.L
-    return last.tau_d_ratio, (last.xi, np.log(last.v), last.beta)
+    return _Base(last.xi, np.log(last.v), last.beta, last.tau_d_ratio)
 
 
 def _attempt(params, ratio, rep: FamilyReport, progress, **solve_args):

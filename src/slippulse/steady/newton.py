@@ -23,21 +23,57 @@ class SolveStats:
     t_jacobian: float = 0.0
     t_linear: float = 0.0
     t_residual: float = 0.0
+    chord_iterations: int = 0
 
 
 def _max_abs(r):
     return float(np.max(np.abs(r))) if np.all(np.isfinite(r)) else np.inf
 
 
-def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None):
+def chord(problem, x0, lu, tol=1e-13, max_iter=30, rate=0.5):
+    """Chord iterations x ← x − J₀⁻¹ r(x) with a factored Jacobian J₀ (``lu``, from
+    :func:`scipy.linalg.lu_factor`) taken at a nearby point; one residual per iteration.
+
+    Stops when max|r| ≤ tol, or as soon as an iteration does not contract max|r| by `rate`
+    (J₀ too far from the Jacobian here) or leaves the valid region. Returns (x, max|r|, iterations)
+    with x the best iterate.
+    """
+    x = np.array(x0, dtype=float)
+    r = problem.residual(x)
+    m = _max_abs(r)
+    for it in range(1, max_iter + 1):
+        if m <= tol:
+            return x, m, it - 1
+        xt = x - sla.lu_solve(lu, r, check_finite=False)
+        if not (np.all(np.isfinite(xt)) and problem.valid(xt)):
+            return x, m, it
+        rt = problem.residual(xt)
+        mt = _max_abs(rt)
+        if not mt < rate * m:
+            return (xt, mt, it) if mt < m else (x, m, it)
+        x, r, m = xt, rt, mt
+    return x, m, max_iter
+
+
+def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=None):
     """Damped Newton: J δ = −r by LU, step limited to |δy| ≤ max_dy, kept valid, backtracking on ‖r‖₂.
 
     Converges when max|r| ≤ tol. Stops (not converged) when the line search fails or after
     `max_iter` iterations; near round-off a full step that does not reduce ‖r‖₂ but keeps
-    max|r| ≤ tol is accepted.
+    max|r| ≤ tol is accepted. With ``lu`` (a factored Jacobian at a nearby point, e.g. the one the
+    continuation's tangent came from) :func:`chord` iterations run first; Newton takes over from
+    their best iterate when they stop contracting.
     """
     x = np.array(x0, dtype=float)
     st = SolveStats(False, "", 0, np.inf)
+    if lu is not None:
+        t0 = time.perf_counter()
+        x, m, st.chord_iterations = chord(problem, x, lu, tol)
+        st.t_residual += time.perf_counter() - t0
+        if m <= tol:
+            st.converged, st.max_residual, st.history = True, m, [m]
+            st.message = f"converged: max|r|={m:.2e} ({st.chord_iterations} chord iterations)"
+            return x, st
     t0 = time.perf_counter()
     r, J = problem.residual_and_jacobian(x)
     st.t_jacobian += time.perf_counter() - t0
