@@ -224,7 +224,7 @@ def register(sub) -> None:
     p.add_argument("--to", default="1.015", help="last tau_d/tau_min (default 1.015)")
     p.add_argument("--step", type=float, default=0.005, help="step in tau_d/tau_min (default 0.005)")
     p.add_argument("--points", type=int, default=None,
-                   help="grid points per pulse (default: 1000 while beta <= 0.7, 1500 beyond)")
+                   help="grid points per pulse (default: 1000 while beta <= 0.7, 1250 beyond)")
     p.add_argument("--out", default=None, help="output HDF5 (default runs/steady/family.h5)")
     p.add_argument("--deep", choices=("beta", "arclength"), default="beta",
                    help="continuation where tau_d steps stall near tau_min: steps in beta (default) "

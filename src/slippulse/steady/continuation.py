@@ -296,8 +296,9 @@ def _hint_arc(why, n_points, deep):
 #: Grid points per pulse of the family by default: (while β ≤ FAMILY_POINTS_BETA, beyond). With
 #: the order-4 state both are within 1e-5 in β and 1e-4 in L of N = 4000 (docs/steady.md §3.3);
 #: N = 1000 leaves ripples of 0.05 in ln v behind the peak near τ_min (20 "humps" at 1.015; τ_d
-#: steps to 1.03 rejected as 11- and 2-hump solutions, measured), 1500 not.
-FAMILY_POINTS = (1000, 1500)
+#: steps to 1.03 rejected as 11- and 2-hump solutions, measured); 1250 not (one hump at
+#: 1.03–1.015, within 8.8e-7 in β and 1.2e-5 in L of N = 4000, BENCHMARKS.md), nor 1500.
+FAMILY_POINTS = (1000, 1250)
 FAMILY_POINTS_BETA = 0.7
 
 
