@@ -15,42 +15,28 @@ passed are skipped, so an interrupted run resumes (a failed one is redone). ≈ 
 (dense LU at 2N' − 1 ≈ 11000).
 """
 import argparse
-import math
 import os
 import sys
 import time
 
 import numpy as np
 
+from deep_march import rebuild
+from locate_error import regions
 from slippulse.core.params import DEFAULT
-from slippulse.steady import analysis as an
-from slippulse.steady.continuation import ArclengthProblem, check_grid_2n, family_tangent
-from slippulse.steady.equations import SteadyProblem
-from slippulse.steady.newton import newton
-from slippulse.steady.solver import SteadySolution, interpolate
+from slippulse.steady.continuation import check_grid_2n
 
+BODY = "body (−0.9 L, −0.01 L]"
 TOL_BETA, TOL_L = 1e-5, 1e-4
 
 
 def refine_body(P, xi, x0, k, y_pin, order):
     """The pulse (grid xi, unknowns x0 = (ln v, β, q), pin k at y_pin) re-solved with the body's
-    midpoints inserted; (solution, cells added)."""
-    y, beta, q = x0[:-2], float(x0[-2]), float(x0[-1])
-    base = SteadyProblem(P, q, xi, k, y_pin, free="both", state_order=order)
-    n = family_tangent(base, x0, (1.0, 0.0, 1.0))
-    t_a, t_Q = -n[-2] / (1 - beta), n[-1]
-    L = an.pulse_length(xi, np.exp(y), P.v_star)[0]
-    xf = xi[k]
-    mid = 0.5 * (xi[1:] + xi[:-1])
-    body = (mid > xf - 0.9 * L) & (mid <= xf - 0.01 * L)
-    xn = np.sort(np.concatenate([xi, mid[body]]))
-    yn = interpolate(xi, y, xn, P.v_stick(q * P.tau_min))
-    kn = int(np.searchsorted(xn, xf))
-    pb = SteadyProblem(P, q, xn, kn, float(yn[kn]), free="both", state_order=order)
-    arc = ArclengthProblem(pb, math.log(1 - beta), q, t_a, t_Q, 1.0, 0.0)
-    t0 = time.perf_counter()
-    xs, st = newton(arc, np.concatenate([yn, [beta, q]]), tol=1e-13, max_iter=20)
-    return SteadySolution(pb, xs, st, time.perf_counter() - t0, 0), int(body.sum())
+    midpoints inserted, on the line normal to the family tangent; (solution, cells added)."""
+    sol = rebuild(P, xi, x0, k, y_pin, order)
+    body = regions(sol, sol.to_pulse().L)[BODY]
+    fine, _, _ = check_grid_2n(P, sol, xi.size, nested=True, cells=body, max_iter=20)
+    return fine, int(body.sum())
 
 
 def main(argv=None):

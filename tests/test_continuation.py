@@ -378,6 +378,18 @@ def test_stretched_march_and_nested_grid_check(params):
             assert fine.stats.converged and fine.problem.n == 999
             assert np.array_equal(fine.xi[::2], sol.xi)
             assert 0 < db < 1e-3 and 0 < dl < 1e-2
+            # a cell mask selecting every cell is the full nested check; the body alone is a
+            # grid between the two (the N-grid's nodes kept, the pin on its node)
+            every = np.ones(sol.xi.size - 1, bool)
+            f2, db2, dl2 = check_grid_2n(params, sol, 500, nested=True, stages=4, cells=every)
+            assert np.array_equal(f2.x, fine.x) and (db2, dl2) == (db, dl)
+            L = sol.to_pulse().L
+            mid = 0.5 * (sol.xi[1:] + sol.xi[:-1])
+            xf = sol.xi[sol.problem.pin_index]
+            body = (mid > xf - 0.9 * L) & (mid <= xf - 0.01 * L)
+            f3, _, _ = check_grid_2n(params, sol, 500, nested=True, stages=4, cells=body)
+            assert f3.stats.converged and f3.problem.n == 500 + int(body.sum())
+            assert np.isin(sol.xi, f3.xi).all() and f3.xi[f3.problem.pin_index] == xf
             handoff["sol"] = fine
         if len(steps) == 2:
             break

@@ -751,12 +751,20 @@ def march_arclength(params, start, n_points, spec=GridSpec(), deep=DeepSettings(
 
 
 def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
-                  nested=False, stages=0):
+                  nested=False, stages=0, cells=None):
+    """:func:`grid_change` as the family's criterion reads it: (fine, |Δβ|, |ΔL|/L)."""
+    fine, dbeta, dL_rel = grid_change(params, sol, n_points, spec, max_iter, nested, stages, cells)
+    return fine, abs(dbeta), abs(dL_rel)
+
+
+def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
+                nested=False, stages=0, cells=None):
     """Grid check of an arclength pulse (x = (y, β, q)): re-solve on a grid of 2N adapted to it,
     on the line through it normal to the family tangent, and express the change at fixed τ_d.
 
-    Returns (fine SteadySolution with x = (y, β, q), |Δβ|, |ΔL|/L): the N → 2N differences of β and
-    L at the coarse pulse's τ_d. The family's criterion is |Δβ| ≤ 1e-5 and |ΔL|/L ≤ 1e-4.
+    Returns (fine SteadySolution with x = (y, β, q), Δβ, ΔL/L): the signed N → 2N differences of β
+    and L at the coarse pulse's τ_d (inf when the fine solve fails). The family's criterion is
+    |Δβ| ≤ 1e-5 and |ΔL|/L ≤ 1e-4 (:func:`check_grid_2n`).
 
     Notes
     -----
@@ -772,8 +780,10 @@ def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_it
     ``nested=True``: the fine grid is the pulse's own grid with the midpoints inserted (2N − 1
     nodes; errors then fall smoothly with the level, and the N-pulse's grid, e.g. a deformed
     one of :func:`stretch_grid`, is checked as it is); otherwise a grid of 2N adapted to the
-    pulse (``spec``). ``stages`` > 0: when Newton fails, :func:`solve_robust` with that many
-    homotopy stages.
+    pulse (``spec``). ``cells`` (with ``nested``): a boolean mask over the N − 1 cells; only
+    their midpoints are inserted (one region refined: ``steady/locate_error.py``,
+    ``steady/body_refine.py``). ``stages`` > 0: when Newton fails, :func:`solve_robust` with that
+    many homotopy stages.
     """
     p0 = sol.to_pulse()
     q, beta = float(sol.x[-1]), p0.beta
@@ -782,15 +792,17 @@ def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_it
     t0 = time.perf_counter()
     if nested:
         xi = sol.xi
-        xn = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
+        mid = 0.5 * (xi[1:] + xi[:-1])
+        xn = np.sort(np.concatenate([xi, mid if cells is None else mid[cells]]))
         yn = interpolate(xi, sol.x[:-2], xn, params.v_stick(q * params.tau_min))
-        k = 2 * sol.problem.pin_index
+        k = int(np.searchsorted(xn, xi[sol.problem.pin_index]))    # the pin's node, kept
         y_pin = sol.problem.y_pin
     else:
         xn, yn = regrid_guess(params, q, sol.xi, sol.x[:-2], beta, 2 * n_points, spec)
         k, _ = front_pin(xn, yn, math.log(params.v_stick(q * params.tau_min)))
         y_pin = float(yn[k])
-    base = SteadyProblem(params, q, xn, k, y_pin, free="both")
+    base = SteadyProblem(params, q, xn, k, y_pin, free="both",
+                         state_order=sol.problem.state_order)
     arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
     x_start = np.concatenate([yn, [beta, q]])
     if stages > 0:
@@ -806,7 +818,7 @@ def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_it
     dq = float(xs[-1]) - q
     dbeta = p1.beta - beta - (n[-2] / n[-1]) * dq
     dL = p1.L - p0.L - dL_ds / n[-1] * dq
-    return fine, abs(dbeta), abs(dL) / p0.L
+    return fine, dbeta, dL / p0.L
 
 
 def _as_both(params, sol: SteadySolution) -> SteadySolution:
