@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from .app import UsageError
+from .paramargs import add_params_args, check_config_params, config_sets, params_for_input
 from ..dynamics.config import RESUME_MUTABLE, build_stepper, diff_keys, load_config
 from ..dynamics.runfile import RunFile
 from ..dynamics.stepper import MAX_GRID_POINTS
@@ -38,6 +39,7 @@ def register(subparsers) -> None:
     r.add_argument("--overwrite", action="store_true",
                    help="replace an existing output file (default: refuse)")
     r.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
+    add_params_args(r, with_set=False)      # --set params.NAME=VALUE is the config's own --set
     r.set_defaults(func=cmd_run)
     v = sub.add_parser("verify", help="propagate a seeded steady pulse and measure its drift",
                        description="Seed the SBI with a steady pulse (docs/dynamic.md §9), run it "
@@ -61,6 +63,7 @@ def register(subparsers) -> None:
     v.add_argument("--samples", type=int, default=100, help="measurements (default 100)")
     v.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     v.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
+    add_params_args(v)
     v.set_defaults(func=cmd_verify)
     sd = sub.add_parser("seed", help="seed the SBI with a steady pulse and report the t = 0 mismatch",
                         description="Put a steady pulse on the periodic SBI grid with its steady past "
@@ -76,6 +79,7 @@ def register(subparsers) -> None:
     sd.add_argument("--far-field", choices=("steady", "none"), default="steady",
                     help="add the isolated pulse's far field to the loading (default steady)")
     sd.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    add_params_args(sd)
     sd.set_defaults(func=cmd_seed)
     try:                                   # ``dynamic scan`` (cli/scan.py)
         import importlib
@@ -88,7 +92,8 @@ def register(subparsers) -> None:
 
 
 def cmd_run(args) -> int:
-    cfg = load_config(args.config, args.sets)
+    cfg = load_config(args.config, config_sets(args, args.sets))
+    check_config_params(cfg)
     if args.out:
         cfg["output"]["file"] = args.out
     path = cfg["output"]["file"]
@@ -189,6 +194,7 @@ def cmd_verify(args) -> int:
         pulse, params = read_pulse(args.steady, args.label)
     except SchemaError as exc:
         raise UsageError(str(exc))
+    params = params_for_input(args, params, args.steady)
     label = pulse.label
     out = args.out or f"verify_{label}.h5"
     if os.path.exists(out) and not args.overwrite:
@@ -229,6 +235,7 @@ def cmd_seed(args) -> int:
         pulse, params = read_pulse(args.steady, args.label)
     except SchemaError as exc:
         raise UsageError(str(exc))
+    params = params_for_input(args, params, args.steady)
     out = args.out or f"seed_{pulse.label}.h5"
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")

@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 
 from .app import UsageError
+from .paramargs import add_params_args, check_files
 
 
 def register(subparsers):
@@ -17,6 +18,10 @@ def register(subparsers):
     p.add_argument("--compare", metavar="FILE2", default=None,
                    help="second family file (another domain size) for Fig. S1(b)")
     p.add_argument("--formats", default="png,pdf", help="comma-separated formats (default png,pdf)")
+    p.add_argument("--cd-cs", type=float, nargs="+", default=None, metavar="RATIO",
+                   help="c_d/c_s of the mode-II figure S4 (default: three values, "
+                        "steady/modeii.py CD_OVER_CS); each > 1")
+    add_params_args(p)
     p.set_defaults(func=run)
 
 
@@ -31,7 +36,9 @@ def run(args):
     bad = [f for f in formats if f not in ("png", "pdf", "svg")]
     if bad or not formats:
         raise UsageError(f"--formats={args.formats!r}: choose from png, pdf, svg")
-    data = plotting.load_family(args.file, compare_path=args.compare)
+    check_files(args, [args.file] + ([args.compare] if args.compare else []))
+    cd = analysis.check_cd_over_cs(args.cd_cs)
+    data = plotting.load_family(args.file, compare_path=args.compare, cd_over_cs=cd)
     written = plotting.save_all(data, args.outdir, formats=formats)
     print(analysis.format_table(data.rows))
     print(f"wrote {len(written)} files to {args.outdir}")

@@ -11,6 +11,7 @@ import os
 import sys
 
 from .app import UsageError
+from .paramargs import add_params_args, check_files
 
 
 def register(sub) -> None:
@@ -34,6 +35,7 @@ def register(sub) -> None:
     p.add_argument("--dry-run", action="store_true",
                    help="list the cases (id, state, output file) and exit")
     p.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
+    add_params_args(p)
     p.set_defaults(func=cmd_scan)
 
 
@@ -62,6 +64,8 @@ def cmd_scan(args) -> int:
     from ..stability.scan import load_scan, run_scan, scan_states
 
     scan = load_scan(args.scan)
+    # the cases' pulses keep the parameters they were solved with: given ones must agree
+    check_files(args, [c.params["steady"] for c in scan.cases if "steady" in c.params])
     if args.dry_run:
         states = scan_states(scan)
         width = max(len(c.id) for c in scan.cases)

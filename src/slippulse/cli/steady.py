@@ -10,6 +10,7 @@ from tqdm import tqdm
 from ..core.h5io import pulse_label, write_pulse
 from ..steady.newton import SOLVERS
 from ..core.params import DEFAULT, ParameterError
+from .paramargs import add_params_args, check_files, params_for_output
 from ..steady.solver import check_points, solve_pulse
 
 
@@ -23,15 +24,15 @@ def summary_line(pulse, params) -> str:
             f"{'converged' if pulse.converged else 'NOT CONVERGED'}")
 
 
-def _ratio(text: str) -> float:
+def _ratio(text: str, params=DEFAULT) -> float:
     try:
         val = float(text)
     except ValueError:
         raise ParameterError(f"tau-d={text!r} is invalid: must be a number (tau_d/tau_min) in "
-                             f"(1, {DEFAULT.tau_peak / DEFAULT.tau_min:.4f})") from None
+                             f"(1, {params.tau_peak / params.tau_min:.4f})") from None
     if not math.isfinite(val):
         raise ParameterError(f"tau-d={text!r} is invalid: must be finite, in "
-                             f"(1, {DEFAULT.tau_peak / DEFAULT.tau_min:.4f})")
+                             f"(1, {params.tau_peak / params.tau_min:.4f})")
     return val
 
 
@@ -47,8 +48,8 @@ def _check_out(out: str) -> None:
 
 
 def cmd_solve(args) -> int:
-    params = DEFAULT
-    ratio = _ratio(args.tau_d)
+    params = params_for_output(args)
+    ratio = _ratio(args.tau_d, params)
     params.check_tau_d(ratio * params.tau_min)
     check_points(args.points)
     if not (math.isfinite(args.tol) and args.tol > 0):
@@ -56,6 +57,7 @@ def cmd_solve(args) -> int:
                              "(max |residual| target)")
     out = args.out or os.path.join("runs", "steady", f"{pulse_label(ratio)}.h5")
     _check_out(out)
+    params = params_for_output(args, out)
     bar = tqdm(total=3, desc=f"steady {pulse_label(ratio)}", unit="pass", disable=args.quiet,
                file=sys.stderr)
 
@@ -119,13 +121,13 @@ def final_status(rep, start, stop, out) -> str:
 
 def cmd_family(args) -> int:
     from ..steady.continuation import run_family
-    params = DEFAULT
-    start, stop = _ratio(args.from_), _ratio(args.to)
+    out = args.out or os.path.join("runs", "steady", "family.h5")
+    params = params_for_output(args, out)
+    start, stop = _ratio(args.from_, params), _ratio(args.to, params)
     if not (math.isfinite(args.step) and args.step > 0):
         raise ParameterError(f"step={args.step} is invalid: must be a number > 0")
     if args.points is not None:
         check_points(args.points)
-    out = args.out or os.path.join("runs", "steady", "family.h5")
     prog = FamilyProgress(start, stop, args.step)
     bar = tqdm(total=prog.total, desc="family", unit="pulse", disable=args.quiet, file=sys.stderr,
                bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}{postfix}]")
@@ -168,6 +170,7 @@ def cmd_stability(args) -> int:
     from ..stability.spectrum import check_family_file, run_spectrum
     labels = args.labels or None
     chosen, _ = check_family_file(args.file, labels)      # bad input fails here, before any work
+    _check_file_params(args, args.file)
     bar = tqdm(total=len(chosen), desc="spectrum", unit="pulse", disable=args.quiet,
                file=sys.stderr)
 
@@ -198,6 +201,18 @@ def cmd_stability(args) -> int:
     return 1 if rep.failed else 0
 
 
+def _check_file_params(args, path) -> None:
+    """``--params``/``--set`` of a command that reads ``path`` must agree with its parameters."""
+    check_files(args, [path])
+
+
+def cmd_analyse(args) -> int:
+    from ..steady.analysis import cmd_analyse as run
+    if os.path.isfile(args.file):
+        _check_file_params(args, args.file)
+    return run(args)
+
+
 def register(sub) -> None:
     p_steady = sub.add_parser("steady", help="steady pulse solutions",
                               description="Steady self-healing pulses (mode III).")
@@ -214,6 +229,7 @@ def register(sub) -> None:
     p.add_argument("--tol", type=float, default=1e-13, help="max|residual| target (default 1e-13)")
     p.add_argument("--no-figure", action="store_true", help="do not write the PNG")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_params_args(p)
     p.set_defaults(func=cmd_solve)
 
     p = ss.add_parser("family", help="continue the pulse family in tau_d",
@@ -239,6 +255,7 @@ def register(sub) -> None:
     p.add_argument("--no-grid-check", action="store_true",
                    help="arclength: write pulses without the N vs 2N check")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_params_args(p)
     p.set_defaults(func=cmd_family)
 
     p = ss.add_parser("stability", help="linear stability spectrum of the pulses of a file",
@@ -256,13 +273,17 @@ def register(sub) -> None:
     p.add_argument("--figure", default=None, metavar="PNG",
                    help="also draw s(tau_d) and the leading modes into this file")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_params_args(p)
     p.set_defaults(func=cmd_stability)
 
-    from ..steady.analysis import cmd_analyse
     p = ss.add_parser("analyse", help="analyse a pulse family file",
                       description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "
                                   "singularity; family scaling fit, G_c, delta_c, mode II. Results "
                                   "are written into FILE (attributes + a 'family' group) and printed.")
     p.add_argument("file", metavar="FILE", help="HDF5 family file")
     p.add_argument("--no-write", action="store_true", help="print only; leave FILE unchanged")
+    p.add_argument("--cd-cs", type=float, nargs="+", default=None, metavar="RATIO",
+                   help="c_d/c_s of the mode-II mapping (default sqrt(3) and two others, "
+                        "steady/modeii.py CD_OVER_CS); each > 1")
+    add_params_args(p)
     p.set_defaults(func=cmd_analyse)

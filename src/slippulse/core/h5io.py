@@ -244,7 +244,9 @@ def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = T
         if "parameters" in h5:
             old = read_parameters(h5)
             if old != params:
-                raise SchemaError(f"{path}: stored parameters differ from this run's")
+                from .params import describe_difference
+                raise SchemaError(f"{path}: stored parameters differ from this run's: "
+                                  + describe_difference(old, params, "stored", "this run"))
         else:
             write_parameters(h5, params)
         pulses = h5.require_group("pulses")

@@ -15,8 +15,15 @@ from scipy.optimize import brentq
 
 from . import friction as _fr
 
-#: Critical crack-like fracture energy G_c* used to scale L (paper, Fig. 3 caption), J/m².
+#: Critical crack-like fracture energy G_c* used to scale L (paper, Fig. 3 caption), J/m², for the
+#: Table-I parameters. It is not an input: it only sets the natural length μ G_c*/τ_min² of L̃.
 G_C_STAR = 0.65
+#: G_c*/(σ D) = 0.65 J/m² / (1 MPa · 0.5 µm) = 1.3: the paper's G_c* as a dimensionless number.
+#: For other parameters G_c* = 1.3 σ D (:attr:`Parameters.G_c_star`), so that L̃ = L τ_min²/(μ G_c*)
+#: is invariant under the exact similarities of the equations (a fracture energy is a stress times a
+#: slip, σ D); for Table I it is the paper's 0.65 J/m². It is a scale, not a measured G_c: for a law
+#: of other f0, b, α the measured G_c (``steady analyse``) differs from it.
+GC_OVER_SIGMA_D = 1.3
 
 
 class ParameterError(ValueError):
@@ -100,9 +107,7 @@ class Parameters:
         roots = [brentq(self._dtau_ss_dlnv, grid[k], grid[k + 1], xtol=1e-15, rtol=8.9e-16)
                  for k in sign_change]
         if len(roots) != 2 or d[0] <= 0:
-            raise ParameterError(
-                "parameters do not give an N-shaped tau_ss(v) (need a local maximum followed by a "
-                f"minimum; found {len(roots)} extrema)")
+            raise ParameterError(n_shape_message(self, roots, d[0] > 0))
         return roots[0], roots[1]
 
     @cached_property
@@ -130,10 +135,15 @@ class Parameters:
         """Elasto-frictional length L0 = π μ D / (σ (f0 b − α)), m."""
         return math.pi * self.mu * self.D / (self.sigma * (self.f0 * self.b - self.alpha))
 
+    @property
+    def G_c_star(self) -> float:
+        """Fracture-energy scale G_c* = 1.3 σ D, J/m² (0.65 J/m² for Table I; :data:`GC_OVER_SIGMA_D`)."""
+        return GC_OVER_SIGMA_D * self.sigma * self.D
+
     @cached_property
     def L_Gc(self) -> float:
-        """Natural length of L: μ G_c* / τ_min², m (G_c* = 0.65 J/m²)."""
-        return self.mu * G_C_STAR / self.tau_min ** 2
+        """Natural length of L: μ G_c* / τ_min², m (G_c* = 1.3 σ D = 0.65 J/m² for Table I)."""
+        return self.mu * self.G_c_star / self.tau_min ** 2
 
     def check_tau_d(self, tau_d: float) -> None:
         """Raise ParameterError unless τ_min < τ_d < τ_peak (Pa)."""
@@ -187,3 +197,135 @@ class Parameters:
 
 
 DEFAULT = Parameters()
+
+
+# ---------------------------------------------------------------------- parameters as user input
+#: Valid range of each parameter, (low, high) open at both ends, with its unit. Dimensional values
+#: have no upper bound; the dimensionless friction constants are bounded by 10 (f0, b, α of
+#: rate-and-state laws are O(0.001-1)). Beyond the ranges, τ_ss must be N-shaped (:func:`validate`).
+RANGES = {"mu": (0.0, math.inf), "sigma": (0.0, math.inf), "c_s": (0.0, math.inf),
+          "D": (0.0, math.inf), "b": (0.0, 10.0), "v_star": (0.0, math.inf),
+          "f0": (0.0, 10.0), "phi_star": (0.0, math.inf), "alpha": (0.0, 10.0)}
+NAMES = tuple(RANGES)
+
+
+def _range_text(name: str) -> str:
+    lo, hi = RANGES[name]
+    unit = Parameters.UNITS[name]
+    return (f"in ({lo:g}, {hi:g})" if math.isfinite(hi) else f"> {lo:g}") + \
+        ("" if unit == "1" else f" {unit}")
+
+
+def n_shape_message(params: "Parameters", roots, rising_at_creep: bool) -> str:
+    """One-line reason why τ_ss(v) of ``params`` is not N-shaped (``roots``: ln v of the extrema
+    of τ_ss found for v below c_s)."""
+    head = "parameters do not give an N-shaped tau_ss(v) (a local maximum, then a minimum below c_s)"
+    if not rising_at_creep:
+        return f"{head}: tau_ss does not rise at creep rates (v << v_star)"
+    if not roots:
+        return (f"{head}: tau_ss(v) is monotonic for v < c_s, with no local maximum and no minimum;"
+                " a law without a minimum has no steady pulse")
+    if len(roots) == 1:
+        return (f"{head}: tau_ss has a local maximum at v = {math.exp(roots[0]):.3g} m/s but no "
+                f"minimum below c_s = {params.c_s:g} m/s; a law without a minimum has no steady "
+                "pulse (raise alpha or lower f0*b)")
+    return f"{head}: tau_ss has {len(roots)} extrema, not 2"
+
+
+def validate(params: "Parameters") -> "Parameters":
+    """Check the N shape of τ_ss (a local maximum followed by a minimum below c_s); return params.
+
+    Raises
+    ------
+    ParameterError
+        Naming what is missing (e.g. "a law without a minimum has no steady pulse").
+    """
+    params._extrema            # noqa: B018 (computed, cached, raises ParameterError)
+    return params
+
+
+def check_value(name: str, value, origin: str = "") -> float:
+    """``value`` as a float if ``name`` is a known parameter and the value is a number in its
+    range; else ParameterError naming the parameter, the origin and the valid range."""
+    where = f"{origin}: " if origin else ""
+    if name not in RANGES:
+        raise ParameterError(f"{where}unknown parameter {name!r}; known: {', '.join(NAMES)}")
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(f"{where}parameter {name}={value!r} is invalid: must be a number "
+                             f"{_range_text(name)}")
+    val = float(value)
+    lo, hi = RANGES[name]
+    if not (math.isfinite(val) and lo < val < hi):
+        raise ParameterError(f"{where}parameter {name}={val!r} is invalid: must be a finite number "
+                             f"{_range_text(name)}")
+    return val
+
+
+def read_params_file(path: str) -> dict:
+    """The ``[params]`` table of a TOML file (the schema of dynamic configs), checked by name and
+    range. Other tables (a whole dynamic config) are ignored; a file without ``[params]`` is an
+    error."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except OSError as exc:
+        raise ParameterError(f"params={path!r}: cannot read it ({exc.strerror})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"params={path!r} is not valid TOML: {exc}") from None
+    table = data.get("params")
+    if not isinstance(table, dict):
+        raise ParameterError(f"params={path!r} has no [params] table (keys: {', '.join(NAMES)})")
+    return {k: check_value(k, v, path) for k, v in table.items()}
+
+
+def parse_param_set(item: str) -> tuple[str, float]:
+    """``params.NAME=VALUE`` → (NAME, value), checked by name and range."""
+    if "=" not in item:
+        raise ParameterError(f"--set {item!r}: expected params.NAME=VALUE")
+    key, raw = (s.strip() for s in item.split("=", 1))
+    if not key.startswith("params."):
+        raise ParameterError(f"--set {item!r}: expected params.NAME=VALUE (NAME one of "
+                             f"{', '.join(NAMES)})")
+    name = key[len("params."):]
+    try:
+        value = float(raw)
+    except ValueError:
+        value = raw
+    return name, check_value(name, value, "--set")
+
+
+def explicit_params(path: str | None = None, sets=()) -> dict:
+    """The parameters a user gave: the ``[params]`` of ``path`` (if any), then each
+    ``params.NAME=VALUE`` of ``sets``; {name: value}, each checked by name and range."""
+    given = read_params_file(path) if path else {}
+    for item in sets:
+        name, val = parse_param_set(item)
+        given[name] = val
+    return given
+
+
+def resolve_params(path: str | None = None, sets=(), base: "Parameters | None" = None) -> Parameters:
+    """Parameters from ``base`` (default Table I), then the file's ``[params]``, then ``sets``;
+    validated (ranges, f0 b > α, the N shape of τ_ss)."""
+    base = DEFAULT if base is None else base
+    merged = {**base.as_dict(), **explicit_params(path, sets)}
+    return validate(Parameters(**merged))
+
+
+def differing(a: "Parameters | dict", b: "Parameters | dict", rtol: float = 1e-12) -> list[str]:
+    """Names of the parameters whose values differ between ``a`` and ``b`` (relative ``rtol``);
+    dicts may hold a subset of the names (only those are compared)."""
+    da = a.as_dict() if isinstance(a, Parameters) else dict(a)
+    db = b.as_dict() if isinstance(b, Parameters) else dict(b)
+    return [n for n in NAMES if n in da and n in db
+            and not abs(da[n] - db[n]) <= rtol * max(abs(da[n]), abs(db[n]))]
+
+
+def describe_difference(a, b, what_a: str, what_b: str) -> str:
+    """'b: 0.075 (what_a) vs 0.08 (what_b); ...' for the differing parameters (empty if none)."""
+    da = a.as_dict() if isinstance(a, Parameters) else dict(a)
+    db = b.as_dict() if isinstance(b, Parameters) else dict(b)
+    return "; ".join(f"{n}={da[n]:.10g} ({what_a}) vs {db[n]:.10g} ({what_b})"
+                     for n in differing(da, db))

@@ -45,9 +45,10 @@ class FamilyData:
         return np.array([p.tau_d_ratio for p in self.pulses])
 
 
-def load_family(path, compare_path=None):
-    """Read a family file and analyse it (nothing is written)."""
-    rows = an.analyse_family(path, write=False)
+def load_family(path, compare_path=None, cd_over_cs=None):
+    """Read a family file and analyse it (nothing is written); ``cd_over_cs``: c_d/c_s values of
+    the mode-II figure (default ``modeii.CD_OVER_CS``)."""
+    rows = an.analyse_family(path, write=False, cd_over_cs=cd_over_cs)
     pulses, params = [], None
     for lab in h5io.list_pulses(path):
         p, params = h5io.read_pulse(path, lab)
@@ -57,7 +58,9 @@ def load_family(path, compare_path=None):
         for lab in h5io.list_pulses(compare_path):
             p, prm = h5io.read_pulse(compare_path, lab)
             if prm != params:
-                raise h5io.SchemaError(f"{compare_path}: parameters differ from {path}")
+                from ..core.params import describe_difference
+                raise h5io.SchemaError(f"{compare_path}: parameters differ from {path}: "
+                                       + describe_difference(prm, params, compare_path, path))
             data.compare.append(p)
     return data
 
@@ -417,11 +420,14 @@ def save_all(data, outdir, formats=("png", "pdf"), dpi=150):
     """Write every figure for an already loaded :class:`FamilyData`; return the paths."""
     os.makedirs(outdir, exist_ok=True)
     written = []
+    import json
+    stamp = "slippulse parameters (SI): " + json.dumps(data.params.as_dict())
+    meta = {"png": {"Description": stamp}, "pdf": {"Subject": stamp}, "svg": {"Description": stamp}}
     for name in FIGURES:
         fig = _FUNCS[name](data)
         for ext in formats:
             out = os.path.join(outdir, f"{name}.{ext}")
-            fig.savefig(out, dpi=dpi)
+            fig.savefig(out, dpi=dpi, metadata=meta.get(ext))
             written.append(out)
     return written
 

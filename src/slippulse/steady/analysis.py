@@ -1071,6 +1071,21 @@ def format_table(rows):
     return "\n".join(lines)
 
 
+def check_cd_over_cs(values):
+    """c_d/c_s values of the mode-II mapping from the command line (None: the default set),
+    each a finite number > 1; else ParameterError naming ``cd-cs``."""
+    import math
+    from ..core.params import ParameterError
+
+    if values is None:
+        return None
+    for v in values:
+        if not (math.isfinite(v) and v > 1.0):
+            raise ParameterError(f"cd-cs={v!r} is invalid: c_d/c_s must be a finite number > 1 "
+                                 "(sqrt(3) for a Poisson solid)")
+    return tuple(float(v) for v in values)
+
+
 def cmd_analyse(args):
     """CLI action for ``slippulse steady analyse FILE [--no-write]`` (argparse namespace with
     ``file`` and optional ``no_write``): analyse, store the results in FILE, print the table."""
@@ -1078,6 +1093,7 @@ def cmd_analyse(args):
 
     if not os.path.isfile(args.file):
         raise h5io.SchemaError(f"FILE={args.file!r} does not exist")
-    rows = analyse_family(args.file, write=not getattr(args, "no_write", False))
+    cd = check_cd_over_cs(getattr(args, "cd_cs", None))
+    rows = analyse_family(args.file, write=not getattr(args, "no_write", False), cd_over_cs=cd)
     print(format_table(rows))
     return 0

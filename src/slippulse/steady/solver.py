@@ -129,17 +129,29 @@ def front_pin(xi, y, y_stick):
     return int(ahead[0]), ymid
 
 
-def default_guess(params: Parameters, tau_d_ratio: float, n_points: int = 400, L: float = 0.7,
-                  beta: float = 0.01, lc: float = 5e-3):
+#: Size of the built-in guess in units of the elasto-frictional length L0 = π μ D/(σ(f0 b − α)):
+#: L = 0.7 m and ℓ_c = 5 mm for Table I (L0 = 0.88357 m), where they were chosen (orders of
+#: magnitude from G_c ≈ 0.6 J/m²: π L ≈ μ G_c/Δτ²). Scaling with L0 makes the guess, like the
+#: equations, invariant under the exact similarities (docs/parameters.md).
+GUESS_L_OVER_L0 = 0.7 / 0.8835729338221293
+GUESS_LC_OVER_L0 = 5e-3 / 0.8835729338221293
+
+
+def default_guess(params: Parameters, tau_d_ratio: float, n_points: int = 400, L: float = None,
+                  beta: float = 0.01, lc: float = None):
     """Built-in guess: a classical (Freund) pulse regularised over a cohesive length.
 
     Notes
     -----
     v − v_stick = v0 √((ξ + L)/(ℓ_c − ξ)) on (−L, 0), decaying as e^{−ξ/ℓ_c} ahead, with the classical
     relation v0 = 2 β c_s Δτ/μ (paper, text above Eq. 3) for a stress drop Δτ = τ_d − 1.05 τ_min;
-    L = 0.7 m, β = 0.01, ℓ_c = 5 mm (orders of magnitude from G_c ≈ 0.6 J/m²: π L ≈ μ G_c/Δτ²).
+    L = 0.792 L0, β = 0.01, ℓ_c = 5.66e-3 L0 (L0 = π μ D/(σ(f0 b − α)); 0.7 m and 5 mm for Table I).
+    Every length of the guess and its grid is a multiple of L0 or of c_p D/v_stick, every speed a
+    multiple of c_s or v_stick: the guess depends on the dimensionless groups only.
     Returns (xi, y, beta).
     """
+    L = GUESS_L_OVER_L0 * params.L0 if L is None else L
+    lc = GUESS_LC_OVER_L0 * params.L0 if lc is None else lc
     tau_d = tau_d_ratio * params.tau_min
     v_st = params.v_stick(tau_d)
     dtau = max(tau_d - 1.05 * params.tau_min, 0.05 * params.tau_min)
