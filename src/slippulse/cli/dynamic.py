@@ -54,7 +54,8 @@ def register(subparsers) -> None:
                                                   "unstable mode's growth) is written beside it")
     v.add_argument("--points", type=int, default=None, metavar="N",
                    help="grid points; sets dx = (ahead + behind)·L/N (default: --dx)")
-    v.add_argument("--dx", type=float, default=2e-3, help="grid spacing, m (default 2e-3)")
+    v.add_argument("--dx", type=float, default=None,
+                   help="grid spacing, m (default 2.26e-3 L0: 2e-3 for Table I)")
     v.add_argument("--ahead", type=float, default=4.0, help="domain ahead of the front, in L (4)")
     v.add_argument("--behind", type=float, default=4.0, help="domain behind the front, in L (4)")
     v.add_argument("--far-field", choices=("steady", "none"), default="steady",
@@ -73,7 +74,8 @@ def register(subparsers) -> None:
     sd.add_argument("--steady", required=True, metavar="FILE", help="steady family file (HDF5 schema)")
     sd.add_argument("--label", default=None, help="pulse group, e.g. td1.2000 (default: the only one)")
     sd.add_argument("--out", metavar="FILE", help="output HDF5 (default seed_<label>.h5)")
-    sd.add_argument("--dx", type=float, default=2e-3, help="grid spacing, m (default 2e-3)")
+    sd.add_argument("--dx", type=float, default=None,
+                    help="grid spacing, m (default 2.26e-3 L0: 2e-3 for Table I)")
     sd.add_argument("--ahead", type=float, default=4.0, help="domain ahead of the front, in L (4)")
     sd.add_argument("--behind", type=float, default=4.0, help="domain behind the front, in L (4)")
     sd.add_argument("--far-field", choices=("steady", "none"), default="steady",
@@ -202,7 +204,8 @@ def cmd_verify(args) -> int:
     check_writable(out, "--out")
     if not args.distance > 0:
         raise UsageError(f"--distance={args.distance} must be > 0 (pulse lengths)")
-    dx = args.dx
+    from ..stability.seeding import default_dx
+    dx = default_dx(params) if args.dx is None else args.dx
     if args.points is not None:
         if not 16 <= args.points <= MAX_GRID_POINTS:
             raise UsageError(f"--points={args.points} must be in [16, {MAX_GRID_POINTS}]")
@@ -239,9 +242,11 @@ def cmd_seed(args) -> int:
     out = args.out or f"seed_{pulse.label}.h5"
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
-    _check_grid(args.dx, args.ahead, args.behind, pulse.L)
+    from ..stability.seeding import default_dx
+    dx = default_dx(params) if args.dx is None else args.dx
+    _check_grid(dx, args.ahead, args.behind, pulse.L)
     try:
-        seed = seed_pulse(pulse, params, DomainSpec(dx=args.dx, ahead=args.ahead,
+        seed = seed_pulse(pulse, params, DomainSpec(dx=dx, ahead=args.ahead,
                                                     behind=args.behind),
                           far_field=args.far_field)
     except ParameterError as exc:

@@ -47,6 +47,22 @@ def _check_out(out: str) -> None:
             format_version(h5, out)
 
 
+def _homotopy_guess(params, ratio, progress):
+    """--homotopy: the pulse of ``params`` reached from Table I's by continuation in the
+    parameters (N = 500 along the path), as a guess; a path that stops is reported (exit 1)."""
+    from ..steady.param_continuation import as_guess, continue_in_params
+    sol, path = continue_in_params(DEFAULT, params, ratio, n_points=500, progress=progress)
+    if sol is None or not (path[-1][0] == 1.0 and path[-1][1]):
+        reached = max([s for s, ok, _ in path if ok], default=0.0)
+        raise SolverStop(f"continuation in the parameters from Table I stopped at s={reached:.3g} "
+                         f"of the path (last: {path[-1][2]})")
+    return as_guess(sol)
+
+
+class SolverStop(RuntimeError):
+    """A solve that failed before a pulse could be written (exit code 1)."""
+
+
 def cmd_solve(args) -> int:
     params = params_for_output(args)
     ratio = _ratio(args.tau_d, params)
@@ -65,8 +81,15 @@ def cmd_solve(args) -> int:
         bar.set_postfix_str(msg[:60])
         bar.update(1)
 
+    try:
+        guess = (_homotopy_guess(params, ratio, lambda m: bar.set_postfix_str("path " + m[:55]))
+                 if args.homotopy else None)
+    except SolverStop as exc:
+        bar.close()
+        print(f"slippulse: solver did not converge: {exc}; nothing written", file=sys.stderr)
+        return 1
     sol = solve_pulse(params, ratio, n_points=args.points, method=args.method, tol=args.tol,
-                      progress=progress)
+                      progress=progress, guess=guess)
     bar.close()
     pulse = sol.to_pulse()
     write_pulse(out, pulse, params)
@@ -228,6 +251,9 @@ def register(sub) -> None:
                    help="nonlinear solver (default newton)")
     p.add_argument("--tol", type=float, default=1e-13, help="max|residual| target (default 1e-13)")
     p.add_argument("--no-figure", action="store_true", help="do not write the PNG")
+    p.add_argument("--homotopy", action="store_true",
+                   help="start from Table I's pulse and continue in the parameters to the given "
+                        "ones (geometric path, N = 500; for laws where the built-in guess fails)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_solve)

@@ -40,6 +40,17 @@ from ..dynamics.stepper import PredictorCorrector, RateStateInterface, TimeStepR
 SOE_CHEAP = {"x_min": 1e-6, "x_max": 1e6, "h": 0.8}
 
 
+#: Default SBI grid spacing of ``dynamic seed``/``verify`` in units of L0 = π μ D/(σ(f0 b − α)):
+#: 2 mm for Table I (L0 = 0.88357 m), where it was chosen; scaling with L0 keeps it a fixed
+#: fraction of the pulse's cohesive zone for other parameters (exact similarities).
+DX_OVER_L0 = 2e-3 / 0.8835729338221293
+
+
+def default_dx(params) -> float:
+    """Default seeded grid spacing, m: :data:`DX_OVER_L0` · L0 (2 mm for Table I)."""
+    return DX_OVER_L0 * params.L0
+
+
 @dataclass(frozen=True)
 class DomainSpec:
     """Periodic domain around a seeded pulse (lengths in units of the steady pulse length L).
