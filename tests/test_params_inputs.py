@@ -170,3 +170,32 @@ def test_dynamic_run_params_file_into_config(tmp_path, capsys):
     assert "without a minimum" in _line(capsys)
     import os
     assert not os.path.exists(bad)
+
+
+def test_verify_quotes_table_rates_only_for_table_params():
+    """The measured growth rates of docs/stability.md are Table I's: a pulse of other parameters
+    gets no rate attributed."""
+    import numpy as np
+
+    from slippulse.stability.verify import VerifyResult, drift_verdict, mode_growth
+    assert mode_growth(1.2)[0] == 23.5 and mode_growth(1.2, table_i=False) is None
+    info = {"tau_d_ratio": 1.2, "growth_rate_v_max": 23.0, "travelled": 0.3,
+            "status": "finished", "table_I": False}
+    res = VerifyResult(t=np.zeros(5), x_front=np.zeros(5), series={}, errors={}, info=info)
+    verdict, text = drift_verdict(res)
+    assert verdict is None and "known for these parameters" in text
+    assert drift_verdict(dc.replace(res, info={**info, "table_I": True}))[0] is True
+
+
+@pytest.mark.slow
+def test_homotopy_solves_rock_set(tmp_path, capsys):
+    """steady/rock.toml: the built-in guess does not reach it (docs/parameters.md §4); --homotopy
+    does, and the file carries the rock parameters."""
+    import os
+    rock = os.path.join(os.path.dirname(__file__), os.pardir, "steady", "rock.toml")
+    out = str(tmp_path / "r.h5")
+    assert main(["steady", "solve", "--params", rock, "--homotopy", "--points", "500", "--out", out,
+                 "--no-figure", "-q"]) == 0
+    pulse, params = read_pulse(out)
+    assert pulse.converged and params == resolve_params(rock)
+    assert abs(pulse.beta - 7.34e-4) < 1e-5

@@ -168,7 +168,7 @@ def plot_verify_result(path_png: str, res: VerifyResult, pulse, params) -> None:
     err = np.abs(np.asarray(res.series["v_max_error"], dtype=float))
     ok = np.isfinite(err) & (err > 0)
     ax.semilogy(dist[ok], err[ok], "C0o-", ms=3, lw=1, label="|v_max/v_max⁰ − 1| (SBI)")
-    known = mode_growth(res.info["tau_d_ratio"])
+    known = mode_growth(res.info["tau_d_ratio"], bool(res.info.get("table_I", True)))
     if known is not None and ok.sum() >= 2:
         sv, serr, how = known
         win = ok & (err >= 3e-4) & (err <= 3e-2)          # growth_rate's fit window

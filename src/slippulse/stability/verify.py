@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
+from ..core.params import DEFAULT
 from ..steady.analysis import pulse_length
 from .seeding import DomainSpec, SeededPulse, follow_pulse, seed_pulse
 from ..dynamics.stepper import TimeStepRule
@@ -269,6 +270,7 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
             "eps": 0.0 if perturbation is None else float(perturbation[1]),
             "slip0": float(slip[0]),
             "shift_cells": seed.shift_cells, "tau_d_ratio": pulse.tau_d_ratio,
+            "table_I": bool(params == DEFAULT),
             "beta": pulse.beta, "c_p": pulse.c_p, "L": pulse.L, "v_max": pulse.v_max,
             "v_max_ref": reference_v_max(pulse.xi, pulse.v),
             "beta_cfl": st.rule.beta_cfl, "xi": st.rule.xi, "xi_stab": st.rule.xi_stab,
@@ -400,13 +402,18 @@ MODE_GROWTH = ((1.05, 0.7, 0.1), (1.10, 8.0, 0.2), (1.20, 23.5, 0.8))
 GROWTH_TOLERANCE = 0.25
 
 
-def mode_growth(tau_d_ratio: float):
+def mode_growth(tau_d_ratio: float, table_i: bool = True):
     """(s, s_err, how) of the unstable mode at τ_d/τ_min from :data:`MODE_GROWTH`, or None.
+
+    The table was measured with the Table-I parameters: for others (``table_i`` False) nothing is
+    known and None is returned.
 
     ``how`` is "measured" at a table entry (within 1e-6) and "interpolated" between two entries
     (linear in ln s and in the relative error); outside the table's range (1.05–1.2) the rate is
     not known and None is returned: nothing is extrapolated.
     """
+    if not table_i:
+        return None
     r = float(tau_d_ratio)
     for x, sv, err in MODE_GROWTH:
         if abs(r - x) < 1e-6:
@@ -430,8 +437,12 @@ def drift_verdict(res: VerifyResult):
     ``text`` says which, in one clause.
     """
     i = res.info
-    known = mode_growth(i["tau_d_ratio"])
+    known = mode_growth(i["tau_d_ratio"], bool(i.get("table_I", True)))
     s_meas = i.get("growth_rate_v_max", float("nan"))
+    if known is None and not i.get("table_I", True):
+        return None, ("no growth rate of the unstable mode is known for these parameters (the "
+                      "table of docs/stability.md is Table I's; see steady stability): drift not "
+                      "attributed")
     if known is None:
         return None, (f"no growth rate of the unstable mode is known at tau_d/tau_min = "
                       f"{i['tau_d_ratio']:.4g} (table: 1.05-1.2): drift not attributed")
