@@ -199,3 +199,16 @@ def test_homotopy_solves_rock_set(tmp_path, capsys):
     pulse, params = read_pulse(out)
     assert pulse.converged and params == resolve_params(rock)
     assert abs(pulse.beta - 7.34e-4) < 1e-5
+
+
+def test_figures_carry_params(pulse12, tmp_path):
+    """The quick-look PNG of a solve holds its parameters (PNG text chunk, JSON)."""
+    import json
+
+    from PIL import Image
+
+    from slippulse.plotting.quicklook import plot_pulse
+    path = str(tmp_path / "q.png")
+    plot_pulse(pulse12.to_pulse(), DEFAULT, path)
+    text = Image.open(path).text["Description"]
+    assert json.loads(text.split(": ", 1)[1]) == DEFAULT.as_dict()

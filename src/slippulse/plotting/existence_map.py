@@ -2,13 +2,12 @@
 and where the solver finds them (from the built-in guess; by continuation in the parameters)."""
 from __future__ import annotations
 
-import json
-
 import numpy as np
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
+from .metadata import params_metadata
 from ..steady.existence_map import ABOVE_PEAK, FAILED, FOUND, NO_N_SHAPE, NOT_TRIED
 
 _COLORS = {NO_N_SHAPE: "#9e9e9e", ABOVE_PEAK: "#d9d9d9", FAILED: "#f4a582", FOUND: "#92c5de",
@@ -73,6 +72,5 @@ def plot_existence_map(m, path: str, dpi: int = 150) -> str:
     fig.suptitle(f"Steady pulses at τ_d/τ_min = {m.tau_d_ratio:g} over (b, α), other parameters "
                  f"Table I, N = {m.n_points} (square: Table I)", fontsize=10)
     fig.subplots_adjust(bottom=0.2, top=0.9, wspace=0.05)
-    meta = "slippulse parameters (SI): " + json.dumps(m.base.as_dict())
-    fig.savefig(path, dpi=dpi, metadata={"Description": meta} if path.endswith(".png") else None)
+    fig.savefig(path, dpi=dpi, metadata=params_metadata(m.base, path))
     return path

@@ -11,6 +11,7 @@ from ..steady.analysis import pulse_length
 from ..stability.perturbation import (pair_table, read_series, smoothed_c_p, steady_curve,
                                       write_pair_table)
 from ..stability.verify import VerifyResult, drift_verdict, mode_growth
+from .metadata import params_metadata
 from .steady import matplotlib_cmap
 
 
@@ -189,7 +190,7 @@ def plot_verify_result(path_png: str, res: VerifyResult, pulse, params) -> None:
                  f"c_p err {e['c_p_error']:.1e}, v_max err {e['v_max_error']:.1e}\n"
                  + _wrap(text, 95), fontsize=9)
     fig.tight_layout()
-    fig.savefig(path_png, dpi=110)
+    fig.savefig(path_png, dpi=110, metadata=params_metadata(params, path_png))
     plt.close(fig)
 
 

@@ -420,14 +420,12 @@ def save_all(data, outdir, formats=("png", "pdf"), dpi=150):
     """Write every figure for an already loaded :class:`FamilyData`; return the paths."""
     os.makedirs(outdir, exist_ok=True)
     written = []
-    import json
-    stamp = "slippulse parameters (SI): " + json.dumps(data.params.as_dict())
-    meta = {"png": {"Description": stamp}, "pdf": {"Subject": stamp}, "svg": {"Description": stamp}}
+    from .metadata import params_metadata
     for name in FIGURES:
         fig = _FUNCS[name](data)
         for ext in formats:
             out = os.path.join(outdir, f"{name}.{ext}")
-            fig.savefig(out, dpi=dpi, metadata=meta.get(ext))
+            fig.savefig(out, dpi=dpi, metadata=params_metadata(data.params, out))
             written.append(out)
     return written
 
