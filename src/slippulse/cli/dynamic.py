@@ -16,8 +16,13 @@ import numpy as np
 
 from .app import UsageError
 from ..dynamics.config import RESUME_MUTABLE, build_stepper, diff_keys, load_config
+from ..core.h5io import check_writable
 from ..dynamics.runfile import RunFile
 from ..dynamics.stepper import MAX_GRID_POINTS
+from .checks import check_figure, finite
+
+#: Fewest points of a seeded grid (as --points of verify).
+MIN_GRID_POINTS = 16
 
 
 def register(subparsers) -> None:
@@ -60,6 +65,9 @@ def register(subparsers) -> None:
     v.add_argument("--xi-stab", type=float, default=0.5, help="time.xi_stab of the adaptive rule")
     v.add_argument("--samples", type=int, default=100, help="measurements (default 100)")
     v.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    v.add_argument("--allow-unconverged", action="store_true",
+                    help="use a pulse marked converged=False (default: refuse it); the output "
+                         "says so (attribute steady_converged = False)")
     v.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
     v.set_defaults(func=cmd_verify)
     sd = sub.add_parser("seed", help="seed the SBI with a steady pulse and report the t = 0 mismatch",
@@ -76,6 +84,9 @@ def register(subparsers) -> None:
     sd.add_argument("--far-field", choices=("steady", "none"), default="steady",
                     help="add the isolated pulse's far field to the loading (default steady)")
     sd.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    sd.add_argument("--allow-unconverged", action="store_true",
+                    help="use a pulse marked converged=False (default: refuse it); the output "
+                         "says so (attribute steady_converged = False)")
     sd.set_defaults(func=cmd_seed)
     try:                                   # ``dynamic scan`` (cli/scan.py)
         import importlib
@@ -92,6 +103,9 @@ def cmd_run(args) -> int:
     if args.out:
         cfg["output"]["file"] = args.out
     path = cfg["output"]["file"]
+    if os.path.isdir(path):
+        raise UsageError(f"--out={path!r} is a directory; give a file name (e.g. "
+                         f"{os.path.join(path, 'run.h5')})")
     stepper = build_stepper(cfg)
     if args.resume:
         try:
@@ -109,6 +123,7 @@ def cmd_run(args) -> int:
         if os.path.exists(path) and not args.overwrite:
             raise UsageError(f"output file {path} exists: use --resume to continue it, --overwrite "
                              "to replace it, or --out for another file")
+        check_writable(path, "--out")
         out = RunFile.create(path, cfg, stepper.params, stepper)
         out.snapshot(stepper)
         out.checkpoint(stepper)
@@ -150,8 +165,9 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
     finally:
         bar.close()
     if status == "interrupted":
-        # the state may be half-updated mid-step: keep FILE at its last checkpoint
+        # the state may be half-updated mid-step: keep FILE at its last checkpoint, marked
         out.close()
+        _mark_interrupted(out)
     else:
         if status == "finished" and out.last_snapshot_step() != st.nstep:
             out.snapshot(st)
@@ -164,6 +180,31 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
     return rc
 
 
+#: Longest --distance of verify, in pulse lengths (each L takes ~1e3-1e4 steps; a pulse that is
+#: lost ends the run earlier).
+MAX_DISTANCE = 1e4
+
+
+def _require_converged(args, pulse) -> None:
+    """Refuse a pulse marked converged=False unless --allow-unconverged (h5io.require_converged)."""
+    from ..core.h5io import require_converged
+    require_converged(args.steady, [pulse.label], allow=args.allow_unconverged,
+                      hint="--allow-unconverged uses it anyway and marks the output")
+
+
+def _unconverged_prefix(pulse) -> str:
+    return "" if pulse.converged else f"UNCONVERGED steady pulse {pulse.label} (--allow-unconverged): "
+
+
+def _mark_interrupted(out: RunFile) -> None:
+    """Status 'interrupted' in FILE (its data stay at the last checkpoint; --resume continues)."""
+    try:
+        out.mark("interrupted", "interrupted by the user; the file holds the last checkpoint "
+                                "(--resume continues from it)")
+    except KeyboardInterrupt:
+        pass                                   # a second Ctrl-C: FILE stays as it was
+
+
 def _check_grid(dx: float, ahead: float, behind: float, L: float) -> None:
     """Refuse a seeded grid that is not finite or has more than MAX_GRID_POINTS points, before
     anything is allocated (``seeding.DomainSpec`` checks the signs)."""
@@ -171,6 +212,9 @@ def _check_grid(dx: float, ahead: float, behind: float, L: float) -> None:
         if not (math.isfinite(val) and val > 0):
             raise UsageError(f"--{name}={val!r} must be a finite number > 0")
     n = (ahead + behind) * L / dx
+    if n < MIN_GRID_POINTS:
+        raise UsageError(f"--dx={dx:g} m gives {n:.3g} grid points over ({ahead:g} + {behind:g}) "
+                         f"L = {(ahead + behind) * L:.4g} m; at least {MIN_GRID_POINTS}")
     if n > MAX_GRID_POINTS:
         raise UsageError(f"--dx={dx:g} m gives {n:.3g} grid points over ({ahead:g} + {behind:g}) "
                          f"L = {(ahead + behind) * L:.4g} m; at most {MAX_GRID_POINTS}")
@@ -189,13 +233,15 @@ def cmd_verify(args) -> int:
         pulse, params = read_pulse(args.steady, args.label)
     except SchemaError as exc:
         raise UsageError(str(exc))
+    _require_converged(args, pulse)
     label = pulse.label
     out = args.out or f"verify_{label}.h5"
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
     check_writable(out, "--out")
-    if not args.distance > 0:
-        raise UsageError(f"--distance={args.distance} must be > 0 (pulse lengths)")
+    check_writable(os.path.splitext(out)[0] + ".png", "--out (its PNG)")
+    finite(args.distance, "--distance", 0.0, MAX_DISTANCE, unit="pulse lengths")
+    finite(args.xi_stab, "--xi-stab", 0.0)
     dx = args.dx
     if args.points is not None:
         if not 16 <= args.points <= MAX_GRID_POINTS:
@@ -212,10 +258,11 @@ def cmd_verify(args) -> int:
                            progress=not args.no_progress)
     except ParameterError as exc:
         raise UsageError(str(exc))
-    write_result(out, res, params, source=os.path.abspath(args.steady), label=label)
+    write_result(out, res, params, source=os.path.abspath(args.steady), label=label,
+                 steady_converged=pulse.converged)
     png = os.path.splitext(out)[0] + ".png"
     plot_verify_result(png, res, pulse, params)
-    print(summary(res) + f"; output {out}, figure {png}")
+    print(_unconverged_prefix(pulse) + summary(res) + f"; output {out}, figure {png}")
     return 0 if res.info["status"] == "finished" else 2
 
 
@@ -229,9 +276,11 @@ def cmd_seed(args) -> int:
         pulse, params = read_pulse(args.steady, args.label)
     except SchemaError as exc:
         raise UsageError(str(exc))
+    _require_converged(args, pulse)
     out = args.out or f"seed_{pulse.label}.h5"
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
+    check_writable(out, "--out")
     _check_grid(args.dx, args.ahead, args.behind, pulse.L)
     try:
         seed = seed_pulse(pulse, params, DomainSpec(dx=args.dx, ahead=args.ahead,
@@ -241,7 +290,7 @@ def cmd_seed(args) -> int:
         raise UsageError(str(exc))
     mis = write_seed(out, seed, source=os.path.abspath(args.steady), label=pulse.label)
     st = seed.stepper
-    print(f"seed {pulse.label}: N={st.n}, dx={st.dx * 1e3:.3g} mm, domain {st.length:.4g} m "
+    print(_unconverged_prefix(pulse) + f"seed {pulse.label}: N={st.n}, dx={st.dx * 1e3:.3g} mm, domain {st.length:.4g} m "
           f"({args.behind:g} L behind + {args.ahead:g} L ahead); t = 0 stress vs steady: "
           f"{mis['stress']:.2e} tau_d over the pulse, {mis['stress_all']:.2e} anywhere; "
           f"friction imbalance {mis['friction']:.2e} tau_d; output {out}")

@@ -17,6 +17,8 @@ def register(subparsers):
     p.add_argument("--compare", metavar="FILE2", default=None,
                    help="second family file (another domain size) for Fig. S1(b)")
     p.add_argument("--formats", default="png,pdf", help="comma-separated formats (default png,pdf)")
+    p.add_argument("--skip-unconverged", action="store_true",
+                   help="leave out the pulses marked converged=False (default: refuse the file)")
     p.set_defaults(func=run)
 
 
@@ -31,8 +33,23 @@ def run(args):
     bad = [f for f in formats if f not in ("png", "pdf", "svg")]
     if bad or not formats:
         raise UsageError(f"--formats={args.formats!r}: choose from png, pdf, svg")
-    data = plotting.load_family(args.file, compare_path=args.compare)
+    skip = _unconverged(args)
+    from .checks import check_outdir
+    check_outdir(args.outdir, "--outdir")
+    data = plotting.load_family(args.file, compare_path=args.compare, skip=skip)
+    if skip:
+        print(f"left out (marked converged=False): {', '.join(skip)}")
     written = plotting.save_all(data, args.outdir, formats=formats)
     print(analysis.format_table(data.rows))
     print(f"wrote {len(written)} files to {args.outdir}")
     return 0
+
+
+def _unconverged(args) -> list:
+    """The unconverged pulses of FILE (refused unless --skip-unconverged; those of --compare are
+    always left out of Fig. S1b)."""
+    from ..core.h5io import require_converged
+    hint = "--skip-unconverged leaves them out"
+    if args.compare:
+        require_converged(args.compare, allow=args.skip_unconverged, hint=hint)
+    return require_converged(args.file, allow=args.skip_unconverged, hint=hint)
