@@ -254,7 +254,10 @@ def read_parameters(h5: h5py.File) -> Parameters:
     missing = [n for n in PARAM_NAMES if n not in grp.attrs]
     if missing:
         raise SchemaError(f"'parameters' group lacks attributes {missing}")
-    return Parameters(**{n: float(grp.attrs[n]) for n in PARAM_NAMES})
+    try:
+        return Parameters(**{n: float(np.asarray(grp.attrs[n]).item()) for n in PARAM_NAMES})
+    except (TypeError, ValueError) as exc:          # ParameterError included
+        raise SchemaError(f"'parameters' group: {exc}") from None
 
 
 def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = True) -> None:
@@ -275,7 +278,7 @@ def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = T
             write_parameters(h5, params)
         pulses = h5.require_group("pulses")
         if pulse.label in pulses:
-            if not pulse.converged and _is_converged(pulses[pulse.label]):
+            if not pulse.converged and pulse_converged(pulses[pulse.label]):
                 raise PulseExistsError(f"{path}: pulse {pulse.label} is stored converged; an "
                                        "unconverged solve never replaces it (kept unchanged)")
             if not overwrite:
@@ -408,7 +411,7 @@ def read_pulse(path: str, label: str | None = None) -> tuple[Pulse, Parameters]:
         return _group_to_pulse(h5["pulses"][label]), params
 
 
-def _is_converged(grp) -> bool:
+def pulse_converged(grp) -> bool:
     """The ``converged`` attribute of a pulse group (absent or unreadable: False)."""
     try:
         return bool(np.asarray(grp.attrs.get("converged", False)).item())
@@ -424,7 +427,7 @@ def stored_converged(path: str, label: str) -> bool | None:
     with open_h5(path) as h5:
         if label not in _labels(h5, path):
             return None
-        return _is_converged(h5["pulses"][label])
+        return pulse_converged(h5["pulses"][label])
 
 
 def require_converged(path: str, labels=None, *, allow: bool = False, hint: str = "") -> list[str]:
@@ -454,7 +457,7 @@ def require_converged(path: str, labels=None, *, allow: bool = False, hint: str 
     with open_h5(path) as h5:
         present = _labels(h5, path)
         wanted = present if labels is None else [lab for lab in labels if lab in present]
-        bad = [lab for lab in wanted if not _is_converged(h5["pulses"][lab])]
+        bad = [lab for lab in wanted if not pulse_converged(h5["pulses"][lab])]
     if bad and not allow:
         names = ", ".join(bad[:4]) + (f" and {len(bad) - 4} more" if len(bad) > 4 else "")
         msg = (f"{path}: pulse{'s' if len(bad) > 1 else ''} {names} "
