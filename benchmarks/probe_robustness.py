@@ -139,7 +139,9 @@ def issue19_rows(d: str, steady: str, rows: list, row) -> None:
     row("analyse a one-pulse file (stdout, last line)", ["steady", "analyse", steady,
                                                           "--no-write"], stream="stdout")
     mode = oct(os.stat(steady).st_mode & 0o777)
-    rows.append(("mode of an HDF5 output (umask " + oct(os.umask(os.umask(0))) + ")",
+    mask = os.umask(0)
+    os.umask(mask)
+    rows.append(("mode of an HDF5 output (umask " + oct(mask) + ")",
                  "stat good.h5", {"rc": 0, "last": mode, "tb": False, "left": None}))
     for what, cmd in (("--version", ["--version"]), ("python -m slippulse --version",
                                                      ["--version"])):
@@ -151,15 +153,18 @@ def issue19_rows(d: str, steady: str, rows: list, row) -> None:
     # Ctrl-C of a dynamic run: status 'interrupted'
     run_out = os.path.join(d, "int.h5")
     rc, err = _sigint(["dynamic", "run", cfg, "--set", "time.max_steps=1000000", "--set",
-                       "output.checkpoint_every=7", "--out", run_out, "--no-progress"], 12.0)
+                       "time.t_end=1e6", "--set", "output.checkpoint_every=7", "--out", run_out,
+                       "--no-progress"], 15.0)
     try:
         with h5py.File(run_out, "r") as h5:
             status = str(h5.attrs["status"])
     except (OSError, KeyError) as exc:
         status = f"NOT READABLE ({exc})"
-    rows.append(("Ctrl-C dynamic run after 12 s", "slippulse dynamic run run.toml ... (SIGINT)",
-                 {"rc": rc, "last": f"status {status!r}", "tb": "Traceback" in err,
-                  "left": None}))
+    rows.append(("Ctrl-C dynamic run after 15 s", "slippulse dynamic run run.toml --set "
+                 "time.t_end=1e6 ... (SIGINT to the group)",
+                 {"rc": rc, "last": f"status {status!r}" + (f" [stderr: {err.strip()[-200:]}]"
+                                                            if "Traceback" in err else ""),
+                  "tb": "Traceback" in err, "left": None}))
     # Ctrl-C of a scan with 2 workers (a runner that sleeps 30 s per case)
     here = os.path.dirname(os.path.abspath(__file__))
     toml = os.path.join(d, "slow_scan.toml")

@@ -240,6 +240,11 @@ def cmd_stability(args) -> int:
     labels = args.labels or None
     chosen, _ = check_family_file(args.file, labels)      # bad input fails here, before any work
     check_writable(args.file, "FILE")                     # the spectra go into FILE
+    if labels is None:                                    # all converged: name those left out
+        from ..core.h5io import require_converged
+        left = require_converged(args.file, allow=True)
+        if left:
+            print(f"left out (marked converged=False): {', '.join(left)}", file=sys.stderr)
     if args.figure:
         check_figure(args.figure, "--figure")
     bar = tqdm(total=len(chosen), desc="spectrum", unit="pulse", disable=args.quiet,

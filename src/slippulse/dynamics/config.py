@@ -156,8 +156,9 @@ def build_stepper(cfg: dict):
     for key in ("snapshot_every", "checkpoint_every"):
         if cfg["output"][key] < 1:
             raise ParameterError(f"output.{key}={cfg['output'][key]!r} must be >= 1 (steps)")
-    if cfg["time"]["max_steps"] < 0 or not cfg["time"]["t_end"] > 0:
-        raise ParameterError("time.t_end must be > 0 (s) and time.max_steps >= 0 (0 = no limit)")
+    if cfg["time"]["max_steps"] < 0 or not (0 < cfg["time"]["t_end"] < math.inf):
+        raise ParameterError(f"time.t_end={cfg['time']['t_end']!r} must be finite and > 0 (s) and "
+                             f"time.max_steps={cfg['time']['max_steps']!r} >= 0 (0 = no limit)")
     return st
 
 

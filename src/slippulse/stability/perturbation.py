@@ -73,8 +73,8 @@ def check_case(case: dict) -> dict:
     if not abs(float(c["eps"])) < 0.5:
         raise ParameterError(f"eps={c['eps']!r} must satisfy |eps| < 0.5")
     for key in ("dx", "ahead", "distance", "beta_cfl", "xi_stab", "fit_lo"):
-        if not float(c[key]) > 0:
-            raise ParameterError(f"{key}={c[key]!r} must be > 0")
+        if not 0 < float(c[key]) < math.inf:
+            raise ParameterError(f"{key}={c[key]!r} must be finite and > 0")
     if not float(c["behind"]) > 1:
         raise ParameterError(f"behind={c['behind']!r} must be > 1 (pulse lengths)")
     if not float(c["fit_hi"]) > float(c["fit_lo"]):

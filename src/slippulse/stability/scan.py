@@ -425,11 +425,33 @@ def scan_states(scan: Scan) -> list[str]:
 # --------------------------------------------------------------------------- executors
 
 
+class _sigint_ignored:
+    """Block SIGINT while the pool spawns its workers (main thread only). The signal mask is
+    inherited over fork and exec, so a Ctrl-C while a worker still imports stays pending there
+    until its initializer ignores it (no KeyboardInterrupt printed by the worker); in the parent
+    it is delivered when the block ends (KeyboardInterrupt, which stops the workers)."""
+
+    def __enter__(self):
+        import signal
+        import threading
+        self.on = (hasattr(signal, "pthread_sigmask")
+                   and threading.current_thread() is threading.main_thread())
+        if self.on:
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+
+    def __exit__(self, *exc):
+        import signal
+        if self.on:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 def _worker_ignores_sigint() -> None:
     """Worker initializer: Ctrl-C (SIGINT to the whole process group) is the parent's to handle;
     it stops the workers itself, so they print no KeyboardInterrupt of their own."""
     import signal
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "pthread_sigmask"):      # blocked by the parent while spawning
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def _run_local(todo, scan: Scan, workers: int):
@@ -441,8 +463,9 @@ def _run_local(todo, scan: Scan, workers: int):
                                mp_context=multiprocessing.get_context("spawn"),
                                initializer=_worker_ignores_sigint)
     try:
-        futs = {pool.submit(run_one, scan.runner, c.params, scan.out_file(c), scan.runner_path): i
-                for i, c in todo}
+        with _sigint_ignored():          # the workers start with Ctrl-C blocked (kept over exec)
+            futs = {pool.submit(run_one, scan.runner, c.params, scan.out_file(c),
+                                scan.runner_path): i for i, c in todo}
         for fut in as_completed(futs):
             try:
                 outcome = fut.result()
