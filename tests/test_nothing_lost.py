@@ -244,3 +244,19 @@ def test_version_and_python_dash_m():
     p = subprocess.run([sys.executable, "-m", "slippulse", "steady", "solve", "--tau-d", "x"],
                        capture_output=True, text=True)
     assert p.returncode == 2 and "tau-d='x'" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_perturbation_scan_refuses_an_unconverged_pulse_before_running(real, tmp_path, capsys):
+    toml = tmp_path / "s.toml"
+    toml.write_text(f"""[scan]
+name = "u"
+out_dir = "{tmp_path / 'out'}"
+[defaults]
+steady = "{real['bad']}"
+label = "td1.2000"
+[grid]
+eps = [1e-3, -1e-3]
+""")
+    assert main(["dynamic", "scan", str(toml), "--no-progress"]) == 2
+    _one_error(capsys, "td1.2000", "converged=False")
+    assert not os.path.exists(tmp_path / "out") or not os.listdir(tmp_path / "out")
