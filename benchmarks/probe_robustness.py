@@ -57,11 +57,12 @@ def _files(d: str, steady: str) -> dict:
     return paths
 
 
-def _run(args, out=None, timeout=120):
+def _run(args, out=None, timeout=120, stream="stderr"):
     t0 = time.time()
     p = subprocess.run([sys.executable, "-m", "slippulse.cli", *args], capture_output=True,
                        text=True, timeout=timeout)
-    lines = [ln for ln in p.stderr.strip().splitlines() if ln.strip()]
+    text = p.stderr if stream == "stderr" else p.stdout
+    lines = [ln for ln in text.strip().splitlines() if ln.strip()]
     left = bool(out) and os.path.exists(out)
     return {"rc": p.returncode, "last": lines[-1] if lines else "", "tb": "Traceback" in p.stderr,
             "left": left, "wall": time.time() - t0}
@@ -77,9 +78,126 @@ def _kill(args, out, delay, check):
     return {"rc": p.returncode, "last": check(out), "tb": False, "left": None, "wall": delay}
 
 
+def _unconverged_copy(steady: str, path: str) -> str:
+    """A copy of ``steady`` whose pulse is marked converged=False."""
+    shutil.copyfile(steady, path)
+    with h5py.File(path, "r+") as h5:
+        for grp in h5["pulses"].values():
+            grp.attrs["converged"] = np.bool_(False)
+    return path
+
+
+def _sigint(args, delay, new_session=True):
+    """Start ``args``, send SIGINT to its process group (as Ctrl-C in a terminal does) after
+    ``delay`` s; returns (exit code, stderr)."""
+    p = subprocess.Popen([sys.executable, "-m", "slippulse", *args], stdout=subprocess.DEVNULL,
+                         stderr=subprocess.PIPE, text=True, start_new_session=new_session)
+    time.sleep(delay)
+    os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    return p.returncode, err
+
+
+def issue19_rows(d: str, steady: str, rows: list, row) -> None:
+    """The probes of issue 19 (docs/robustness.md, second table)."""
+    out = os.path.join(d, "out.h5")
+    bad = _unconverged_copy(steady, os.path.join(d, "unconverged.h5"))
+    cfg = os.path.join(d, "run.toml")
+    row("run --set fft.threads=0", ["dynamic", "run", cfg, "--set", "fft.threads=0", "--out", out,
+                                    "--no-progress"], out)
+    row("run --set fft.threads=-3", ["dynamic", "run", cfg, "--set", "fft.threads=-3", "--out",
+                                     out, "--no-progress"], out)
+    row("run --set fft.planner=bogus", ["dynamic", "run", cfg, "--set", "fft.planner='bogus'",
+                                        "--out", out, "--no-progress"], out)
+    row("run --out DIR", ["dynamic", "run", cfg, "--out", d, "--no-progress"])
+    row("stability --figure s.xyz", ["steady", "stability", steady, "--figure",
+                                     os.path.join(d, "s.xyz")], os.path.join(d, "s.xyz"))
+    row("family --step 1e-300", ["steady", "family", "--step", "1e-300", "--out", out, "-q"], out)
+    row("family --step inf", ["steady", "family", "--step", "inf", "--out", out, "-q"], out)
+    row("verify --distance inf", ["dynamic", "verify", "--steady", steady, "--distance", "inf",
+                                  "--out", out, "--no-progress"], out)
+    row("verify --distance 1e9", ["dynamic", "verify", "--steady", steady, "--distance", "1e9",
+                                  "--out", out, "--no-progress"], out)
+    row("seed --dx 1e9", ["dynamic", "seed", "--steady", steady, "--dx", "1e9", "--out", out], out)
+    row("solve --out unwritable (/sys)", ["steady", "solve", "--out", "/sys/x.h5", "-q"])
+    row("stability on a missing file under /sys", ["steady", "stability", "/sys/x.h5"])
+    row("figures --outdir unwritable", ["figures", steady, "--outdir", "/sys/figs"])
+    raw = open(steady, "rb").read()
+    row("solve --tau-d 1.2 --out FILE holding td1.2000 (no --overwrite)",
+        ["steady", "solve", "--tau-d", "1.2", "--points", "500", "--out", steady, "-q",
+         "--no-figure"])
+    rows[-1][2]["last"] += (" [file bit-identical]" if open(steady, "rb").read() == raw
+                            else " [FILE CHANGED]")
+    for what, cmd in (
+            ("seed unconverged", ["dynamic", "seed", "--steady", bad, "--out", out]),
+            ("verify unconverged", ["dynamic", "verify", "--steady", bad, "--out", out,
+                                    "--no-progress"]),
+            ("analyse unconverged", ["steady", "analyse", bad]),
+            ("figures unconverged", ["figures", bad, "--outdir", os.path.join(d, "figs")]),
+            ("stability unconverged", ["steady", "stability", bad, "--labels", "td1.2000"])):
+        row(what, cmd, out)
+    row("analyse a one-pulse file (stdout, last line)", ["steady", "analyse", steady,
+                                                          "--no-write"], stream="stdout")
+    mode = oct(os.stat(steady).st_mode & 0o777)
+    mask = os.umask(0)
+    os.umask(mask)
+    rows.append(("mode of an HDF5 output (umask " + oct(mask) + ")",
+                 "stat good.h5", {"rc": 0, "last": mode, "tb": False, "left": None}))
+    for what, cmd in (("--version", ["--version"]), ("python -m slippulse --version",
+                                                     ["--version"])):
+        p = subprocess.run([sys.executable, "-m", "slippulse", *cmd], capture_output=True,
+                           text=True)
+        rows.append((what, "python -m slippulse " + " ".join(cmd),
+                     {"rc": p.returncode, "last": p.stdout.strip(), "tb": "Traceback" in p.stderr,
+                      "left": None}))
+    # Ctrl-C of a dynamic run: status 'interrupted'
+    run_out = os.path.join(d, "int.h5")
+    rc, err = _sigint(["dynamic", "run", cfg, "--set", "time.max_steps=1000000", "--set",
+                       "time.t_end=1e6", "--set", "output.checkpoint_every=7", "--out", run_out,
+                       "--no-progress"], 15.0)
+    try:
+        with h5py.File(run_out, "r") as h5:
+            status = str(h5.attrs["status"])
+    except (OSError, KeyError) as exc:
+        status = f"NOT READABLE ({exc})"
+    rows.append(("Ctrl-C dynamic run after 15 s", "slippulse dynamic run run.toml --set "
+                 "time.t_end=1e6 ... (SIGINT to the group)",
+                 {"rc": rc, "last": f"status {status!r}" + (f" [stderr: {err.strip()[-200:]}]"
+                                                            if "Traceback" in err else ""),
+                  "tb": "Traceback" in err, "left": None}))
+    # Ctrl-C of a scan with 2 workers (a runner that sleeps 30 s per case)
+    here = os.path.dirname(os.path.abspath(__file__))
+    toml = os.path.join(d, "slow_scan.toml")
+    with open(toml, "w") as fh:
+        fh.write(f"""[scan]
+name = "slow"
+out_dir = "{os.path.join(d, 'scan_out')}"
+runner = "scan_fake_runner:run_case"
+runner_path = ["{os.path.join(os.path.dirname(here), 'tests')}"]
+[defaults]
+sleep = 30.0
+[grid]
+eps = [1e-3, -1e-3, 2e-3]
+""")
+    rc, err = _sigint(["dynamic", "scan", toml, "--workers", "2", "--no-progress"], 20.0)
+    noise = [w for w in ("Exception ignored", "leaked semaphore", "KeyboardInterrupt", "Traceback")
+             if w in err]
+    rows.append(("Ctrl-C dynamic scan (2 workers) after 20 s",
+                 "slippulse dynamic scan slow_scan.toml --workers 2 (SIGINT to the group)",
+                 {"rc": rc, "last": (err.strip().splitlines() or [""])[-1]
+                  + (f" [NOISE: {noise}]" if noise else " [no other output]"),
+                  "tb": "Traceback" in err, "left": None}))
+    row("solve --tau-d 1.15 (continuation from 1.2)", ["steady", "solve", "--tau-d", "1.15",
+                                                       "--out", os.path.join(d, "td115.h5"), "-q",
+                                                       "--no-figure"], stream="stdout",
+        timeout=900)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dir", default=os.path.join("runs", "probe"))
+    ap.add_argument("--only-issue19", action="store_true",
+                    help="run only the probes added by issue 19")
     args = ap.parse_args(argv)
     d = os.path.abspath(args.dir)
     shutil.rmtree(d, ignore_errors=True)
@@ -93,16 +211,20 @@ def main(argv=None) -> int:
     fam_out = os.path.join(d, "figs")
     rows = []
 
-    def row(what, cmd, output=None):
+    def row(what, cmd, output=None, stream="stderr", timeout=120):
         if output and os.path.exists(output):
             if os.path.isdir(output):
                 shutil.rmtree(output)
             else:
                 os.remove(output)
-        r = _run(cmd, output)
+        r = _run(cmd, output, stream=stream, timeout=timeout)
         rows.append((what, "slippulse " + " ".join(os.path.relpath(c, d) if c.startswith(d) else c
                                                   for c in cmd), r))
 
+    if args.only_issue19:
+        issue19_rows(d, steady, rows, row)
+        _table(rows)
+        return 0
     for kind in ("text", "empty", "trunc", "foreign", "foreign_pulses", "missing"):
         row(f"verify --steady {kind}", ["dynamic", "verify", "--steady", f[kind], "--out", out,
                                         "--no-progress", "--distance", "0.01"], out)
@@ -186,6 +308,12 @@ def main(argv=None) -> int:
                             "time.max_steps=100000", "--set", "output.checkpoint_every=7",
                             "--out", p, "--no-progress"], p, delay, complete_run)))
 
+    issue19_rows(d, steady, rows, row)
+    _table(rows)
+    return 0
+
+
+def _table(rows) -> None:
     print("| case | command | exit | stderr (last line) | traceback | output left |")
     print("|---|---|---|---|---|---|")
     for what, cmd, r in rows:
@@ -194,7 +322,6 @@ def main(argv=None) -> int:
             last = last[:157] + "..."
         left = "–" if r["left"] is None else ("YES" if r["left"] else "no")
         print(f"| {what} | `{cmd}` | {r['rc']} | {last} | {'YES' if r['tb'] else 'no'} | {left} |")
-    return 0
 
 
 if __name__ == "__main__":

@@ -339,7 +339,8 @@ def _synthetic_pulse(ratio, beta, width):
 
 def test_analyse_family_writes_results(tmp_path):
     path = str(tmp_path / "fam.h5")
-    specs = [(1.2, 0.02, 0.05), (1.05, 0.3, 0.2), (1.03, 0.6, 0.4), (1.02, 0.8, 0.8)]
+    specs = [(1.2, 0.02, 0.05), (1.05, 0.3, 0.2), (1.04, 0.45, 0.3), (1.03, 0.6, 0.4),
+             (1.02, 0.8, 0.8), (1.015, 0.9, 1.2)]      # down to 1.015: supports the fits
     for r, b, w in specs:
         h5io.write_pulse(path, _synthetic_pulse(r, b, w), P)
     rows = an.analyse_family(path, write=True)
@@ -403,15 +404,16 @@ def test_cmd_analyse_prints_table_and_writes(tmp_path, capsys):
 
 def test_analyse_family_fits_skip_unconverged_pulses(tmp_path):
     path = str(tmp_path / "fam.h5")
-    for r, b, w in [(1.05, 0.3, 0.2), (1.03, 0.6, 0.4), (1.02, 0.8, 0.8)]:
+    for r, b, w in [(1.05, 0.3, 0.2), (1.035, 0.5, 0.35), (1.03, 0.6, 0.4), (1.02, 0.8, 0.8),
+                    (1.015, 0.9, 1.2)]:
         h5io.write_pulse(path, _synthetic_pulse(r, b, w), P)
     bad = _synthetic_pulse(1.04, 0.01, 5.0)
     bad.converged = False
     h5io.write_pulse(path, bad, P)
     rows = an.analyse_family(path, write=False)
-    assert len(rows) == 4
-    assert rows[0]["family"]["scaling"]["n"] == 3
-    assert rows[0]["family"]["fracture"]["n_curves"] == 3
+    assert len(rows) == 6
+    assert rows[0]["family"]["scaling"]["n"] == 5
+    assert rows[0]["family"]["fracture"]["n_curves"] == 5
 
 
 def test_divergence_fit_recovers_a_power_law_divergence():
@@ -479,3 +481,22 @@ def test_edge_structure_on_an_analytic_pulse():
     y = np.log(v)
     assert profile_distance(xi, y, x_b, xi + 3.0, y, x_b + 3.0, 5.0) < 1e-9
     assert profile_distance(xi, y, x_b, xi + 3.0, y, x_b, 5.0) > 1.0
+
+
+def test_analyse_names_the_results_a_shallow_family_cannot_support(tmp_path, capsys):
+    """Issue 19: a family that stops above 1.015 (or has too few pulses near tau_*) gets the
+    reason instead of a scaling fit and G_c, in the printed table and in the file."""
+    from slippulse.cli.app import main
+    path = str(tmp_path / "fam.h5")
+    for r, b, w in [(1.2, 0.02, 0.05), (1.05, 0.3, 0.2), (1.04, 0.45, 0.3), (1.03, 0.6, 0.4),
+                    (1.02, 0.8, 0.8)]:
+        h5io.write_pulse(path, _synthetic_pulse(r, b, w), P)
+    assert main(["steady", "analyse", path]) == 0
+    out = capsys.readouterr().out
+    assert "G_c =" not in out and "scaling fit on" not in out
+    assert "G_c: not done (not supported by this family" in out and "1.015" in out
+    with h5py.File(path, "r") as h5:
+        g = h5["family"]
+        assert "G_c" not in g.attrs and "tau_star" not in g.attrs
+        assert "deepest is 1.0200" in g.attrs["fracture_error"]
+        assert "not supported" in g.attrs["scaling_error"]

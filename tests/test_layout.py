@@ -9,7 +9,8 @@ import slippulse
 
 PKG = os.path.dirname(slippulse.__file__)
 #: rank of each subpackage; a module may import from a lower rank, or from its own subpackage
-LAYER = {"core": 0, "steady": 1, "dynamics": 1, "stability": 2, "plotting": 3, "cli": 4}
+LAYER = {"core": 0, "steady": 1, "dynamics": 1, "stability": 2, "plotting": 3, "cli": 4,
+         "__main__": 5}                    # ``python -m slippulse``: the entry point, above cli
 
 
 def _modules():

@@ -21,6 +21,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="slippulse",
         description="Self-healing slip pulses on a rate-and-state frictional interface (mode III).")
+    from .. import __version__
+    parser.add_argument("--version", action="version", version=f"slippulse {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in _PLUGINS:

@@ -17,8 +17,13 @@ import numpy as np
 from .app import UsageError
 from .paramargs import add_params_args, check_config_params, config_sets, params_for_input
 from ..dynamics.config import RESUME_MUTABLE, build_stepper, diff_keys, load_config
+from ..core.h5io import check_writable
 from ..dynamics.runfile import RunFile
 from ..dynamics.stepper import MAX_GRID_POINTS
+from .checks import check_figure, finite
+
+#: Fewest points of a seeded grid (as --points of verify).
+MIN_GRID_POINTS = 16
 
 
 def register(subparsers) -> None:
@@ -63,6 +68,9 @@ def register(subparsers) -> None:
     v.add_argument("--xi-stab", type=float, default=0.5, help="time.xi_stab of the adaptive rule")
     v.add_argument("--samples", type=int, default=100, help="measurements (default 100)")
     v.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    v.add_argument("--allow-unconverged", action="store_true",
+                    help="use a pulse marked converged=False (default: refuse it); the output "
+                         "says so (attribute steady_converged = False)")
     v.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
     add_params_args(v)
     v.set_defaults(func=cmd_verify)
@@ -81,6 +89,9 @@ def register(subparsers) -> None:
     sd.add_argument("--far-field", choices=("steady", "none"), default="steady",
                     help="add the isolated pulse's far field to the loading (default steady)")
     sd.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    sd.add_argument("--allow-unconverged", action="store_true",
+                    help="use a pulse marked converged=False (default: refuse it); the output "
+                         "says so (attribute steady_converged = False)")
     add_params_args(sd)
     sd.set_defaults(func=cmd_seed)
     try:                                   # ``dynamic scan`` (cli/scan.py)
@@ -99,6 +110,9 @@ def cmd_run(args) -> int:
     if args.out:
         cfg["output"]["file"] = args.out
     path = cfg["output"]["file"]
+    if os.path.isdir(path):
+        raise UsageError(f"--out={path!r} is a directory; give a file name (e.g. "
+                         f"{os.path.join(path, 'run.h5')})")
     stepper = build_stepper(cfg)
     if args.resume:
         try:
@@ -116,6 +130,7 @@ def cmd_run(args) -> int:
         if os.path.exists(path) and not args.overwrite:
             raise UsageError(f"output file {path} exists: use --resume to continue it, --overwrite "
                              "to replace it, or --out for another file")
+        check_writable(path, "--out")
         out = RunFile.create(path, cfg, stepper.params, stepper)
         out.snapshot(stepper)
         out.checkpoint(stepper)
@@ -157,8 +172,9 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
     finally:
         bar.close()
     if status == "interrupted":
-        # the state may be half-updated mid-step: keep FILE at its last checkpoint
+        # the state may be half-updated mid-step: keep FILE at its last checkpoint, marked
         out.close()
+        _mark_interrupted(out)
     else:
         if status == "finished" and out.last_snapshot_step() != st.nstep:
             out.snapshot(st)
@@ -171,6 +187,31 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
     return rc
 
 
+#: Longest --distance of verify, in pulse lengths (each L takes ~1e3-1e4 steps; a pulse that is
+#: lost ends the run earlier).
+MAX_DISTANCE = 1e4
+
+
+def _require_converged(args, pulse) -> None:
+    """Refuse a pulse marked converged=False unless --allow-unconverged (h5io.require_converged)."""
+    from ..core.h5io import require_converged
+    require_converged(args.steady, [pulse.label], allow=args.allow_unconverged,
+                      hint="--allow-unconverged uses it anyway and marks the output")
+
+
+def _unconverged_prefix(pulse) -> str:
+    return "" if pulse.converged else f"UNCONVERGED steady pulse {pulse.label} (--allow-unconverged): "
+
+
+def _mark_interrupted(out: RunFile) -> None:
+    """Status 'interrupted' in FILE (its data stay at the last checkpoint; --resume continues)."""
+    try:
+        out.mark("interrupted", "interrupted by the user; the file holds the last checkpoint "
+                                "(--resume continues from it)")
+    except KeyboardInterrupt:
+        pass                                   # a second Ctrl-C: FILE stays as it was
+
+
 def _check_grid(dx: float, ahead: float, behind: float, L: float) -> None:
     """Refuse a seeded grid that is not finite or has more than MAX_GRID_POINTS points, before
     anything is allocated (``seeding.DomainSpec`` checks the signs)."""
@@ -178,6 +219,9 @@ def _check_grid(dx: float, ahead: float, behind: float, L: float) -> None:
         if not (math.isfinite(val) and val > 0):
             raise UsageError(f"--{name}={val!r} must be a finite number > 0")
     n = (ahead + behind) * L / dx
+    if n < MIN_GRID_POINTS:
+        raise UsageError(f"--dx={dx:g} m gives {n:.3g} grid points over ({ahead:g} + {behind:g}) "
+                         f"L = {(ahead + behind) * L:.4g} m; at least {MIN_GRID_POINTS}")
     if n > MAX_GRID_POINTS:
         raise UsageError(f"--dx={dx:g} m gives {n:.3g} grid points over ({ahead:g} + {behind:g}) "
                          f"L = {(ahead + behind) * L:.4g} m; at most {MAX_GRID_POINTS}")
@@ -196,14 +240,16 @@ def cmd_verify(args) -> int:
         pulse, params = read_pulse(args.steady, args.label)
     except SchemaError as exc:
         raise UsageError(str(exc))
+    _require_converged(args, pulse)
     params = params_for_input(args, params, args.steady)
     label = pulse.label
     out = args.out or f"verify_{label}.h5"
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
     check_writable(out, "--out")
-    if not args.distance > 0:
-        raise UsageError(f"--distance={args.distance} must be > 0 (pulse lengths)")
+    check_writable(os.path.splitext(out)[0] + ".png", "--out (its PNG)")
+    finite(args.distance, "--distance", 0.0, MAX_DISTANCE, unit="pulse lengths")
+    finite(args.xi_stab, "--xi-stab", 0.0)
     from ..stability.seeding import default_dx
     dx = default_dx(params) if args.dx is None else args.dx
     if args.points is not None:
@@ -221,10 +267,11 @@ def cmd_verify(args) -> int:
                            progress=not args.no_progress)
     except ParameterError as exc:
         raise UsageError(str(exc))
-    write_result(out, res, params, source=os.path.abspath(args.steady), label=label)
+    write_result(out, res, params, source=os.path.abspath(args.steady), label=label,
+                 steady_converged=pulse.converged)
     png = os.path.splitext(out)[0] + ".png"
     plot_verify_result(png, res, pulse, params)
-    print(summary(res) + f"; output {out}, figure {png}")
+    print(_unconverged_prefix(pulse) + summary(res) + f"; output {out}, figure {png}")
     return 0 if res.info["status"] == "finished" else 2
 
 
@@ -238,10 +285,12 @@ def cmd_seed(args) -> int:
         pulse, params = read_pulse(args.steady, args.label)
     except SchemaError as exc:
         raise UsageError(str(exc))
+    _require_converged(args, pulse)
     params = params_for_input(args, params, args.steady)
     out = args.out or f"seed_{pulse.label}.h5"
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
+    check_writable(out, "--out")
     from ..stability.seeding import default_dx
     dx = default_dx(params) if args.dx is None else args.dx
     _check_grid(dx, args.ahead, args.behind, pulse.L)
@@ -253,7 +302,7 @@ def cmd_seed(args) -> int:
         raise UsageError(str(exc))
     mis = write_seed(out, seed, source=os.path.abspath(args.steady), label=pulse.label)
     st = seed.stepper
-    print(f"seed {pulse.label}: N={st.n}, dx={st.dx * 1e3:.3g} mm, domain {st.length:.4g} m "
+    print(_unconverged_prefix(pulse) + f"seed {pulse.label}: N={st.n}, dx={st.dx * 1e3:.3g} mm, domain {st.length:.4g} m "
           f"({args.behind:g} L behind + {args.ahead:g} L ahead); t = 0 stress vs steady: "
           f"{mis['stress']:.2e} tau_d over the pulse, {mis['stress_all']:.2e} anywhere; "
           f"friction imbalance {mis['friction']:.2e} tau_d; output {out}")

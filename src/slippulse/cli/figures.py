@@ -21,6 +21,8 @@ def register(subparsers):
     p.add_argument("--cd-cs", type=float, nargs="+", default=None, metavar="RATIO",
                    help="c_d/c_s of the mode-II figure S4 (default: three values, "
                         "steady/modeii.py CD_OVER_CS); each > 1")
+    p.add_argument("--skip-unconverged", action="store_true",
+                   help="leave out the pulses marked converged=False (default: refuse the file)")
     add_params_args(p)
     p.set_defaults(func=run)
 
@@ -36,10 +38,25 @@ def run(args):
     bad = [f for f in formats if f not in ("png", "pdf", "svg")]
     if bad or not formats:
         raise UsageError(f"--formats={args.formats!r}: choose from png, pdf, svg")
+    skip = _unconverged(args)
     check_files(args, [args.file] + ([args.compare] if args.compare else []))
     cd = analysis.check_cd_over_cs(args.cd_cs)
-    data = plotting.load_family(args.file, compare_path=args.compare, cd_over_cs=cd)
+    from .checks import check_outdir
+    check_outdir(args.outdir, "--outdir")
+    data = plotting.load_family(args.file, compare_path=args.compare, cd_over_cs=cd, skip=skip)
+    if skip:
+        print(f"left out (marked converged=False): {', '.join(skip)}")
     written = plotting.save_all(data, args.outdir, formats=formats)
     print(analysis.format_table(data.rows))
     print(f"wrote {len(written)} files to {args.outdir}")
     return 0
+
+
+def _unconverged(args) -> list:
+    """The unconverged pulses of FILE (refused unless --skip-unconverged; those of --compare are
+    always left out of Fig. S1b)."""
+    from ..core.h5io import require_converged
+    hint = "--skip-unconverged leaves them out"
+    if args.compare:
+        require_converged(args.compare, allow=args.skip_unconverged, hint=hint)
+    return require_converged(args.file, allow=args.skip_unconverged, hint=hint)

@@ -60,6 +60,20 @@ def _figures_hook(scan):
     return None
 
 
+def _check_steady_pulses(scan) -> None:
+    """Perturbation scans: every case's steady pulse must be marked converged (the same
+    ``h5io.require_converged`` as the other readers), checked before any case runs (exit 2)."""
+    from ..core.h5io import require_converged
+    from ..stability import perturbation
+    from ..stability.scan import load_runner
+
+    if load_runner(scan.runner, scan.runner_path)[0] is not perturbation.run_case:
+        return
+    for path, label in sorted({(c["steady"], c["label"]) for c in
+                               (perturbation.check_case(case.params) for case in scan.cases)}):
+        require_converged(path, [label])
+
+
 def cmd_scan(args) -> int:
     from ..stability.scan import load_scan, run_scan, scan_states
 
@@ -77,6 +91,7 @@ def cmd_scan(args) -> int:
         return 0
     if args.workers < 1:
         raise UsageError(f"--workers={args.workers} must be >= 1")
+    _check_steady_pulses(scan)
     executor = "local"
     if args.scheduler:
         try:

@@ -7,7 +7,9 @@ import sys
 
 from tqdm import tqdm
 
-from ..core.h5io import pulse_label, write_pulse
+from ..core.errors import UsageError
+from ..core.h5io import check_writable, pulse_label, stored_converged, write_pulse
+from .checks import check_figure, check_outdir, finite  # noqa: F401
 from ..steady.newton import SOLVERS
 from ..core.params import DEFAULT, ParameterError
 from .paramargs import add_params_args, check_files, params_for_output
@@ -67,6 +69,7 @@ def cmd_solve(args) -> int:
     params = params_for_output(args)
     ratio = _ratio(args.tau_d, params)
     params.check_tau_d(ratio * params.tau_min)
+    _check_solve_range(ratio)
     check_points(args.points)
     if not (math.isfinite(args.tol) and args.tol > 0):
         raise ParameterError(f"tol={args.tol!r} is invalid: must be a finite number > 0 "
@@ -74,34 +77,100 @@ def cmd_solve(args) -> int:
     out = args.out or os.path.join("runs", "steady", f"{pulse_label(ratio)}.h5")
     _check_out(out)
     params = params_for_output(args, out)
-    bar = tqdm(total=3, desc=f"steady {pulse_label(ratio)}", unit="pass", disable=args.quiet,
-               file=sys.stderr)
-
-    def progress(msg):
-        bar.set_postfix_str(msg[:60])
-        bar.update(1)
-
-    try:
-        guess = (_homotopy_guess(params, ratio, lambda m: bar.set_postfix_str("path " + m[:55]))
-                 if args.homotopy else None)
-    except SolverStop as exc:
-        bar.close()
-        print(f"slippulse: solver did not converge: {exc}; nothing written", file=sys.stderr)
+    label = pulse_label(ratio)
+    before = stored_converged(out, label)
+    if before is not None and not args.overwrite:
+        raise UsageError(f"out={out!r}: pulse {label} already exists there "
+                         f"({'converged' if before else 'not converged'}); --overwrite replaces it")
+    png = None if args.no_figure else os.path.splitext(out)[0] + ".png"
+    if png:
+        check_figure(png, "out (its PNG)")
+    sol, route = _solve_any(params, ratio, args)
+    if sol is None:
+        print(f"slippulse: solver did not converge: {route}; nothing written to {out}",
+              file=sys.stderr)
         return 1
-    sol = solve_pulse(params, ratio, n_points=args.points, method=args.method, tol=args.tol,
-                      progress=progress, guess=guess)
-    bar.close()
     pulse = sol.to_pulse()
-    write_pulse(out, pulse, params)
-    if not args.no_figure:
+    if not pulse.converged and before:
+        print(summary_line(pulse, params))
+        print(f"slippulse: solver did not converge: {sol.stats.message}; the converged pulse "
+              f"{label} in {out} is kept, nothing written", file=sys.stderr)
+        return 1
+    write_pulse(out, pulse, params, overwrite=args.overwrite)
+    if png:
         from ..plotting.quicklook import plot_pulse
-        plot_pulse(pulse, params, os.path.splitext(out)[0] + ".png")
+        plot_pulse(pulse, params, png)
     print(summary_line(pulse, params))
     if not pulse.converged:
         print(f"slippulse: solver did not converge: {sol.stats.message} "
               f"(written with converged=False to {out})", file=sys.stderr)
         return 1
     return 0
+
+
+def _check_solve_range(ratio: float) -> None:
+    """Refuse a tau-d outside what ``steady solve`` reaches (reach.SOLVE_RANGE), saying what does."""
+    from ..steady.reach import SOLVE_RANGE
+    lo, hi = SOLVE_RANGE
+    if not lo <= ratio <= hi:
+        raise ParameterError(
+            f"tau-d={ratio:g} is outside what steady solve reaches, [{lo}, {hi}]: "
+            + (f"deeper pulses come from the family continuation (slippulse steady family --to "
+               f"{ratio:g} --deep arclength)" if ratio < lo else
+               f"above {hi} the pulse fades toward tau_peak/tau_min = 1.3319 and the continuation "
+               "from 1.2 cannot follow it"))
+
+
+def _solve_any(params, ratio, args):
+    """``steady solve``'s solve: from the built-in guess at 1.2, continued to ``ratio``
+    (with --homotopy: from Table I's pulse continued in the parameters, then solved at ``ratio``)
+    (:func:`slippulse.steady.reach.reach_pulse`) with a progress bar over the walk's steps.
+    Returns (solution or None, route or reason)."""
+    from ..steady.reach import GUESS_RATIO, reach_pulse, route_targets
+
+    if getattr(args, "homotopy", False):
+        # --homotopy (issue 21): the guess is the pulse continued in the parameters from Table I's
+        # at this tau_d; then one solve at the target from it
+        bar = tqdm(total=3, desc=f"steady {pulse_label(ratio)}", unit="pass", disable=args.quiet,
+                   file=sys.stderr)
+
+        def progress(msg):
+            bar.set_postfix_str(msg[:60])
+            bar.update(1)
+
+        try:
+            guess = _homotopy_guess(params, ratio,
+                                    lambda m: bar.set_postfix_str("path " + m[:55]))
+            sol = solve_pulse(params, ratio, n_points=args.points, method=args.method,
+                              tol=args.tol, progress=progress, guess=guess)
+        except SolverStop as exc:
+            return None, str(exc)
+        finally:
+            bar.close()
+        return sol, "by continuation in the parameters from Table I"
+    h, n = route_targets(ratio)
+    if n == 0:
+        bar = tqdm(total=3, desc=f"steady {pulse_label(ratio)}", unit="pass", disable=args.quiet,
+                   file=sys.stderr)
+
+        def progress(msg):
+            bar.set_postfix_str(msg[:60])
+            bar.update(1)
+
+        sol = solve_pulse(params, ratio, n_points=args.points, method=args.method, tol=args.tol,
+                          progress=progress)
+        bar.close()
+        return sol, "from the built-in guess"
+    prog = FamilyProgress(GUESS_RATIO, ratio, -h)
+    bar = tqdm(total=prog.total, desc=f"steady {pulse_label(ratio)} (from {GUESS_RATIO})",
+               unit="step", disable=args.quiet, file=sys.stderr,
+               bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}{postfix}]")
+    prog.bar = bar
+    try:
+        return reach_pulse(params, ratio, n_points=args.points, method=args.method, tol=args.tol,
+                           progress=prog)
+    finally:
+        bar.close()
 
 
 class FamilyProgress:
@@ -142,6 +211,20 @@ def final_status(rep, start, stop, out) -> str:
     return line
 
 
+#: Most targets a ``steady family`` run may have ((from - to)/step + 1): a step that needs more
+#: could not finish (each target is a solve of seconds).
+MAX_TARGETS = 10_000
+
+
+def _check_targets(start: float, stop: float, step: float) -> None:
+    """Refuse a --step that gives more than MAX_TARGETS targets (e.g. 1e-300: 1e299 targets)."""
+    n = (start - stop) / step + 1
+    if n > MAX_TARGETS:
+        raise ParameterError(f"step={step:g} is invalid: it gives {n:.3g} targets from {start:g} to "
+                             f"{stop:g}; at most {MAX_TARGETS} (step >= "
+                             f"{(start - stop) / (MAX_TARGETS - 1):.3g})")
+
+
 def cmd_family(args) -> int:
     from ..steady.continuation import run_family
     out = args.out or os.path.join("runs", "steady", "family.h5")
@@ -149,6 +232,8 @@ def cmd_family(args) -> int:
     start, stop = _ratio(args.from_, params), _ratio(args.to, params)
     if not (math.isfinite(args.step) and args.step > 0):
         raise ParameterError(f"step={args.step} is invalid: must be a number > 0")
+    _check_targets(start, stop, args.step)
+    check_writable(args.out or os.path.join("runs", "steady", "family.h5"), "out")
     if args.points is not None:
         check_points(args.points)
     prog = FamilyProgress(start, stop, args.step)
@@ -194,6 +279,14 @@ def cmd_stability(args) -> int:
     labels = args.labels or None
     chosen, _ = check_family_file(args.file, labels)      # bad input fails here, before any work
     _check_file_params(args, args.file)
+    check_writable(args.file, "FILE")                     # the spectra go into FILE
+    if labels is None:                                    # all converged: name those left out
+        from ..core.h5io import require_converged
+        left = require_converged(args.file, allow=True)
+        if left:
+            print(f"left out (marked converged=False): {', '.join(left)}", file=sys.stderr)
+    if args.figure:
+        check_figure(args.figure, "--figure")
     bar = tqdm(total=len(chosen), desc="spectrum", unit="pulse", disable=args.quiet,
                file=sys.stderr)
 
@@ -242,9 +335,13 @@ def register(sub) -> None:
     ss = p_steady.add_subparsers(dest="steady_command", metavar="SUBCOMMAND")
     ss.required = True
     p = ss.add_parser("solve", help="solve one steady pulse",
-                      description="Solve the steady pulse at one driving stress from the built-in "
-                                  "guess; writes HDF5 (+ PNG) and prints a one-line summary.")
-    p.add_argument("--tau-d", default="1.2", help="driving stress tau_d/tau_min (default 1.2)")
+                      description="Solve the steady pulse at one driving stress: from the "
+                                  "built-in guess at 1.2, continued to --tau-d (the family "
+                                  "continuation below 1.2, steps upward above); writes HDF5 "
+                                  "(+ PNG) and prints a one-line summary.")
+    p.add_argument("--tau-d", default="1.2",
+                   help="driving stress tau_d/tau_min in [1.015, 1.325] (default 1.2; away from "
+                        "1.2 the pulse is reached by continuation from 1.2, with a progress bar)")
     p.add_argument("--points", type=int, default=2000, help="grid points N (default 2000)")
     p.add_argument("--out", default=None, help="output HDF5 (default runs/steady/tdX.XXXX.h5)")
     p.add_argument("--method", choices=sorted(SOLVERS), default="newton",
@@ -254,6 +351,9 @@ def register(sub) -> None:
     p.add_argument("--homotopy", action="store_true",
                    help="start from Table I's pulse and continue in the parameters to the given "
                         "ones (geometric path, N = 500; for laws where the built-in guess fails)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a pulse of the same label in --out (an unconverged solve never "
+                        "replaces a converged pulse)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_solve)
@@ -311,5 +411,8 @@ def register(sub) -> None:
     p.add_argument("--cd-cs", type=float, nargs="+", default=None, metavar="RATIO",
                    help="c_d/c_s of the mode-II mapping (default sqrt(3) and two others, "
                         "steady/modeii.py CD_OVER_CS); each > 1")
+    p.add_argument("--skip-unconverged", action="store_true",
+                   help="leave out the pulses marked converged=False (default: refuse the file); "
+                        "they are named in the output")
     add_params_args(p)
     p.set_defaults(func=cmd_analyse)

@@ -55,6 +55,15 @@ class SchemaError(ValueError):
     """A file or group that does not follow the slippulse pulse schema."""
 
 
+class UnconvergedPulseError(SchemaError):
+    """A pulse marked ``converged = False`` where a converged one is needed (exit code 2)."""
+
+
+class PulseExistsError(SchemaError):
+    """A pulse label already present in the output file (replaced only when asked to, and a
+    converged pulse never by an unconverged one)."""
+
+
 #: netCDF-4 marker of a dimension scale that is not a variable (``NAME`` attribute prefix).
 _DIM_ONLY = "This is a netCDF dimension but not a netCDF variable."
 
@@ -212,11 +221,23 @@ def atomic_update(path: str, fill, replace: bool = False) -> None:
             h5.flush()
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
+        os.chmod(tmp, _output_mode(path))
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.remove(tmp)
         raise
+
+
+def _output_mode(path: str) -> int:
+    """Permission bits of a file written to ``path``: those of the file it replaces, else what
+    ``open`` would give a new file (0o666 less the umask; ``mkstemp`` alone gives 0o600)."""
+    try:
+        return os.stat(path).st_mode & 0o7777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
 
 
 def write_parameters(h5: h5py.File, params: Parameters) -> None:
@@ -233,11 +254,19 @@ def read_parameters(h5: h5py.File) -> Parameters:
     missing = [n for n in PARAM_NAMES if n not in grp.attrs]
     if missing:
         raise SchemaError(f"'parameters' group lacks attributes {missing}")
-    return Parameters(**{n: float(grp.attrs[n]) for n in PARAM_NAMES})
+    try:
+        return Parameters(**{n: float(np.asarray(grp.attrs[n]).item()) for n in PARAM_NAMES})
+    except (TypeError, ValueError) as exc:          # ParameterError included
+        raise SchemaError(f"'parameters' group: {exc}") from None
 
 
 def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = True) -> None:
-    """Add (or replace) `pulse` as ``pulses/<label>`` in `path`, atomically."""
+    """Add (or replace) `pulse` as ``pulses/<label>`` in `path`, atomically.
+
+    A pulse already stored under the label is replaced only with ``overwrite``; a converged one is
+    never replaced by an unconverged `pulse` (:class:`PulseExistsError` in both cases, the file
+    unchanged).
+    """
 
     def fill(h5):
         format_version(h5, path)
@@ -251,8 +280,12 @@ def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = T
             write_parameters(h5, params)
         pulses = h5.require_group("pulses")
         if pulse.label in pulses:
+            if not pulse.converged and pulse_converged(pulses[pulse.label]):
+                raise PulseExistsError(f"{path}: pulse {pulse.label} is stored converged; an "
+                                       "unconverged solve never replaces it (kept unchanged)")
             if not overwrite:
-                raise SchemaError(f"{path}: pulse {pulse.label} already present")
+                raise PulseExistsError(f"{path}: pulse {pulse.label} already present (replace "
+                                       "it with --overwrite)")
             del pulses[pulse.label]
         grp = pulses.create_group(pulse.label)
         xi = coordinate(grp, "xi", np.asarray(pulse.xi, dtype=float), units=DATASETS["xi"],
@@ -316,13 +349,25 @@ def open_h5(path: str, what: str = "file") -> h5py.File:
 
 
 def check_writable(path: str, what: str = "out") -> None:
-    """Refuse (:class:`SchemaError`) an output path whose nearest existing parent is not a
-    directory, before any work is done."""
-    d = os.path.dirname(os.path.abspath(path))
+    """Refuse (:class:`SchemaError`), before any work is done, an output path that could not be
+    written: its nearest existing parent is not a directory, or no file can be created there (a
+    trial file is created and removed), or it names an existing directory or read-only file."""
+    full = os.path.abspath(path)
+    d = os.path.dirname(full)
     while not os.path.exists(d):
         d = os.path.dirname(d)
     if not os.path.isdir(d):
         raise SchemaError(f"{what}={path!r}: cannot write there, {d} is a file, not a directory")
+    if os.path.isdir(full):
+        raise SchemaError(f"{what}={path!r} is a directory; give a file name")
+    if os.path.exists(full) and not os.access(full, os.W_OK):
+        raise SchemaError(f"{what}={path!r}: the existing file is not writable")
+    try:
+        fd, trial = tempfile.mkstemp(prefix=".tmp-probe-", dir=d)
+    except OSError as exc:
+        raise SchemaError(f"{what}={path!r}: cannot write in {d} ({exc.strerror})") from None
+    os.close(fd)
+    os.remove(trial)
 
 
 def _labels(h5, path: str) -> list[str]:
@@ -366,3 +411,59 @@ def read_pulse(path: str, label: str | None = None) -> tuple[Pulse, Parameters]:
         if label not in labels:
             raise SchemaError(f"{path}: no pulse label={label!r}; present: {labels}")
         return _group_to_pulse(h5["pulses"][label]), params
+
+
+def pulse_converged(grp) -> bool:
+    """The ``converged`` attribute of a pulse group (absent or unreadable: False)."""
+    try:
+        return bool(np.asarray(grp.attrs.get("converged", False)).item())
+    except (TypeError, ValueError):
+        return False
+
+
+def stored_converged(path: str, label: str) -> bool | None:
+    """Whether ``path`` holds pulse ``label`` and it is marked converged (None: no such pulse or
+    no such file)."""
+    if not os.path.isfile(path):
+        return None
+    with open_h5(path) as h5:
+        if label not in _labels(h5, path):
+            return None
+        return pulse_converged(h5["pulses"][label])
+
+
+def require_converged(path: str, labels=None, *, allow: bool = False, hint: str = "") -> list[str]:
+    """The check every reader of steady pulses makes before using them: the pulses ``labels`` of
+    ``path`` (default: all) must be marked ``converged = True``.
+
+    Parameters
+    ----------
+    path : steady/family HDF5 file.
+    labels : iterable of str, optional
+        Pulses the command will use (labels absent from the file are left to the reader).
+    allow : bool
+        Return the unconverged labels instead of raising (the caller marks its output).
+    hint : str
+        Appended to the message (e.g. the option that allows or skips them).
+
+    Returns
+    -------
+    list of str
+        The unconverged labels among ``labels`` (empty unless ``allow``).
+
+    Raises
+    ------
+    UnconvergedPulseError
+        One line naming the file and the label(s), when some pulse is unconverged and not ``allow``.
+    """
+    with open_h5(path) as h5:
+        present = _labels(h5, path)
+        wanted = present if labels is None else [lab for lab in labels if lab in present]
+        bad = [lab for lab in wanted if not pulse_converged(h5["pulses"][lab])]
+    if bad and not allow:
+        names = ", ".join(bad[:4]) + (f" and {len(bad) - 4} more" if len(bad) > 4 else "")
+        msg = (f"{path}: pulse{'s' if len(bad) > 1 else ''} {names} "
+               f"{'are' if len(bad) > 1 else 'is'} marked converged=False (the solve failed); "
+               "refused")
+        raise UnconvergedPulseError(msg + (f" ({hint})" if hint else ""))
+    return bad

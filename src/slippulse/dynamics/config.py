@@ -142,6 +142,7 @@ def build_stepper(cfg: dict):
                "quasi_dynamic": {}}
     if h["policy"] not in options:
         raise ParameterError(f"history.policy={h['policy']!r} must be one of {sorted(options)}")
+    _check_fft(cfg["fft"])
     st = make_stepper(cfg["stepper"]["name"], params, cfg["grid"]["n"], cfg["grid"]["length"], law,
                       rule=rule, history=h["policy"], history_options=options[h["policy"]],
                       threads=cfg["fft"]["threads"], planner=cfg["fft"]["planner"])
@@ -155,6 +156,26 @@ def build_stepper(cfg: dict):
     for key in ("snapshot_every", "checkpoint_every"):
         if cfg["output"][key] < 1:
             raise ParameterError(f"output.{key}={cfg['output'][key]!r} must be >= 1 (steps)")
-    if cfg["time"]["max_steps"] < 0 or not cfg["time"]["t_end"] > 0:
-        raise ParameterError("time.t_end must be > 0 (s) and time.max_steps >= 0 (0 = no limit)")
+    if cfg["time"]["max_steps"] < 0 or not (0 < cfg["time"]["t_end"] < math.inf):
+        raise ParameterError(f"time.t_end={cfg['time']['t_end']!r} must be finite and > 0 (s) and "
+                             f"time.max_steps={cfg['time']['max_steps']!r} >= 0 (0 = no limit)")
     return st
+
+
+#: Most FFTW threads a run may ask for.
+MAX_THREADS = 256
+
+
+def _check_fft(fft: dict) -> None:
+    """``[fft]``: threads an integer in [1, MAX_THREADS], planner one of the FFTW efforts
+    (ParameterError naming the key, before any plan is made)."""
+    from ..core.params import ParameterError
+    from .fft import _PLANNER
+
+    n = fft["threads"]
+    if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_THREADS:
+        raise ParameterError(f"fft.threads={n!r} is invalid: must be an integer in "
+                             f"[1, {MAX_THREADS}]")
+    if fft["planner"] not in _PLANNER:
+        raise ParameterError(f"fft.planner={fft['planner']!r} is invalid: must be one of "
+                             f"{', '.join(sorted(_PLANNER))}")

@@ -40,7 +40,7 @@ import h5py
 import numpy as np
 
 from .. import __version__
-from ..core.h5io import SchemaError, coordinate, describe, dimension, format_version, stamp_format
+from ..core.h5io import SchemaError, atomic_update, coordinate, describe, dimension, format_version, stamp_format
 from ..core.params import Parameters
 
 SNAP_FIELDS = {"V": "m/s", "phi": "s", "tau": "Pa", "delta": "m"}
@@ -280,6 +280,14 @@ class RunFile:
             self.h5.close()                      # previous FILE in another layout (resumed v1)
         shutil.copyfile(self.path, self.work)
         self.h5 = h5py.File(self.work, "r+")
+
+    def mark(self, status: str, message: str) -> None:
+        """Record ``status`` and ``message`` in FILE after :meth:`close`, leaving its checkpoint
+        as it is (a copy edited and renamed over FILE: an interrupted mark leaves FILE intact)."""
+        def fill(h5):
+            h5.attrs["status"] = status
+            h5.attrs["message"] = message
+        atomic_update(self.path, fill)
 
     def close(self, remove_work=True):
         self.h5.close()

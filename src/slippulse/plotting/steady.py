@@ -45,17 +45,21 @@ class FamilyData:
         return np.array([p.tau_d_ratio for p in self.pulses])
 
 
-def load_family(path, compare_path=None, cd_over_cs=None):
+def load_family(path, compare_path=None, cd_over_cs=None, skip=()):
     """Read a family file and analyse it (nothing is written); ``cd_over_cs``: c_d/c_s values of
-    the mode-II figure (default ``modeii.CD_OVER_CS``)."""
-    rows = an.analyse_family(path, write=False, cd_over_cs=cd_over_cs)
+    the mode-II figure (default ``modeii.CD_OVER_CS``); the labels ``skip`` are left out."""
+    rows = an.analyse_family(path, write=False, cd_over_cs=cd_over_cs, skip=skip)
     pulses, params = [], None
     for lab in h5io.list_pulses(path):
+        if lab in skip:
+            continue
         p, params = h5io.read_pulse(path, lab)
         pulses.append(p)
     data = FamilyData(path=path, params=params, pulses=pulses, rows=rows, fam=rows[0]["family"])
     if compare_path is not None:
         for lab in h5io.list_pulses(compare_path):
+            if not h5io.stored_converged(compare_path, lab):
+                continue
             p, prm = h5io.read_pulse(compare_path, lab)
             if prm != params:
                 from ..core.params import describe_difference

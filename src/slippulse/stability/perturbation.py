@@ -73,8 +73,8 @@ def check_case(case: dict) -> dict:
     if not abs(float(c["eps"])) < 0.5:
         raise ParameterError(f"eps={c['eps']!r} must satisfy |eps| < 0.5")
     for key in ("dx", "ahead", "distance", "beta_cfl", "xi_stab", "fit_lo"):
-        if not float(c[key]) > 0:
-            raise ParameterError(f"{key}={c[key]!r} must be > 0")
+        if not 0 < float(c[key]) < math.inf:
+            raise ParameterError(f"{key}={c[key]!r} must be finite and > 0")
     if not float(c["behind"]) > 1:
         raise ParameterError(f"behind={c['behind']!r} must be > 1 (pulse lengths)")
     if not float(c["fit_hi"]) > float(c["fit_lo"]):
@@ -312,13 +312,14 @@ def _fate(status: str) -> str:
 
 def run_perturbation(case: dict, progress: bool = False):
     """Run one perturbed pulse to its fate; returns (pulse, params, VerifyResult, analysis dict)."""
-    from ..core.h5io import read_pulse
+    from ..core.h5io import read_pulse, require_converged
     from .verify import verify_pulse
     from .seeding import DomainSpec
     from ..dynamics.stepper import TimeStepRule
 
     c = check_case(case)
     pulse, params = read_pulse(c["steady"], c["label"])
+    require_converged(c["steady"], [pulse.label])
     spec = DomainSpec(dx=float(c["dx"]), ahead=float(c["ahead"]), behind=float(c["behind"]))
     rule = TimeStepRule(kind="adaptive", beta_cfl=float(c["beta_cfl"]), xi_stab=float(c["xi_stab"]))
     grow_L = float(c["grow_L"])

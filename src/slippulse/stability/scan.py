@@ -425,16 +425,47 @@ def scan_states(scan: Scan) -> list[str]:
 # --------------------------------------------------------------------------- executors
 
 
+class _sigint_ignored:
+    """Block SIGINT while the pool spawns its workers (main thread only). The signal mask is
+    inherited over fork and exec, so a Ctrl-C while a worker still imports stays pending there
+    until its initializer ignores it (no KeyboardInterrupt printed by the worker); in the parent
+    it is delivered when the block ends (KeyboardInterrupt, which stops the workers)."""
+
+    def __enter__(self):
+        import signal
+        import threading
+        self.on = (hasattr(signal, "pthread_sigmask")
+                   and threading.current_thread() is threading.main_thread())
+        if self.on:
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+
+    def __exit__(self, *exc):
+        import signal
+        if self.on:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _worker_ignores_sigint() -> None:
+    """Worker initializer: Ctrl-C (SIGINT to the whole process group) is the parent's to handle;
+    it stops the workers itself, so they print no KeyboardInterrupt of their own."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "pthread_sigmask"):      # blocked by the parent while spawning
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 def _run_local(todo, scan: Scan, workers: int):
     """Yield ``(index, outcome)`` as cases finish in a pool of spawned processes."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     pool = ProcessPoolExecutor(max_workers=max(1, min(workers, len(todo))),
-                               mp_context=multiprocessing.get_context("spawn"))
+                               mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_worker_ignores_sigint)
     try:
-        futs = {pool.submit(run_one, scan.runner, c.params, scan.out_file(c), scan.runner_path): i
-                for i, c in todo}
+        with _sigint_ignored():          # the workers start with Ctrl-C blocked (kept over exec)
+            futs = {pool.submit(run_one, scan.runner, c.params, scan.out_file(c),
+                                scan.runner_path): i for i, c in todo}
         for fut in as_completed(futs):
             try:
                 outcome = fut.result()
@@ -445,9 +476,12 @@ def _run_local(todo, scan: Scan, workers: int):
         # interrupted (Ctrl-C, SIGTERM via the CLI, the consumer stopped): stop the workers now —
         # a worker left alone would finish its case and the cases already queued to it. Their
         # files are written atomically (temp + rename), so a killed case leaves no output.
-        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        for proc in procs:
             proc.terminate()
-        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:                      # reaped, so no semaphore is left to the tracker
+            proc.join(timeout=5)
+        pool.shutdown(wait=True, cancel_futures=True)
         raise
     pool.shutdown(wait=True, cancel_futures=True)
 

@@ -518,7 +518,7 @@ def write_seed(path: str, seed: SeededPulse, source: str = "", label: str = "") 
     far field), tau_ff (if any). Root attributes: the mismatch of :func:`stress_mismatch`
     (``stress_mismatch``, ``friction_mismatch``, ``stress_mismatch_all``, in units of τ_d), the
     grid (n, dx, length), the pulse (tau_d_ratio, beta, c_p, L), x_front0, xi_shift, net_slip and
-    the SOE history size.
+    the SOE history size, and ``steady_converged`` (False when the pulse was marked unconverged).
     """
     from ..core.h5io import atomic_update, coordinate, describe, stamp_format, write_parameters
 
@@ -551,6 +551,7 @@ def write_seed(path: str, seed: SeededPulse, source: str = "", label: str = "") 
         a["x_front0"], a["xi_shift"], a["net_slip"] = seed.x_front0, seed.xi_shift, seed.net_slip
         a["history_bytes"] = st.history.nbytes
         a["steady_file"], a["label"] = source, label
+        a["steady_converged"] = np.bool_(pulse.converged)   # False: seeded with --allow-unconverged
 
     atomic_update(path, fill, replace=True)
     return mis

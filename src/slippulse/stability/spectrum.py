@@ -574,7 +574,7 @@ def check_family_file(path, labels=None):
     parameters and converged mode-III pulses. Raises SchemaError naming the problem."""
     import h5py
 
-    from ..core.h5io import SchemaError, read_parameters
+    from ..core.h5io import SchemaError, pulse_converged, read_parameters, require_converged
     try:
         h5 = h5py.File(path, "r")
     except (OSError, FileNotFoundError) as exc:
@@ -600,10 +600,9 @@ def check_family_file(path, labels=None):
         good = []
         for lab in chosen:
             a = grp[lab].attrs
-            if not bool(a.get("converged", False)):
+            if not pulse_converged(grp[lab]):
                 if labels:
-                    raise SchemaError(f"{path}: pulse {lab} did not converge (status "
-                                      f"{a.get('status', '?')!r}); its spectrum is meaningless")
+                    require_converged(path, [lab], hint="its spectrum would be meaningless")
                 continue
             if str(a.get("mode", "III")) != "III":
                 raise SchemaError(f"{path}: pulse {lab} is a mode-{a.get('mode')} pulse; the "

@@ -486,7 +486,8 @@ SERIES_LONG_NAMES = {
 }
 
 
-def write_result(path: str, res: VerifyResult, params, source: str = "", label: str = "") -> None:
+def write_result(path: str, res: VerifyResult, params, source: str = "", label: str = "",
+                 steady_converged: bool = True) -> None:
     """Write the errors (root attributes), their time series and the snapshots to HDF5, atomically.
 
     Layout (format version 2, netCDF-4 conventions, ``xarray.open_datatree(path,
@@ -517,6 +518,7 @@ def write_result(path: str, res: VerifyResult, params, source: str = "", label: 
             h5.attrs[k] = v
         h5.attrs["steady_file"] = source
         h5.attrs["label"] = label
+        h5.attrs["steady_converged"] = np.bool_(steady_converged)   # False: --allow-unconverged
         ts = h5.create_group("series")
         t = coordinate(ts, "t", res.t, units="s", long_name="time of the measurement")
         describe(ts.create_dataset("x_front", data=res.x_front), "m",

@@ -879,9 +879,34 @@ def _atomic_update(path, fill):
     upd(path, fill)
 
 
+#: The family results that need pulses near τ_*: (name in the family dict, the error key, what).
+#: The scaling fit and G_c are read off the pulses down to τ_d/τ_min = SUPPORT_DEPTH (the
+#: paper's family ends there; its Fig. 4 curves and Eq. 3-4 constants come from them). A family
+#: that stops above it, or holds fewer than SUPPORT_MIN pulses in the window, gets the reason
+#: instead of the number (issue 19: a 1.2 -> 1.02 family printed G_c = 0.0047 for the paper's 0.6).
+SUPPORT_DEPTH = 1.015
+SUPPORT_MIN = {"scaling": 5, "fracture": 3}
+
+
+def support(ratios, window, what, need_min) -> str | None:
+    """Why the converged pulses at ``ratios`` cannot support the family result ``what`` fitted
+    over ``window`` (None: they can)."""
+    inside = [r for r in ratios if window[0] <= r <= window[1]]
+    if len(inside) < need_min:
+        return (f"not supported by this family: {what} needs >= {need_min} converged pulses with "
+                f"tau_d/tau_min in [{window[0]}, {window[1]}], it has {len(inside)}")
+    if min(inside) > SUPPORT_DEPTH + 1e-9:
+        return (f"not supported by this family: {what} needs pulses down to tau_d/tau_min = "
+                f"{SUPPORT_DEPTH} (near tau_*), its deepest is {min(inside):.4f} "
+                f"(slippulse steady family --to {SUPPORT_DEPTH})")
+    return None
+
+
 def analyse_family(path, write=True, scaling_window=SCALING_WINDOW, gc_window=GC_WINDOW,
-                   gc_tol=GC_TOL, cd_over_cs=None):
-    """Analyse every pulse of a family file; optionally store the results in it.
+                   skip=(), gc_tol=GC_TOL, cd_over_cs=None):
+    """Analyse every pulse of a family file (but the labels ``skip``); optionally store the
+    results in it. The scaling fit and G_c are left out, with the reason, where the family cannot
+    support them (:func:`support`).
 
     Parameters
     ----------
@@ -916,7 +941,7 @@ def analyse_family(path, write=True, scaling_window=SCALING_WINDOW, gc_window=GC
 
     if cd_over_cs is None:
         cd_over_cs = modeii.CD_OVER_CS
-    labels = h5io.list_pulses(path)
+    labels = [lab for lab in h5io.list_pulses(path) if lab not in set(skip)]
     if not labels:
         raise h5io.SchemaError(f"{path}: no pulses")
     pulses = []
@@ -955,6 +980,15 @@ def analyse_family(path, write=True, scaling_window=SCALING_WINDOW, gc_window=GC
         fam["fracture"] = fracture_energy(curves, tol=gc_tol)
     except ValueError as exc:
         fam["fracture_error"] = str(exc)
+    for key, what, window in (("scaling", "the scaling fit (Eqs. 3-4)", scaling_window),
+                              ("fracture", "G_c (fan-out of the G-bar curves)", gc_window)):
+        why = support(x[conv], window, what, SUPPORT_MIN[key])
+        if why:
+            for k in ((key, "scaling_beta", "scaling_L") if key == "scaling" else (key,)):
+                fam.pop(k, None)
+            fam[f"{key}_error"] = why
+    if skip:
+        fam["skipped_unconverged"] = list(skip)
     fam["mode_ii"] = {}
     L = np.array([r["L"] for r in rows])
     for k in cd_over_cs:
@@ -992,6 +1026,8 @@ def _write_family(path, rows, fam, scaling_window, gc_window):
         g.attrs["tau_m_units"] = "Pa"
         g.attrs["scaling_window"] = np.array(scaling_window, dtype=float)
         g.attrs["gc_window"] = np.array(gc_window, dtype=float)
+        if fam.get("skipped_unconverged"):
+            g.attrs["skipped_unconverged"] = ", ".join(fam["skipped_unconverged"])
         if "scaling" in fam:
             s = fam["scaling"]
             for k in ("tau_star", "a_v", "a_G", "tau_star_err", "a_v_err", "a_G_err"):
@@ -1046,6 +1082,9 @@ def format_table(rows):
         lines.append(" ".join(fmt.format(r[c]) for c, fmt in cols))
     fam = rows[0].get("family") if rows else None
     if fam:
+        if fam.get("skipped_unconverged"):
+            lines.append("left out (marked converged=False): "
+                         + ", ".join(fam["skipped_unconverged"]))
         lines.append(f"tau_m = {fam['tau_m']:.6e} Pa (min tau of the smallest tau_d)")
         if "scaling" in fam:
             s = fam["scaling"]
@@ -1094,6 +1133,11 @@ def cmd_analyse(args):
     if not os.path.isfile(args.file):
         raise h5io.SchemaError(f"FILE={args.file!r} does not exist")
     cd = check_cd_over_cs(getattr(args, "cd_cs", None))
-    rows = analyse_family(args.file, write=not getattr(args, "no_write", False), cd_over_cs=cd)
+    skip = h5io.require_converged(args.file, allow=getattr(args, "skip_unconverged", False),
+                                  hint="--skip-unconverged leaves them out")
+    write = not getattr(args, "no_write", False)
+    if write:
+        h5io.check_writable(args.file, "FILE")
+    rows = analyse_family(args.file, write=write, skip=skip, cd_over_cs=cd)
     print(format_table(rows))
     return 0

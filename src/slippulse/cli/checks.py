@@ -1,0 +1,50 @@
+"""Checks the commands make on their options before any work: finite numbers, figure formats,
+writable outputs. Each failure is a :class:`~slippulse.core.errors.UsageError` naming the option
+(one line, exit code 2)."""
+from __future__ import annotations
+
+import math
+import os
+
+from ..core.errors import UsageError
+from ..core.h5io import check_writable
+
+
+def finite(value: float, option: str, lo: float | None = None, hi: float | None = None,
+           lo_open: bool = True, unit: str = "") -> float:
+    """``value`` if it is finite and within (lo, hi] (``lo_open``) or [lo, hi]; else a
+    UsageError naming ``option`` (e.g. ``"--step"``) and the valid range."""
+    rng = (f"{'(' if lo_open else '['}{'-inf' if lo is None else f'{lo:g}'}, "
+           f"{'inf' if hi is None else f'{hi:g}'}]")
+    ok = isinstance(value, (int, float)) and math.isfinite(value)
+    if ok and lo is not None:
+        ok = value > lo if lo_open else value >= lo
+    if ok and hi is not None:
+        ok = value <= hi
+    if not ok:
+        raise UsageError(f"{option}={value!r} is invalid: must be a finite number in {rng}"
+                         + (f" {unit}" if unit else ""))
+    return float(value)
+
+
+def figure_formats() -> set[str]:
+    """File extensions matplotlib can write (png, pdf, svg, ...)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+    return set(FigureCanvasBase.get_supported_filetypes())
+
+
+def check_figure(path: str, option: str) -> None:
+    """Refuse a figure path whose extension matplotlib cannot write, or that cannot be written."""
+    ext = os.path.splitext(path)[1].lstrip(".").lower()
+    formats = figure_formats()
+    if ext not in formats:
+        raise UsageError(f"{option}={path!r}: unsupported figure format {ext or '(none)'!r}; "
+                         f"use one of {', '.join(sorted(formats))}")
+    check_writable(path, option)
+
+
+def check_outdir(path: str, option: str) -> None:
+    """Refuse an output directory that is a file or in which no file can be created."""
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise UsageError(f"{option}={path!r} is a file, not a directory")
+    check_writable(os.path.join(path, "probe.tmp"), option)
