@@ -91,7 +91,8 @@ def _inject(monkeypatch, fail):
     import slippulse.steady.newton as nw
     inj = _Injector(nw.newton, fail)
     monkeypatch.setitem(nw.SOLVERS, "newton", inj)
-    monkeypatch.setattr(cont, "newton", inj)
+    for mod in (cont.natural, cont.deep, cont.gridcheck, cont.homotopy):
+        monkeypatch.setattr(mod, "newton", inj)
     return inj
 
 
