@@ -12,8 +12,9 @@ from ...core.h5io import list_pulses, read_pulse, write_pulse
 from ...core.params import ParameterError, Parameters
 from ..solver import GridSpec, solve_pulse
 from .arclength import DeepSettings
-from .deep import march_arclength
-from .gridcheck import check_grid_2n
+from .deep import DeepMarch, march_arclength
+from .gridcheck import as_both, check_grid_2n, check_pulse
+from .tolerance import GRID_TOLERANCE, GridTolerance
 from .natural import (FAMILY_POINTS, FAMILY_POINTS_BETA, _Base, _beta_bridge, _judge, _targets,
                       tangent_step)
 from .report import FamilyReport
@@ -52,7 +53,9 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
                step: float = 0.005, n_points: int | None = None, min_step: float | None = None,
                spec: GridSpec = GridSpec(), progress=None, max_iter: int = 12,
                beta_switch: float = 0.85, deep: str = "beta",
-               deep_settings: DeepSettings | None = None) -> FamilyReport:
+               deep_settings: DeepSettings | None = None, tolerance: GridTolerance = GRID_TOLERANCE,
+               n_max: int = 16000, max_length: float = math.inf,
+               deep_points: int | None = None, log=None) -> FamilyReport:
     """Solve the family from `start` down to `stop` (τ_d/τ_min) and write it to `out`.
 
     Parameters
@@ -67,16 +70,45 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     deep : how to continue where natural continuation stalls: "beta" (steps in β with τ_d free,
         bridged back to each target) or "arclength" (pseudo-arclength in (ln(1−β), τ_d), which
         follows a fold in τ_d, with pulses written at every multiple of ``deep_settings.fine`` and
-        each grid-checked at N vs 2N; see :class:`DeepSettings`).
+        each grid-checked at N vs 2N; see :class:`DeepSettings`), or "auto" (the product's
+        default, :func:`_auto_deep`): natural steps and β-steps until β ≥ :data:`DEEP_BETA` or a
+        stall, then the pseudo-arclength march on a grid deformed with the pulse; in "auto" every
+        pulse written is grid-checked by :func:`check_pulse` (``tolerance``, grids up to
+        ``n_max``) and carries the check's figures as attributes; one that cannot pass is written
+        with ``converged=False``, ``status="failed"`` and the reason.
+    tolerance : the grid criterion ("auto" only); n_max : largest grid of a check.
+    max_length : "auto": stop (cleanly, ``rep.limit_reached``) once a pulse is this long (m).
+    deep_points : "auto": N of the grid the deep march starts on (default :data:`DEEP_POINTS`).
+    log : callable(str), optional; one line per grid check ("auto").
     """
     deep_settings = _check_family_args(params, start, stop, step, deep, deep_settings)
+    auto = deep == "auto"
+    if auto:
+        deep_points = DEEP_POINTS if deep_points is None else deep_points
+        _check_auto_args(params, out, tolerance, n_max, deep_points, max_length)
     n_tau, n_deep = FAMILY_POINTS if n_points is None else (n_points, n_points)
     if min_step is None:
         min_step = 0.5 * step          # two failed τ_d steps in a row switch to stepping in β
     t0 = time.perf_counter()
     rep = FamilyReport()
+    write = (_CheckedWriter(params, out, rep, tolerance, n_max, log) if auto else
+             (lambda sol, pulse, method: _write(params, out, pulse, rep)))
+
+    def go_deep(start_sol, resolve):
+        _auto_deep(params, out, start_sol, stop, rep, progress, write, deep_points if resolve
+                   else None, max_length, n_max, tolerance, spec)
+        rep.wall_time = time.perf_counter() - t0
+        return rep
+
     # resume: continue below the deepest converged pulse already in `out`
     base = _resume(params, out, rep)
+    if auto and base is not None and (rep.resumed_method == "arclength"
+                                      or base.beta >= DEEP_BETA):
+        if base.q > stop + 1e-12 and rep.reached_L < max_length:
+            return go_deep((base.xi, base.y, base.beta, base.q),
+                           resolve=rep.resumed_method != "arclength")
+        rep.wall_time = time.perf_counter() - t0
+        return rep
     targets = [t for t in _targets(start, stop, step) if base is None or t < base.q - 1e-12]
     if base is None:
         # the first pulse from the built-in guess
@@ -87,12 +119,14 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
                      f"failed ({msg})", _hint_first(first, n_tau))
             rep.wall_time = time.perf_counter() - t0
             return rep
-        _write(params, out, pulse, rep)
+        write(sol, pulse, "tau_d")
         base = _Base.of(sol, pulse.L)
     h = step
     tried = set()
     while targets:
         target = targets[0]
+        if auto and base.beta >= DEEP_BETA:
+            return go_deep((base.xi, base.y, base.beta, base.q), resolve=True)
         if h < min_step - 1e-15 or base.beta > beta_switch:
             # natural continuation stalls near τ_min: step in β with τ_d free past the target,
             # then solve at the exact target from the β-solutions that bracket it
@@ -106,7 +140,14 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
                 targets = []
                 break
             res = _beta_bridge(params, out, base, target, n_deep, spec, max_iter, rep, progress,
-                               why)
+                               why, write=write, beta_cap=DEEP_BETA if auto else None)
+            if res is None and auto:
+                # the β-steps reached DEEP_BETA (or stalled): the deep march from the last pulse
+                last = why.get("last")
+                if last is not None:
+                    return go_deep((last.xi, last.x[:-1], last.beta, float(last.x[-1])),
+                                   resolve=True)
+                return go_deep((base.xi, base.y, base.beta, base.q), resolve=True)
             if res is None:
                 rep.stop(why.get("reason", "beta-stepping failed"), _hint_deep(n_deep))
                 break
@@ -132,7 +173,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
             h *= 0.5
             continue
         # write the accepted pulse; it becomes the base of the next step
-        _write(params, out, pulse, rep)
+        write(sol, pulse, "tau_d")
         base = new
         if abs(trial - target) < 1e-12:
             targets.pop(0)
@@ -143,8 +184,8 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
 
 def _check_family_args(params, start, stop, step, deep, deep_settings) -> DeepSettings:
     """Bad input of :func:`run_family` as ParameterError naming the argument and its valid range."""
-    if deep not in ("beta", "arclength"):
-        raise ParameterError(f"deep={deep!r} is invalid: must be 'beta' or 'arclength'")
+    if deep not in ("beta", "arclength", "auto"):
+        raise ParameterError(f"deep={deep!r} is invalid: must be 'auto', 'beta' or 'arclength'")
     for name, val in (("from", start), ("to", stop)):
         if not math.isfinite(val):
             raise ParameterError(f"{name}={val!r} is invalid: must be a finite tau_d/tau_min")
@@ -172,6 +213,7 @@ def _resume(params, out, rep: FamilyReport):
         return None
     last = min(done, key=lambda p: p.tau_d_ratio)
     rep.resumed_from = last.label
+    rep.resumed_method = str(last.extra.get("continuation", ""))
     rep.reached, rep.reached_beta, rep.reached_L = last.tau_d_ratio, last.beta, last.L
     return _Base(last.xi, np.log(last.v), last.beta, last.tau_d_ratio)
 
@@ -258,3 +300,117 @@ def _arc_bridge(params, out, guess, current, stop, n_points, spec, deep, rep, pr
             why["reason"] = f"pulse length L={pulse.L:.4g} m passed max_length={deep.max_length:g} m"
             return False
     return False
+
+
+# ------------------------------------------------------------------ the product's deep family
+#: "auto": above this β the family goes on by the deep march (τ_d ≈ 1.0125 τ_min, L ≈ 114 m,
+#: where the deformed-grid march of docs/analysis.md started; below it the β-steps converge).
+DEEP_BETA = 0.99
+#: "auto": points of the adapted grid the deep march starts on (then deformed with the pulse;
+#: the per-pulse check refines the body or doubles N as needed).
+DEEP_POINTS = 2000
+#: "auto": the deep march's settings (those of ``steady/deep_march.py --stretch``, measured to
+#: L = 1.56 km without a failed step, docs/analysis.md).
+AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25)
+
+
+def _check_auto_args(params, out, tol, n_max, deep_points, max_length):
+    """Bad input of the "auto" family as ParameterError: a grid check that cannot fit in
+    ``n_max``, a file of other parameters, of an older family format, or of another tolerance."""
+    if not (isinstance(n_max, int) and n_max >= 2 * deep_points - 1):
+        raise ParameterError(f"max-points={n_max} is invalid: the grid check of the deep pulses "
+                             f"needs at least 2N - 1 = {2 * deep_points - 1} (N = {deep_points})")
+    if not max_length > 0:
+        raise ParameterError(f"max-length={max_length} is invalid: must be > 0 (m)")
+    if not os.path.exists(out):
+        return
+    for label in list_pulses(out):
+        pu, p_file = read_pulse(out, label)
+        if p_file != params:
+            raise ParameterError(f"out={out!r}: stored parameters differ from this run's; use "
+                                 f"another --out")
+        if "grid_check_passed" not in pu.extra:
+            raise ParameterError(f"out={out!r}: pulse {label} carries no grid check (a family "
+                                 f"file of an older format, or of --deep beta/arclength); use "
+                                 f"another --out")
+        t = (float(pu.extra.get("grid_check_tol_beta", math.nan)),
+             float(pu.extra.get("grid_check_tol_L", math.nan)))
+        if t != (tol.beta, tol.L):
+            raise ParameterError(f"out={out!r}: pulse {label} was checked to beta {t[0]:g}, L "
+                                 f"{t[1]:g}, not this run's {tol.beta:g}, {tol.L:g}; use "
+                                 f"another --out")
+
+
+class _CheckedWriter:
+    """Write a pulse after :func:`check_pulse`: the checked pulse with the check's figures, or,
+    when it cannot pass, the pulse marked failed with the reason. A label already taken by a
+    pulse at another τ_d (closer than the label's digits) is not overwritten. Returns the
+    :class:`GridCheck`."""
+
+    def __init__(self, params, out, rep, tol, n_max, log):
+        self.params, self.out, self.rep, self.tol, self.n_max, self.log = \
+            params, out, rep, tol, n_max, log
+        self.taken = {}
+        if os.path.exists(out):
+            for label in list_pulses(out):
+                self.taken[label] = read_pulse(out, label)[0].tau_d_ratio
+
+    def __call__(self, sol, pulse, method):
+        # the body refinement is for the deformed grids of the deep march (where the error sits
+        # in the stretched body); adapted grids are refined everywhere (N doubled)
+        res = check_pulse(self.params, sol, self.tol, self.n_max, log=self.log,
+                          body_levels=2 if method == "arclength" else 0)
+        p = res.sol.to_pulse()
+        p.extra.update(res.attrs(self.tol))
+        p.extra["continuation"] = method
+        self.rep.checks += 1
+        if not res.passed:
+            p.converged = False
+            p.extra["status"] = "failed"
+            p.extra["message"] = f"grid check failed: {res.message}"
+            self.rep.failed_checks.append((p.tau_d_ratio, res.message))
+        q_old = self.taken.get(p.label)
+        if q_old is not None and abs(q_old - p.tau_d_ratio) > 1e-9:
+            if self.log:
+                self.log(f"{p.label}: taken by the pulse at {q_old:.9f}; not written")
+            return res
+        write_pulse(self.out, p, self.params)
+        self.taken[p.label] = p.tau_d_ratio
+        if res.passed:
+            self.rep.wrote(p)
+        return res
+
+
+def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_length, n_max,
+               tol, spec):
+    """The deep part of the "auto" family: from ``start`` = (xi, y, β, q) — re-solved at its τ_d
+    on ``resolve_n`` adapted points unless None (then taken on its own grid) — the
+    pseudo-arclength march on the deformed grid (:class:`DeepMarch`, :data:`AUTO_DEEP`), every
+    accepted pulse grid-checked and written by ``write``; the march goes on from the checked
+    (refined) pulse. Ends at ``stop``, at ``max_length`` (clean: ``rep.limit_reached``), or where
+    the march fails (``rep.stop``)."""
+    xi, y, beta, q = start
+    if resolve_n is not None:
+        sol = solve_pulse(params, q, n_points=resolve_n, guess=(xi, y, beta), passes=0,
+                          max_iter=30, spec=spec)
+        pulse, ok, msg = _judge(sol)
+        rep.record(q, ok, f"deep start re-solved at N={resolve_n}: {msg}")
+        if progress:
+            progress(q, pulse if ok else None, f"deep start N={resolve_n}: {msg}")
+        start = as_both(params, sol) if ok else start
+    march = DeepMarch(params, start, settings=AUTO_DEEP, stop=stop, max_length=max_length,
+                      on_attempt=lambda r, p, m: (rep.record(r, p is not None, m),
+                                                  progress and progress(r, p, m)))
+    while march.status == "running":
+        if march.step() is not None:
+            break
+        res = write(march.sol, march.sol.to_pulse(), "arclength")
+        if res.passed and res.sol is not march.sol:
+            march.replace(res.sol)
+    rep.deep_steps += march.n_steps
+    if march.status == "failed":
+        rep.stop(march.message, "smaller arclength steps or more points; rerun the same command "
+                                "to resume from the file")
+    elif march.status == "stopped":
+        rep.limit_reached = True
+        rep.stop_reason = march.message

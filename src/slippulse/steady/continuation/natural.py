@@ -128,18 +128,24 @@ def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_i
 
 
 def march_in_beta(params, start, target, n_points, spec=GridSpec(), shrink=0.92,
-                  min_shrink=0.97, progress=None, rep=None, why=None):
+                  min_shrink=0.97, progress=None, rep=None, why=None, beta_cap=None):
     """From solution `start` (a :class:`_Base`), step β toward 1 (1−β ← shrink·(1−β)) with τ_d
     free, until τ_d/τ_min ≤ target. Yields converged SteadySolutions; stops when a step below
     `min_shrink` fails. Each step is a :func:`tangent_step` in β (tangent predictor, chord
     corrector).
 
     Every attempt is counted in `rep` (a :class:`FamilyReport`), failed ones with their message;
-    when the march gives up, ``why["reason"]`` says where and why.
+    when the march gives up, ``why["reason"]`` says where and why. ``beta_cap``: stop (with
+    ``why["cap"] = True``) once β ≥ beta_cap, where the deep continuation takes over.
     """
     base = start
     f = shrink
     while base.q > target:
+        if beta_cap is not None and base.beta >= beta_cap:
+            if why is not None:
+                why["cap"] = True
+                why["reason"] = f"beta={base.beta:.6f} reached the deep continuation's {beta_cap}"
+            return
         bnew = 1.0 - (1.0 - base.beta) * f
         sol, new = tangent_step(params, base, bnew, "beta", n_points, spec, max_iter=40)
         ok = sol.stats.converged
@@ -172,20 +178,24 @@ def _judge(sol):
     return pulse, ok, msg
 
 
-def _beta_bridge(params, out, base, target, n_points, spec, max_iter, rep, progress, why):
+def _beta_bridge(params, out, base, target, n_points, spec, max_iter, rep, progress, why,
+                 write=None, beta_cap=None):
     """March in β from `base` (a :class:`_Base`) until τ_d passes `target`, writing the
     intermediate pulses, then solve at `target` by a tangent step in τ_d from the first pulse past
     it (if that fails, from the bracketing pair interpolated in τ_d). Returns (solution, its base)
     for the continuation, or None on failure (reason in `why`)."""
     hi, lo = None, None
+    if write is None:
+        def write(sol, pulse, method):
+            write_pulse(out, pulse, params)
+            rep.wrote(pulse)
     for bsol in march_in_beta(params, base, target, n_points, spec, progress=progress, rep=rep,
-                              why=why):
+                              why=why, beta_cap=beta_cap):
         q = float(bsol.x[-1])
         if q > target:
-            bp = bsol.to_pulse()
-            write_pulse(out, bp, params)
-            rep.wrote(bp)
+            write(bsol, bsol.to_pulse(), "beta")
             hi = bsol
+            why["last"] = bsol
         else:
             lo = bsol
     if lo is None:
@@ -217,8 +227,7 @@ def _beta_bridge(params, out, base, target, n_points, spec, max_iter, rep, progr
         why["reason"] = (f"the solve at the target tau_d/tau_min={target:.4f} from the two "
                          f"bracketing beta-step pulses failed ({msg})")
         return None
-    write_pulse(out, pulse, params)
-    rep.wrote(pulse)
+    write(sol, pulse, "tau_d")
     return sol, new
 
 

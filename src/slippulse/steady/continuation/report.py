@@ -19,6 +19,11 @@ class FamilyReport:
     stop_reason: str = ""                            # why the run stopped before `stop`
     hint: str = ""                                   # what would take it further
     wall_time: float = 0.0
+    resumed_method: str = ""                         # how the pulse resumed from was computed
+    checks: int = 0                                  # grid checks ("auto")
+    failed_checks: list = field(default_factory=list)  # (tau_d_ratio, message): written failed
+    deep_steps: int = 0                              # accepted steps of the deep march
+    limit_reached: bool = False                      # stopped cleanly at max_length
 
     def record(self, ratio, ok, message):
         """Count one attempted solve; a failed one is kept with its τ_d/τ_min and message."""
