@@ -143,6 +143,12 @@ def test_auto_family_goes_deep_checks_every_pulse_and_stops_at_max_length(params
     deep = [read_pulse(out, lab)[0] for lab in labels[1:]]
     assert all(p.extra["continuation"] == "arclength" and len(p.label) == 10 for p in deep)
     assert deep[-1].L >= 1.3
+    # a rerun resumes the deep march from the deepest pulse, on its own grid
+    rep2 = run_family(params, out, start=1.2, stop=1.15, step=0.01, n_points=500, deep="auto",
+                      deep_points=500, n_max=4000, tolerance=tol, max_length=1.4)
+    assert rep2.resumed_from == labels[-1] and rep2.resumed_method == "arclength"
+    assert rep2.deep_steps >= 1 and rep2.written and rep2.limit_reached
+    assert all(read_pulse(out, lab)[0].tau_d_ratio < deep[-1].tau_d_ratio for lab in rep2.written)
 
 
 @pytest.mark.slow
