@@ -4,7 +4,9 @@
         [--compare DIR_N DIR_2N]
 
 Reads the converged pulses of a family file and the arclength steps of `steady/deep_march.py`
-(DEEP/arc_*.npz, with their grid checks), then prints, as Markdown:
+(DEEP/arc_*.npz, with their grid checks) — or, with no npz there, the deep pulses that
+`slippulse steady family` wrote into the file itself (``continuation = "arclength"``) — then
+prints, as Markdown:
 
 1. the pulses of the deep march (τ_d, β, L, N, grid-check differences);
 2. the fit-window study: the power laws L = A d^−m_L, 1 − β = B d^m_β, d = τ_d/τ_min − τ̃*
@@ -53,6 +55,11 @@ def load(family, deep_dir):
     for lab in list_pulses(family):
         pu, _ = read_pulse(family, lab)
         if pu.converged:
+            if pu.extra.get("continuation") == "arclength":
+                # a deep pulse of `slippulse steady family` (issue 18): the march step, checked
+                pu.extra.update(source=lab, dbeta=float(pu.extra["grid_check_dbeta"]),
+                                dL_rel=float(pu.extra["grid_check_dL_rel"]),
+                                n_check=float(pu.extra["grid_check_n"]))
             out.append(pu)
     q_last = min(p.tau_d_ratio for p in out)
     for fn in sorted(glob.glob(os.path.join(deep_dir, "arc_*.npz"))):

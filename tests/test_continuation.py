@@ -91,7 +91,8 @@ def _inject(monkeypatch, fail):
     import slippulse.steady.newton as nw
     inj = _Injector(nw.newton, fail)
     monkeypatch.setitem(nw.SOLVERS, "newton", inj)
-    monkeypatch.setattr(cont, "newton", inj)
+    for mod in (cont.natural, cont.deep, cont.gridcheck, cont.homotopy):
+        monkeypatch.setattr(mod, "newton", inj)
     return inj
 
 
@@ -121,7 +122,7 @@ def test_family_command_final_line_names_where_why_and_how_to_go_further(tmp_pat
     from slippulse import cli
     inj = _inject(monkeypatch, _deep_failures)
     out = str(tmp_path / "f.h5")
-    rc = cli.main(["steady", "family", "--from", "1.2", "--to", "1.185", "--step", "0.005",
+    rc = cli.main(["steady", "family", "--deep", "beta", "--from", "1.2", "--to", "1.185", "--step", "0.005",
                    "--points", "500", "--out", out, "-q"])
     assert rc == 1
     text = capsys.readouterr().out

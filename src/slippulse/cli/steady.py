@@ -204,6 +204,11 @@ def final_status(rep, start, stop, out) -> str:
     line = (f"family {start:.4f} -> {stop:.4f}: {len(rep.written)} pulses written to {out}, reached "
             f"tau_d/tau_min={rep.reached:.5f}, {rep.attempts} solves attempted, "
             f"{len(rep.failures)} failed, wall={rep.wall_time:.1f} s")
+    if rep.checks:
+        line += (f", {rep.checks} grid checks ({len(rep.failed_checks)} failed, written as "
+                 f"failed), L={rep.reached_L:.4g} m")
+    if rep.limit_reached:
+        line += f"\nstopped at --max-length: {rep.stop_reason}"
     if rep.stopped_early:
         line += (f"\nSTOPPED EARLY at tau_d/tau_min={rep.reached:.5f} (beta={rep.reached_beta:.6f}, "
                  f"L={rep.reached_L:.4g} m), {stop:.4f} not reached: {rep.stop_reason}. "
@@ -244,14 +249,27 @@ def cmd_family(args) -> int:
     n_deep = FAMILY_POINTS[1] if args.points is None else args.points
     if args.max_points < n_deep:
         raise ParameterError(f"max-points={args.max_points} is invalid: must be >= points={n_deep}")
+    if args.deep == "auto":
+        from ..steady.continuation.family import DEEP_POINTS
+        if args.max_points < 2 * DEEP_POINTS - 1:
+            raise ParameterError(f"max-points={args.max_points} is invalid: the grid check of the "
+                                 f"deep pulses needs at least {2 * DEEP_POINTS - 1} (2N - 1, "
+                                 f"N = {DEEP_POINTS})")
     if not (0 < args.ds_min < 0.4):
         raise ParameterError(f"ds-min={args.ds_min} is invalid: must be in (0, 0.4)")
     if not args.max_length > 0:
         raise ParameterError(f"max-length={args.max_length} is invalid: must be > 0 (m)")
     deep = DeepSettings(n_max=args.max_points, ds_min=args.ds_min, max_length=args.max_length,
                         check=not args.no_grid_check)
+    _check_out(out)
+
+    def log(msg):
+        if not args.quiet:
+            tqdm.write(msg, file=sys.stderr)
+
     rep = run_family(params, out, start=start, stop=stop, step=args.step, n_points=args.points,
-                     progress=prog, deep=args.deep, deep_settings=deep)
+                     progress=prog, deep=args.deep, deep_settings=deep, n_max=args.max_points,
+                     max_length=args.max_length, log=log)
     bar.close()
     if rep.resumed_from:
         print(f"resumed from {rep.resumed_from} in {out}", file=sys.stderr)
@@ -368,16 +386,19 @@ def register(sub) -> None:
     p.add_argument("--points", type=int, default=None,
                    help="grid points per pulse (default: 1000 while beta <= 0.7, 1250 beyond)")
     p.add_argument("--out", default=None, help="output HDF5 (default runs/steady/family.h5)")
-    p.add_argument("--deep", choices=("beta", "arclength"), default="beta",
-                   help="continuation where tau_d steps stall near tau_min: steps in beta (default) "
-                        "or pseudo-arclength in (ln(1-beta), tau_d), which follows a fold and "
-                        "writes a grid-checked pulse at every 1e-4 in tau_d/tau_min")
+    p.add_argument("--deep", choices=("auto", "beta", "arclength"), default="auto",
+                   help="auto (default): every pulse grid-checked (beta 1e-5, L 1e-4 between N "
+                        "and 2N-1, N or the body refinement chosen per pulse), and past beta = "
+                        "0.99 the pseudo-arclength march on a grid deformed with the pulse; "
+                        "beta: steps in beta (no grid check); arclength: pseudo-arclength on "
+                        "re-laid grids, checked at N vs 2N")
     p.add_argument("--max-points", type=int, default=16000,
-                   help="arclength: largest N the per-pulse grid check may use (default 16000)")
+                   help="largest grid a per-pulse grid check may use (default 16000; auto needs "
+                        ">= 3999)")
     p.add_argument("--ds-min", type=float, default=0.004,
                    help="arclength: smallest step before giving up (default 0.004)")
     p.add_argument("--max-length", type=float, default=math.inf,
-                   help="arclength: stop once the pulse length exceeds this (m; default no limit)")
+                   help="stop (exit 0) once the pulse length exceeds this (m; default no limit)")
     p.add_argument("--no-grid-check", action="store_true",
                    help="arclength: write pulses without the N vs 2N check")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -155,8 +155,12 @@ def upgrade_steady(h5) -> None:
 
 
 def pulse_label(tau_d_ratio: float) -> str:
-    """Group name of a pulse: 'td' + τ_d/τ_min with 4 decimals, e.g. td1.2000."""
-    return f"td{tau_d_ratio:.4f}"
+    """Group name of a pulse: 'td' + τ_d/τ_min with 4 decimals when it is round to them within
+    5e-7 (e.g. td1.2000; a grid check's refined pulse may lie 1e-7 off its target), else with 6
+    (e.g. td1.009074, a step of the deep march or of β)."""
+    if abs(tau_d_ratio - round(tau_d_ratio, 4)) <= 5e-7:
+        return f"td{tau_d_ratio:.4f}"
+    return f"td{tau_d_ratio:.6f}"
 
 
 @dataclass

@@ -26,6 +26,8 @@ FIG1_TARGETS = (1.05, 1.20)
 #: Constants of the paper's scaling fit (Fig. 3), drawn for comparison.
 PAPER_SCALING = {"tau_star": 1.0087, "a_v": 1.15, "a_G": 0.69}
 _STYLES = ("-", "--", "-.", ":", (0, (5, 1, 1, 1)), (0, (1, 1)))
+#: Fig. 3 zooms in below this τ_d/τ_min (the deep part of the family) when it has pulses there.
+DEEP_INSET = 1.0125
 FIGURES = ("fig1", "fig2", "fig3", "fig4", "figS1", "figS2", "figS3", "figS4")
 
 
@@ -215,6 +217,16 @@ def fig3(data):
     ax.set_ylim(0, 1)
     ax.set_title("Fig. 3: propagation speed and pulse length")
     ax.legend(handles=handles, fontsize=7, loc="upper right")
+    deep = x < DEEP_INSET
+    if deep.sum() >= 2:
+        # the deep family (issue 18: down to L ≥ 1.5 km) crowds at the left edge: zoomed in
+        ins = ax.inset_axes([0.43, 0.40, 0.30, 0.30])
+        near = x < DEEP_INSET + 0.004
+        ins.semilogy(x[near], Lt[near], "s", color="C3", ms=3, mfc="none")
+        ins.set_xlabel(r"$\tau_d/\tau_{min}$", fontsize=6, labelpad=1)
+        ins.set_ylabel(r"$\tilde L$", fontsize=6, labelpad=1, color="C3")
+        ins.tick_params(labelsize=5)
+        ins.set_title(f"deep part: L up to {Lt[near].max() * prm.L_Gc:.0f} m", fontsize=6, pad=2)
     fig.tight_layout()
     return fig
 

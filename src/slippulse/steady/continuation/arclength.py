@@ -1,0 +1,111 @@
+"""Pseudo-arclength continuation in (ln(1 − β), τ_d/τ_min): the closed problem, the family
+tangent and the settings of the deep march (:mod:`.deep`)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..equations import SteadyProblem
+from .tolerance import GRID_TOLERANCE
+
+
+class ArclengthProblem:
+    """The steady equations with both β and q = τ_d/τ_min free, closed by the pseudo-arclength
+    condition in the plane (a, q/κ), a = ln(1 − β):
+
+        t_a (a − a_0) + t_Q (q − q_0)/κ − ds = 0,
+
+    (t_a, t_Q) the unit tangent of the family at the last pulse (a_0, q_0). Unknowns (y, β, q);
+    the Jacobian is the (N+1)×(N+2) one of ``SteadyProblem(free="both")`` with the row
+    (0…0, −t_a/(1 − β), t_Q/κ) appended. Square, so :func:`newton` drives it.
+    """
+
+    def __init__(self, base: SteadyProblem, a0, q0, t_a, t_Q, kappa, ds):
+        self.base, self.a0, self.q0 = base, a0, q0
+        self.t_a, self.t_Q, self.kappa, self.ds = t_a, t_Q, kappa, ds
+
+    def _arc(self, x):
+        a = math.log(1.0 - x[-2])
+        return self.t_a * (a - self.a0) + self.t_Q * (x[-1] - self.q0) / self.kappa - self.ds
+
+    def valid(self, x):
+        return self.base.valid(x)
+
+    def residual(self, x):
+        if not self.valid(x):
+            return np.full(x.size, np.inf)
+        return np.concatenate([self.base.residual(x), [self._arc(x)]])
+
+    def residual_and_jacobian(self, x):
+        r, J = self.base.residual_and_jacobian(x)
+        row = np.zeros(x.size)
+        row[-2] = -self.t_a / (1.0 - x[-2])
+        row[-1] = self.t_Q / self.kappa
+        return np.concatenate([r, [self._arc(x)]]), np.vstack([J, row])
+
+
+def family_tangent(prob: SteadyProblem, x, orient):
+    """Unit tangent of the solution curve at a converged x = (y, β, q) of ``free="both"``.
+
+    Notes
+    -----
+    The tangent n spans the null space of the (N+1)×(N+2) Jacobian J: J n = 0. It is found from
+    the square system [J; c] n = [0; 1] with c = (0…0, orient) the previous direction in (β, q)
+    (so n points the same way along the curve), then scaled to unit length in (a, q/κ):
+    n_a = −n_β/(1 − β). Returns n (full vector, in (y, β, q)) scaled so that n_a² + n_Q² = 1 with
+    n_Q = n_q/κ, where κ is passed through ``orient = (c_β, c_q, κ)``.
+    """
+    c_b, c_q, kappa = orient
+    _, J = prob.residual_and_jacobian(x)
+    A = np.vstack([J, np.zeros(x.size)])
+    A[-1, -2], A[-1, -1] = c_b, c_q
+    rhs = np.zeros(x.size)
+    rhs[-1] = 1.0
+    n = np.linalg.solve(A, rhs)
+    n_a = -n[-2] / (1.0 - x[-2])
+    n_Q = n[-1] / kappa
+    return n / math.hypot(n_a, n_Q)
+
+
+
+@dataclass
+class DeepSettings:
+    """Pseudo-arclength continuation of the deep family (near τ_min).
+
+    ds, ds_min, ds_max : arclength step in the plane (ln(1−β), q/κ) and its bounds.
+    fine : smallest spacing in τ_d/τ_min between written pulses; an arclength pulse is written when
+        its label (4 decimals, so `fine` ≥ 1e-4) is new and it lies ≥ fine/2 from the last one.
+    check : re-solve every written pulse at 2N (fixed β; converted to fixed τ_d along the family
+        tangent) and double N until |Δβ| ≤ tol_beta and |ΔL|/L ≤ tol_L; the 2N solution is written,
+        with the N-vs-2N differences as attributes.
+    n_max : largest N tried by the check.
+    max_length : stop once L exceeds this (m).
+    regrid : a new grid is laid out when L has changed by more than this fraction since the last.
+    stretch : instead of laying out new grids, deform the current one every step with
+        :func:`stretch_grid` (both edges kept, the body lengthened with L) and keep the nodal
+        ln v: no interpolation, so no jump of the discrete family at a regrid (measured with the
+        re-laid grids: each regrid moves τ_d/τ_min by ~1e-5 at β ≈ 0.995, comparable to a step).
+    front_zone : width of the leading-edge zone kept by :func:`stretch_grid`, in L.
+    back_zone : width of the zone about the healing front (the back half-maximum crossing) that
+        :func:`stretch_grid` moves rigidly, in L.
+    homotopy : stages of the residual homotopy (:func:`solve_robust`) when Newton fails from an
+        interpolated guess (grid checks, new grids).
+    """
+
+    ds: float = 0.1
+    ds_min: float = 0.004
+    ds_max: float = 0.4
+    fine: float = 1e-4
+    check: bool = True
+    tol_beta: float = GRID_TOLERANCE.beta
+    tol_L: float = GRID_TOLERANCE.L
+    n_max: int = 16000
+    max_length: float = math.inf
+    max_iter: int = 15
+    regrid: float = 0.05
+    stretch: bool = False
+    front_zone: float = 0.01
+    back_zone: float = 0.05
+    homotopy: int = 8

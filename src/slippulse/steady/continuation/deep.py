@@ -1,0 +1,223 @@
+"""The deep continuation as an object: :class:`DeepMarch`, a pseudo-arclength march toward β → 1
+with its state, status and counters on the solver (in the style of scipy's ``OdeSolver``:
+``step()`` advances by one accepted pulse, ``status`` says whether it may go on).
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..analysis import pulse_length
+from ..equations import SteadyProblem
+from ..newton import SolveStats, newton
+from ..solver import GridSpec, SteadySolution, front_pin, fwhm, regrid_guess
+from .arclength import ArclengthProblem, DeepSettings, family_tangent
+from .natural import _judge
+from .stretch import _stretch, stretch_grid
+
+
+class DeepMarch:
+    """Pseudo-arclength continuation of the family in (a, q/κ), a = ln(1 − β), q = τ_d/τ_min.
+
+    Parameters
+    ----------
+    params : Parameters
+    start : SteadySolution of ``free="both"`` (x = (y, β, q)), or a tuple (xi, y, β, q) (the pin
+        is then put at the leading edge, :func:`front_pin`).
+    n_points : grid points of re-laid grids (ignored with ``settings.stretch``, where the grid is
+        the start's, deformed every step); default: the start grid's.
+    spec : layout of re-laid grids.
+    settings : :class:`DeepSettings` (steps, Newton iterations, stretch).
+    stop : the march is ``"finished"`` once τ_d/τ_min ≤ stop (default: never).
+    max_length : the march is ``"stopped"`` once L ≥ max_length (m; default ``settings.max_length``).
+    on_attempt : callable(ratio, pulse_or_None, message), optional; called after every attempt.
+    n_of : callable() → N, optional; the current N for re-laid grids (a grid check may raise it).
+
+    Attributes
+    ----------
+    status : "running", "finished" (stop reached), "stopped" (max_length), "failed" (ds fell below
+        ``ds_min``; ``message`` says where and why).
+    sol : SteadySolution — the current pulse (x = (y, β, q)).
+    q, beta, L : its τ_d/τ_min, β and length (m).
+    ds : the next arclength step.
+    tangent : (t_a, t_Q) — the unit tangent used for the last accepted step.
+    fold : τ_d/τ_min where τ_d first rose along the march (t_Q > 0), or None.
+    n_steps, n_attempts, n_failed, n_iterations : accepted steps, attempts, failed attempts,
+        Newton iterations (all attempts).
+    message : the last attempt's message (the reason, once failed).
+    """
+
+    def __init__(self, params, start, n_points=None, spec=GridSpec(), settings=DeepSettings(),
+                 stop=-math.inf, max_length=None, on_attempt=None, n_of=None):
+        self.params, self.spec, self.settings = params, spec, settings
+        self.stop = stop
+        self.max_length = settings.max_length if max_length is None else max_length
+        self.on_attempt = on_attempt
+        if isinstance(start, SteadySolution):
+            base, x = start.problem, np.asarray(start.x, float).copy()
+        else:
+            xi, y, beta, q = start
+            k, _ = front_pin(xi, y, math.log(params.v_stick(q * params.tau_min)))
+            base = SteadyProblem(params, q, xi, k, float(y[k]), free="both")
+            x = np.concatenate([y, [beta, q]])
+        self.n_points = base.n if n_points is None else n_points
+        self._n_of = n_of
+        self._base, self._x = base, x
+        self.beta, self.q = float(x[-2]), float(x[-1])
+        # κ: |dq/da| at the start, so that one unit of ds moves a and q/κ alike
+        n0 = family_tangent(base, x, (1.0, 0.0, 1.0))
+        self.kappa = max(abs(n0[-1] / (-n0[-2] / (1.0 - self.beta))), 1e-5)
+        self._orient = (1.0, 0.0, self.kappa)
+        self.ds = settings.ds
+        self.L = self._L_grid = fwhm(base.xi, np.exp(x[:-2]), params.v_star)
+        self.sol = SteadySolution(base, x, SolveStats(True, "start", 0, 0.0), 0.0, 0)
+        self.tangent = (math.nan, math.nan)
+        self.fold = None
+        self.status = "running"
+        self.message = ""
+        self.n_steps = self.n_attempts = self.n_failed = self.n_iterations = 0
+
+    def _n_now(self):
+        return self.n_points if self._n_of is None else self._n_of()
+
+    def _attempt(self):
+        """One predictor–corrector attempt at the current ds: (ok, solution or None, message,
+        (t_a, t_Q))."""
+        P, s, base, x = self.params, self.settings, self._base, self._x
+        beta, q, ds = self.beta, self.q, self.ds
+        n = family_tangent(base, x, self._orient)
+        t_a, t_Q = -n[-2] / (1.0 - beta), n[-1] / self.kappa
+        self._orient = (n[-2], n[-1], self.kappa)
+        # predict: a + ds t_a, q + ds κ t_Q; ln v by stretching the last pulse behind its leading
+        # edge by exp(ds · d ln L/ds) (the healing edge moves by many of its own widths per
+        # step, which the linear tangent n_y cannot carry); d ln L/ds by a finite difference
+        eps = 1e-4
+        dlnL = (math.log(fwhm(base.xi, np.exp(x[:-2] + eps * n[:-2]), P.v_star)) -
+                math.log(self.L)) / eps
+        yp = _stretch(base.xi, x[:-2], base.xi[base.pin_index], math.exp(ds * dlnL))
+        bp = 1.0 - (1.0 - beta) * math.exp(ds * t_a)
+        qp = q + ds * self.kappa * t_Q
+        n_cur = base.n if s.stretch else self._n_now()
+        # keep the grid (and its Hilbert matrix) while L stays within `regrid` of the grid's L
+        same = (n_cur == base.n and abs(self.L / self._L_grid - 1.0) < s.regrid)
+        new = None
+        try:
+            P.check_tau_d(qp * P.tau_min)
+            if s.stretch:
+                # deform the grid with the pulse, nodal ln v kept (no interpolation)
+                x_pin = base.xi[base.pin_index]
+                x_left = pulse_length(base.xi, np.exp(x[:-2]), P.v_star)[1]
+                xn = stretch_grid(base.xi, x_pin, math.expm1(ds * dlnL) * self.L,
+                                  s.front_zone * self.L, x_left, s.back_zone * self.L)
+                yn, k, ky, H = x[:-2].copy(), base.pin_index, base.y_pin, None
+            elif same:
+                xn, yn, H = base.xi, yp, base.H
+                k, ky = base.pin_index, base.y_pin
+            else:
+                xn, yn = regrid_guess(P, qp, base.xi, yp, bp, n_cur, self.spec)
+                k, _ = front_pin(xn, yn, math.log(P.v_stick(qp * P.tau_min)))
+                H, ky = None, float(yn[k])
+        except (RuntimeError, ValueError) as exc:
+            ok, msg = False, f"predictor unusable: {exc}"
+        else:
+            nb = SteadyProblem(P, qp, xn, k, ky, free="both", H=H)
+            arc = ArclengthProblem(nb, math.log(1.0 - beta), q, t_a, t_Q, self.kappa, ds)
+            t0 = time.perf_counter()
+            xs, st = newton(arc, np.concatenate([yn, [bp, qp]]), tol=1e-13, max_iter=s.max_iter)
+            new = SteadySolution(nb, xs, st, time.perf_counter() - t0, 1)
+            ok, msg = st.converged, st.message
+            self.n_iterations += st.iterations
+            if ok and not _judge(new)[1]:
+                ok, msg = False, "converged to a multi-hump solution: rejected"
+        its = new.stats.iterations if new is not None else 0
+        msg = f"arclength step ds={ds:.3g} (N={n_cur}, {its} it.) to beta~{bp:.6f}: {msg}"
+        return ok, new, msg, (t_a, t_Q), qp
+
+    def step(self):
+        """Advance by one accepted pulse (halving ds on failure). Returns None, or the message
+        when the march failed. Raises RuntimeError when the march is not running."""
+        if self.status != "running":
+            raise RuntimeError(f"DeepMarch.step() with status {self.status!r}")
+        s = self.settings
+        while True:
+            ok, new, msg, tangent, qp = self._attempt()
+            self.n_attempts += 1
+            self.message = msg
+            if self.on_attempt:
+                qa = float(new.x[-1]) if new is not None else qp
+                self.on_attempt(qa, new.to_pulse() if ok else None, msg)
+            if ok:
+                break
+            self.n_failed += 1
+            self.ds *= 0.5
+            if self.ds < s.ds_min:
+                self.status = "failed"
+                self.message = (f"arclength steps stopped converging at beta={self.beta:.6f}, "
+                                f"tau_d/tau_min={self.q:.6f}: ds fell below {s.ds_min} ({msg})")
+                return self.message
+        if new.problem.xi is not self._base.xi:
+            self._L_grid = new.to_pulse().L
+        self._accept(new)
+        if new.stats.iterations <= 6:
+            self.ds = min(1.5 * self.ds, s.ds_max)
+        elif new.stats.iterations > 10:
+            self.ds = max(0.7 * self.ds, s.ds_min)
+        self.tangent = tangent
+        if tangent[1] > 0 and self.fold is None:
+            self.fold = self.q
+        self.n_steps += 1
+        self._update_status()
+        return None
+
+    def _accept(self, sol):
+        self.sol, self._base, self._x = sol, sol.problem, sol.x.copy()
+        self.beta, self.q = float(self._x[-2]), float(self._x[-1])
+        self.L = sol.to_pulse().L
+
+    def _update_status(self):
+        if self.q <= self.stop + 1e-12:
+            self.status = "finished"
+            self.message = f"reached tau_d/tau_min={self.q:.6f} <= {self.stop}"
+        elif self.L >= self.max_length:
+            self.status = "stopped"
+            self.message = f"pulse length L={self.L:.4g} m reached max_length={self.max_length:g} m"
+
+    def replace(self, sol: SteadySolution) -> None:
+        """Continue from ``sol`` (x = (y, β, q); e.g. the refined pulse of a grid check) instead of
+        the current pulse: its grid becomes the march's."""
+        self._accept(sol)
+        self._L_grid = self.L
+        if self.status in ("finished", "stopped"):
+            self.status = "running"
+            self._update_status()
+
+
+def march_arclength(params, start, n_points, spec=GridSpec(), deep=DeepSettings(), progress=None,
+                    rep=None, why=None, n_of=None, handoff=None):
+    """Pseudo-arclength continuation from `start` = (xi, y, beta, q) toward β → 1, as a generator
+    over :class:`DeepMarch` (which see).
+
+    Yields converged (solution, tangent-unit (t_a, t_Q)) pairs with ``solution.x = (y, β, q)``.
+    Every attempt is counted in `rep` (a :class:`FamilyReport`) and shown by `progress`; when the
+    march gives up, ``why["reason"]`` says where and why. `handoff` (a dict), when given, lets the
+    caller replace the march's current pulse between steps: a solution put in
+    ``handoff["sol"]`` (x = (y, β, q)) becomes the base of the next step, grid included.
+    """
+    def on_attempt(ratio, pulse, msg):
+        if rep is not None:
+            rep.record(ratio, pulse is not None, msg)
+        if progress:
+            progress(ratio, pulse, msg)
+
+    m = DeepMarch(params, start, n_points, spec, deep, max_length=math.inf, on_attempt=on_attempt,
+                  n_of=n_of)
+    while True:
+        if m.step() is not None:
+            if why is not None:
+                why["reason"] = m.message
+            return
+        yield m.sol, m.tangent
+        if handoff is not None and handoff.get("sol") is not None:
+            m.replace(handoff.pop("sol"))

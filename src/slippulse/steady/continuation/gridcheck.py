@@ -1,0 +1,230 @@
+"""Grid checks of a pulse: re-solved on a refined grid (2N adapted, 2N − 1 nested, or one region's
+cells halved) on the line normal to the family tangent, the change expressed at fixed τ_d."""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..equations import SteadyProblem
+from ..newton import newton
+from ..solver import GridSpec, SteadySolution, front_pin, fwhm, interpolate, regrid_guess
+from .arclength import ArclengthProblem, family_tangent
+from .homotopy import solve_robust
+from .tolerance import GRID_TOLERANCE
+
+
+def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
+                  nested=False, stages=0, cells=None):
+    """:func:`grid_change` as the family's criterion reads it: (fine, |Δβ|, |ΔL|/L)."""
+    fine, dbeta, dL_rel = grid_change(params, sol, n_points, spec, max_iter, nested, stages, cells)
+    return fine, abs(dbeta), abs(dL_rel)
+
+
+def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
+                nested=False, stages=0, cells=None):
+    """Grid check of an arclength pulse (x = (y, β, q)): re-solve on a grid of 2N adapted to it,
+    on the line through it normal to the family tangent, and express the change at fixed τ_d.
+
+    Returns (fine SteadySolution with x = (y, β, q), Δβ, ΔL/L): the signed N → 2N differences of β
+    and L at the coarse pulse's τ_d (inf when the fine solve fails). The family's criterion is
+    |Δβ| ≤ 1e-5 and |ΔL|/L ≤ 1e-4 (:func:`check_grid_2n`).
+
+    Notes
+    -----
+    The fine pulse solves the steady equations with both β and q free, closed by the arclength
+    condition with ds = 0 through the coarse pulse (t_a (a − a₀) + t_Q (q − q₀) = 0, κ = 1): as well
+    conditioned as an arclength step, where fixed-τ_d and fixed-β re-solves stall near β → 1
+    (measured at 1.0116: fixed β at 2N stops at max|Δ| = 6e-5 after 60 iterations). Along the fine
+    family, to first order, β_f(q) = β₁ − (n_β/n_q)(q₁ − q) and L_f(q) = L₁ − (dL/ds)/n_q (q₁ − q),
+    n the tangent at the coarse pulse (its N → 2N change is of higher order), dL/ds by a finite
+    difference of the FWHM along n. Hence, with dq = q₁ − q₀:
+    Δβ = β₁ − β₀ − (n_β/n_q) dq, ΔL = L₁ − L₀ − (dL/ds)/n_q dq.
+
+    ``nested=True``: the fine grid is the pulse's own grid with the midpoints inserted (2N − 1
+    nodes; errors then fall smoothly with the level, and the N-pulse's grid, e.g. a deformed
+    one of :func:`stretch_grid`, is checked as it is); otherwise a grid of 2N adapted to the
+    pulse (``spec``). ``cells`` (with ``nested``): a boolean mask over the N − 1 cells; only
+    their midpoints are inserted (one region refined: ``steady/locate_error.py``,
+    ``steady/body_refine.py``). ``stages`` > 0: when Newton fails, :func:`solve_robust` with that
+    many homotopy stages.
+    """
+    p0 = sol.to_pulse()
+    q, beta = float(sol.x[-1]), p0.beta
+    n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
+    t_a, t_Q = -n[-2] / (1.0 - beta), n[-1]
+    t0 = time.perf_counter()
+    if nested:
+        xi = sol.xi
+        mid = 0.5 * (xi[1:] + xi[:-1])
+        xn = np.sort(np.concatenate([xi, mid if cells is None else mid[cells]]))
+        yn = interpolate(xi, sol.x[:-2], xn, params.v_stick(q * params.tau_min))
+        k = int(np.searchsorted(xn, xi[sol.problem.pin_index]))    # the pin's node, kept
+        y_pin = sol.problem.y_pin
+    else:
+        xn, yn = regrid_guess(params, q, sol.xi, sol.x[:-2], beta, 2 * n_points, spec)
+        k, _ = front_pin(xn, yn, math.log(params.v_stick(q * params.tau_min)))
+        y_pin = float(yn[k])
+    base = SteadyProblem(params, q, xn, k, y_pin, free="both",
+                         state_order=sol.problem.state_order)
+    arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
+    x_start = np.concatenate([yn, [beta, q]])
+    if stages > 0:
+        xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter)
+    else:
+        xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter)
+    fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
+    if not st.converged or n[-1] == 0.0:
+        return fine, math.inf, math.inf
+    p1 = fine.to_pulse()
+    eps = 1e-3 / max(float(np.abs(n[:-2]).max()), 1e-12)
+    dL_ds = (fwhm(sol.xi, np.exp(sol.x[:-2] + eps * n[:-2]), params.v_star) - p0.L) / eps
+    dq = float(xs[-1]) - q
+    dbeta = p1.beta - beta - (n[-2] / n[-1]) * dq
+    dL = p1.L - p0.L - dL_ds / n[-1] * dq
+    return fine, dbeta, dL / p0.L
+
+
+def _as_both(params, sol: SteadySolution) -> SteadySolution:
+    """A fixed-β solution (x = (y, q)) as a solution of ``free="both"`` (x = (y, β, q))."""
+    prob = sol.problem
+    both = SteadyProblem(params, prob.tau_d_ratio, prob.xi, prob.pin_index, prob.y_pin,
+                         free="both", H=prob.H)
+    x = np.concatenate([sol.x[:-1], [prob.beta_fixed, float(sol.x[-1])]])
+    return SteadySolution(both, x, sol.stats, sol.wall_time, sol.passes)
+
+
+
+def as_both(params, sol: SteadySolution) -> SteadySolution:
+    """Any solution (fixed τ_d: x = (y, β); fixed β: x = (y, q); both: x = (y, β, q)) as one of
+    ``free="both"`` on the same grid, pin and Hilbert matrix."""
+    prob = sol.problem
+    if prob.free == "both":
+        return sol
+    if prob.free == "tau_d":
+        return _as_both(params, sol)
+    both = SteadyProblem(params, prob.tau_d_ratio, prob.xi, prob.pin_index, prob.y_pin,
+                         free="both", H=prob.H, state_order=prob.state_order)
+    x = np.concatenate([sol.x, [prob.tau_d_ratio]])
+    return SteadySolution(both, x, sol.stats, sol.wall_time, sol.passes)
+
+
+#: Where the N-dependence of a deep pulse sits, refined one at a time by ``steady/locate_error.py``;
+#: the body holds most of it on the deformed grid (docs/analysis.md: 1.67e-4 of 1.78e-4 at 602 m).
+BODY = "body (−0.9 L, −0.01 L]"
+
+
+def regions(sol: SteadySolution, L: float) -> dict:
+    """Boolean masks over the cells of ``sol``'s grid: ahead, leading edge, body, healing front,
+    tail, relative to the pin ξ_R and the pulse length L."""
+    xi = sol.xi
+    xf = xi[sol.problem.pin_index]
+    mid = 0.5 * (xi[1:] + xi[:-1])
+    return {"ahead (> +0.01 L)": mid > xf + 0.01 * L,
+            "leading edge (±0.01 L)": (mid > xf - 0.01 * L) & (mid <= xf + 0.01 * L),
+            BODY: (mid > xf - 0.9 * L) & (mid <= xf - 0.01 * L),
+            "healing front (−1.1 L, −0.9 L]": (mid > xf - 1.1 * L) & (mid <= xf - 0.9 * L),
+            "tail (< −1.1 L)": mid <= xf - 1.1 * L}
+
+
+def refine_body(params, sol: SteadySolution, max_iter=20, stages=0):
+    """``sol`` (x = (y, β, q)) re-solved with the midpoints of its body cells inserted, on the line
+    normal to the family tangent. Returns (refined SteadySolution, cells added)."""
+    body = regions(sol, sol.to_pulse().L)[BODY]
+    fine, _, _ = check_grid_2n(params, sol, sol.xi.size, nested=True, cells=body,
+                               max_iter=max_iter, stages=stages)
+    return fine, int(body.sum())
+
+
+@dataclass
+class GridCheck:
+    """Outcome of :func:`check_pulse`.
+
+    Attributes
+    ----------
+    sol : the pulse to keep (x = (y, β, q)): the one whose check passed, else the last checked.
+    passed : whether ``sol`` meets the tolerance against its nested refinement.
+    n : grid points of ``sol``; n_fine : of the grid it was checked against (2n − 1).
+    dbeta, dL_rel : signed N → 2N − 1 differences at fixed τ_d (inf: the check did not converge).
+    body_levels : body refinements applied to reach ``sol``; doublings : nested doublings.
+    message : what was tried, in one line.
+    wall_time : seconds spent.
+    """
+
+    sol: SteadySolution
+    passed: bool
+    n: int
+    n_fine: int
+    dbeta: float
+    dL_rel: float
+    body_levels: int = 0
+    doublings: int = 0
+    message: str = ""
+    wall_time: float = 0.0
+
+    def attrs(self, tol) -> dict:
+        """The check's figures as pulse attributes (stored in the family file)."""
+        return {"grid_check_passed": bool(self.passed), "grid_check_n": int(self.n),
+                "grid_check_n_fine": int(self.n_fine), "grid_check_dbeta": float(self.dbeta),
+                "grid_check_dL_rel": float(self.dL_rel),
+                "grid_check_body_levels": int(self.body_levels),
+                "grid_check_doublings": int(self.doublings),
+                "grid_check_tol_beta": float(tol.beta), "grid_check_tol_L": float(tol.L),
+                "grid_check_message": self.message, "grid_check_wall_time": float(self.wall_time)}
+
+
+def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=16000, body_levels=2,
+                max_iter=15, stages=4, log=None) -> GridCheck:
+    """Grid-check a pulse and refine it until it passes: N, or the body refinement, per pulse.
+
+    Parameters
+    ----------
+    sol : a converged pulse (any ``free``; converted with :func:`as_both`).
+    tol : :class:`GridTolerance` (β and L between N and 2N − 1 at fixed τ_d).
+    n_max : largest grid a check may use (the 2N − 1 grid).
+    body_levels : body refinements (:func:`refine_body`) tried before doubling N.
+    log : callable(str), optional; one line per check.
+
+    Notes
+    -----
+    Each check re-solves the pulse on its own grid with all midpoints inserted
+    (:func:`check_grid_2n`, ``nested=True``). While it fails: first the body cells (where the error
+    of the deformed grids sits, docs/analysis.md) get their midpoints inserted, up to
+    ``body_levels`` times, each refined pulse checked in turn; then the nested 2N − 1 pulse replaces
+    the pulse (N doubled) while its own check fits in ``n_max``. Returns the first pulse that passes,
+    or the last one checked with ``passed=False`` and the reason in ``message``.
+    """
+    t0 = time.perf_counter()
+    cur = as_both(params, sol)
+    levels = doublings = 0
+    steps = []
+    while True:
+        n = cur.xi.size
+        fine, db, dl = check_grid_2n(params, cur, n, nested=True, stages=stages,
+                                     max_iter=max_iter)
+        ok = bool(fine.stats.converged) and math.isfinite(db)
+        line = (f"N={n} vs {fine.xi.size}: dbeta={db:.1e} dL/L={dl:.1e}" if ok else
+                f"N={n} vs {fine.xi.size}: re-solve failed ({fine.stats.message})")
+        steps.append(line)
+        if log:
+            log(f"grid check at tau_d/tau_min={float(cur.x[-1]):.7f}: {line}")
+        res = GridCheck(cur, ok and tol.passes(db, dl), n, fine.xi.size, db, dl, levels,
+                        doublings)
+        if res.passed or not ok:
+            break
+        if levels < body_levels:
+            nxt, added = refine_body(params, cur, max_iter=max_iter + 5, stages=stages)
+            if nxt.stats.converged and 2 * nxt.xi.size - 1 <= n_max:
+                cur, levels = nxt, levels + 1
+                steps.append(f"body +{added}")
+                continue
+            levels = body_levels            # the body refinement does not help: double N
+        if 2 * fine.xi.size - 1 > n_max:
+            steps.append(f"N={fine.xi.size} would need {2 * fine.xi.size - 1} > max points {n_max}")
+            break
+        cur, doublings, levels = fine, doublings + 1, 0
+    res.message = "; ".join(steps)
+    res.wall_time = time.perf_counter() - t0
+    return res

@@ -1,0 +1,30 @@
+"""The grid criterion of the family, in one place: :class:`GridTolerance`."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class GridTolerance:
+    """A pulse is grid-converged when re-solving it on a refined grid (its own grid with the
+    midpoints inserted, N → 2N − 1) changes β by at most ``beta`` and L by at most ``L``
+    (relative), both at fixed τ_d.
+
+    Attributes
+    ----------
+    beta : float
+        Largest |Δβ| allowed (absolute).
+    L : float
+        Largest |ΔL|/L allowed.
+    """
+
+    beta: float = 1e-5
+    L: float = 1e-4
+
+    def passes(self, dbeta: float, dL_rel: float) -> bool:
+        """Whether the N → 2N − 1 differences meet the criterion (NaN and inf do not)."""
+        return bool(abs(dbeta) <= self.beta and abs(dL_rel) <= self.L)
+
+
+#: The family's criterion (docs/steady.md §8): β within 1e-5, L within 1e-4.
+GRID_TOLERANCE = GridTolerance()

@@ -1,0 +1,181 @@
+"""The product's family (issue 18): ``slippulse steady family`` with ``--deep auto`` (default) —
+every pulse grid-checked, the deep march as an object (:class:`DeepMarch`), labels at non-round
+τ_d, bad input refused with one line and no file touched, kill -9 and resume."""
+import hashlib
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from slippulse.core.h5io import list_pulses, pulse_label, read_pulse, write_pulse
+from slippulse.steady.continuation import (GRID_TOLERANCE, DeepMarch, DeepSettings, GridTolerance,
+                                           run_family)
+
+
+def _digest(path):
+    return hashlib.sha256(open(path, "rb").read()).hexdigest()
+
+
+def test_labels_readable_and_unique_off_round_tau_d():
+    assert pulse_label(1.2) == "td1.2000" and pulse_label(1.0125) == "td1.0125"
+    assert pulse_label(1.2000000701) == "td1.2000"          # a refined pulse 1e-7 off its target
+    assert pulse_label(1.0090741) == "td1.009074"
+    assert pulse_label(1.0104033) == "td1.010403" != pulse_label(1.0104012)
+    # the deep steps of docs/analysis.md, 4 decimals collided (1.0092921, 1.0092098 → td1.0092 ...)
+    qs = [1.0122681, 1.0119271, 1.0114321, 1.0109587, 1.0105093, 1.0102100, 1.0100086, 1.0098140,
+          1.0096264, 1.0094995, 1.0093762, 1.0092921, 1.0092098, 1.0091293, 1.0090741]
+    labels = [pulse_label(q) for q in qs]
+    assert len(set(labels)) == len(qs)
+    assert all(abs(float(lab[2:]) - q) <= 5.0001e-7 for lab, q in zip(labels, qs))
+
+
+def test_grid_tolerance_is_the_one_place():
+    assert GRID_TOLERANCE == GridTolerance(beta=1e-5, L=1e-4)
+    assert DeepSettings().tol_beta == GRID_TOLERANCE.beta and DeepSettings().tol_L == GRID_TOLERANCE.L
+    assert GRID_TOLERANCE.passes(9e-6, -9e-5) and not GRID_TOLERANCE.passes(2e-5, 0.0)
+    assert not GRID_TOLERANCE.passes(0.0, math.inf) and not GRID_TOLERANCE.passes(math.nan, 0.0)
+    with pytest.raises(Exception):
+        GRID_TOLERANCE.beta = 1.0                          # frozen
+
+
+def test_deep_march_object_status_and_counters(params):
+    """DeepMarch: step() advances by one accepted pulse; status "finished" at stop, "stopped" at
+    max_length; counters add up; stepping a finished march is an error."""
+    from slippulse.steady.solver import solve_pulse
+    a = solve_pulse(params, 1.2, n_points=500)
+    seen = []
+    m = DeepMarch(params, (a.xi, a.x[:-1], a.beta, 1.2),
+                  settings=DeepSettings(ds=0.004, ds_max=0.004, ds_min=0.001, max_iter=20,
+                                        stretch=True),
+                  stop=1.195, on_attempt=lambda r, p, msg: seen.append(p is not None))
+    assert m.status == "running" and m.n_steps == 0 and m.q == 1.2
+    qs = [m.q]
+    while m.status == "running":
+        assert m.step() is None
+        qs.append(m.q)
+        assert m.sol.problem.free == "both" and m.sol.xi.size == 500
+    assert m.status == "finished" and m.q <= 1.195 and np.all(np.diff(qs) < 0)
+    assert m.n_steps == len(qs) - 1 and m.n_attempts == len(seen) == m.n_steps + m.n_failed
+    assert m.n_iterations > 0 and m.fold is None and m.tangent[1] < 0
+    with pytest.raises(RuntimeError):
+        m.step()
+    m2 = DeepMarch(params, m.sol, settings=DeepSettings(ds=0.004, ds_max=0.004, max_iter=20,
+                                                        stretch=True), max_length=m.L * 1.001)
+    m2.step()
+    assert m2.status == "stopped" and m2.L >= m.L * 1.001 and "max_length" in m2.message
+    # a march that cannot converge fails with the reason
+    m3 = DeepMarch(params, m.sol, settings=DeepSettings(ds=0.004, ds_min=0.0015, max_iter=0))
+    assert m3.step() is not None and m3.status == "failed" and "ds fell below" in m3.message
+    assert m3.n_failed == m3.n_attempts == 2
+
+
+def _cli(args):
+    return subprocess.run([sys.executable, "-m", "slippulse.cli", "steady", "family", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--from", "1.1", "--to", "1.2"], "to=1.2 is invalid"),
+    (["--from", "1.2", "--to", "1.0"], "tau_d"),
+    (["--from", "1.2", "--to", "0.99"], "tau_d"),
+    (["--to", "1.009", "--max-points", "3000"], "max-points=3000 is invalid"),
+    (["--to", "1.009", "--max-length", "0"], "max-length=0"),
+])
+def test_family_bad_input_one_line_no_file(tmp_path, capsys, args, words):
+    from slippulse import cli
+    out = str(tmp_path / "f.h5")
+    assert cli.main(["steady", "family", *args, "--out", out, "-q"]) == 2
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0] and "Traceback" not in err
+    assert not os.path.exists(out)
+
+
+def test_family_refuses_file_of_other_parameters_or_older_format(params, tmp_path):
+    """A family file of other parameters, or of the older format (pulses without grid checks, as
+    the command wrote before issue 18), is refused with one line and left as it was."""
+    from dataclasses import replace
+
+    from slippulse import cli
+    from slippulse.steady.solver import solve_pulse
+    pulse = solve_pulse(params, 1.2, n_points=300).to_pulse()
+    old = str(tmp_path / "old.h5")
+    write_pulse(old, pulse, params)
+    before = _digest(old)
+    r = _cli(["--to", "1.19", "--out", old, "-q"])          # as a user runs it: one line, rc 2
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert "older format" in r.stderr and _digest(old) == before
+    other = str(tmp_path / "other.h5")
+    pulse.extra.update({"grid_check_passed": True, "grid_check_tol_beta": 1e-5,
+                        "grid_check_tol_L": 1e-4})
+    write_pulse(other, pulse, replace(params, D=2 * params.D))
+    before = _digest(other)
+    assert cli.main(["steady", "family", "--to", "1.19", "--out", other, "-q"]) == 2
+    assert _digest(other) == before
+
+
+@pytest.mark.slow
+def test_auto_family_goes_deep_checks_every_pulse_and_stops_at_max_length(params, tmp_path,
+                                                                          monkeypatch):
+    """deep="auto" with the switch moved to the first pulse (DEEP_BETA = 0): the natural pulse and
+    the deep march's pulses are all written with their grid check (passed, within the tolerance,
+    continuation named), at 6-decimal labels off round τ_d; max_length ends it cleanly."""
+    import slippulse.steady.continuation.family as fam
+    monkeypatch.setattr(fam, "DEEP_BETA", 0.0)
+    tol = GridTolerance(1e-5, 3e-4)
+    out = str(tmp_path / "deep.h5")
+    rep = run_family(params, out, start=1.2, stop=1.15, step=0.01, n_points=500, deep="auto",
+                     deep_points=500, n_max=4000, tolerance=tol, max_length=1.3)
+    assert rep.limit_reached and not rep.stopped_early and rep.deep_steps >= 1
+    labels = list_pulses(out)
+    assert labels[0] == "td1.2000" and len(labels) >= 2
+    for lab in labels:
+        p, _ = read_pulse(out, lab)
+        assert p.converged and p.extra["grid_check_passed"]
+        assert abs(p.extra["grid_check_dbeta"]) <= tol.beta
+        assert abs(p.extra["grid_check_dL_rel"]) <= tol.L
+        assert p.extra["grid_check_n_fine"] == 2 * p.n_points - 1
+    deep = [read_pulse(out, lab)[0] for lab in labels[1:]]
+    assert all(p.extra["continuation"] == "arclength" and len(p.label) == 10 for p in deep)
+    assert deep[-1].L >= 1.3
+    # a rerun resumes the deep march from the deepest pulse, on its own grid
+    rep2 = run_family(params, out, start=1.2, stop=1.15, step=0.01, n_points=500, deep="auto",
+                      deep_points=500, n_max=4000, tolerance=tol, max_length=1.4)
+    assert rep2.resumed_from == labels[-1] and rep2.resumed_method == "arclength"
+    assert rep2.deep_steps >= 1 and rep2.written and not rep2.stopped_early
+    assert all(read_pulse(out, lab)[0].tau_d_ratio < deep[-1].tau_d_ratio for lab in rep2.written)
+
+
+@pytest.mark.slow
+def test_family_kill9_then_rerun_resumes_with_file_intact(tmp_path):
+    """kill -9 in the middle of the family command; the file stays readable, every pulse in it
+    grid-checked; the same command again resumes (does not redo the pulses) and finishes."""
+    out = str(tmp_path / "f.h5")
+    args = ["--from", "1.2", "--to", "1.185", "--points", "1000", "--out", out, "-q"]
+    proc = subprocess.Popen([sys.executable, "-m", "slippulse.cli", "steady", "family", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    t0 = time.time()
+    while time.time() - t0 < 600:
+        if os.path.exists(out) and len(list_pulses(out)) >= 2:
+            break
+        time.sleep(0.2)
+    time.sleep(1.0)                                         # inside the next solve or write
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    first = list_pulses(out)
+    assert first[:2] == ["td1.2000", "td1.1950"]
+    kept = {lab: read_pulse(out, lab)[0] for lab in first}
+    assert all(p.extra["grid_check_passed"] for p in kept.values())
+    r = _cli(args)
+    assert r.returncode == 0, r.stderr
+    assert "resumed from" in r.stderr
+    labels = list_pulses(out)
+    assert labels == ["td1.2000", "td1.1950", "td1.1900", "td1.1850"]
+    for lab, p in kept.items():
+        assert np.array_equal(read_pulse(out, lab)[0].v, p.v)   # not redone
+    assert all(read_pulse(out, lab)[0].extra["grid_check_passed"] for lab in labels)
