@@ -282,7 +282,8 @@ def front_response(mode: Eigenmode, pulse, v_star: float) -> dict:
     Returns
     -------
     dict
-        eta_front, eta_back (m), dL_over_L, dc_over_c (per unit A), direction (the slope
+        eta_front, eta_back (m), dL_over_L, dc_over_c, dvmax_over_vmax (V₁/v₀ at the peak:
+        the relative change of v_max) (per unit A), direction (the slope
         (δc/c)/(δL/L) in the (ln L, ln c_p) plane), zeta (m, ξ − ξ_R on the pulse's grid),
         y1f, psi1f (front-frame fields), xi_front.
     """
@@ -303,7 +304,9 @@ def front_response(mode: Eigenmode, pulse, v_star: float) -> dict:
     zeta = xi - xr
     y1f = y1 + eta_r * sy0(xi, 1)
     psi1f = psi1 + eta_r * sps0(xi, 1)
+    dvmax = float(mode.V.real[k] / pulse.v[k])
     return {"eta_front": eta_r, "eta_back": eta_l, "dL_over_L": dL, "dc_over_c": dc,
+            "dvmax_over_vmax": dvmax,
             "direction": dc / dL if dL != 0 else math.copysign(math.inf, dc),
             "zeta": zeta, "y1f": y1f, "psi1f": psi1f, "xi_front": xr, "L": L}
 
@@ -383,7 +386,10 @@ def pulse_overlap(pulse, mode, neighbours, v_star) -> dict:
     Returns a dict: overlap (y and ln φ), overlap_y (y only), the mode's dL_over_L, dc_over_c,
     direction (its slope d ln c/d ln L), line_slope (the family's), departure_per_dlnL =
     direction − line_slope (the first-order departure c_p/c_p⁰(L) − 1 per unit relative change
-    of L: 0 on the line), angle_deg (between the two directions in the plane).
+    of L: 0 on the line), departure_fraction = 1 − line_slope/direction (the part of the mode's
+    change of ln c_p that is departure from the line: c_p/c_p⁰(L) − 1 ≈ f·δ ln c_p; 0 on the
+    line, 1 when the mode changes c_p at fixed L), angle_deg (between the two directions in the
+    (ln L, ln c_p) plane).
     """
     fr = front_response(mode, pulse, v_star)
     tg = family_tangent(pulse, neighbours, v_star, fr["zeta"])
@@ -396,13 +402,36 @@ def pulse_overlap(pulse, mode, neighbours, v_star) -> dict:
             "dL_over_L": fr["dL_over_L"], "dc_over_c": fr["dc_over_c"],
             "direction": fr["direction"], "line_slope": tg["slope"],
             "departure_per_dlnL": fr["direction"] - tg["slope"],
+            "departure_fraction": 1.0 - tg["slope"] * fr["dL_over_L"] / fr["dc_over_c"],
             "angle_deg": math.degrees(math.acos(min(1.0, cosang))),
             "s_per_L": mode.s_per_L}
 
 
-def family_overlaps(path: str, compute: bool = False) -> list[dict]:
+def local_neighbours(pulse, params, h: float = 2e-3):
+    """The pulses at τ_d/τ_min ± h solved on ``pulse``'s own grid from ``pulse`` (Newton, no
+    regridding): the family tangent by a central difference of step h, free of the interpolation
+    between the adapted grids of a coarse family (used where the family's step is too coarse for
+    the tangent, near τ_min). Raises SpectrumError when a solve does not converge."""
+    from ..steady.solver import solve_pulse
+    out = []
+    for q in (pulse.tau_d_ratio - h, pulse.tau_d_ratio + h):
+        sol = solve_pulse(params, q, n_points=pulse.xi.size,
+                          guess=(pulse.xi, np.log(pulse.v), pulse.beta), passes=0,
+                          adapt_guess=False,
+                          state_order=int(pulse.extra.get("state_order", 2)))
+        if not sol.stats.converged:
+            raise SpectrumError(f"neighbour of {pulse.label} at tau_d/tau_min = {q:.6g} did not "
+                                "converge on its grid")
+        out.append(sol.to_pulse())
+    return out
+
+
+def family_overlaps(path: str, compute: bool = False, local_h: float | None = None,
+                    labels=None) -> list[dict]:
     """:func:`pulse_overlap` at every converged pulse of a family file that has a stored
-    spectrum (or, with ``compute``, a computable one), with its neighbours in τ_d as the tangent."""
+    spectrum (or, with ``compute``, a computable one), with its neighbours in τ_d as the tangent
+    (or, with ``local_h``, the pulses at τ_d ± local_h solved on its grid,
+    :func:`local_neighbours`). ``labels``: only these pulses."""
     from ..core.h5io import list_pulses, read_pulse
     labels = list_pulses(path)
     pulses = []
@@ -414,11 +443,16 @@ def family_overlaps(path: str, compute: bool = False) -> list[dict]:
     pulses.sort(key=lambda p: p.tau_d_ratio)
     out = []
     for i, pu in enumerate(pulses):
+        if labels and pu.label not in labels:
+            continue
         try:
             mode = leading_mode(pu, params, path=path, compute=compute)
         except SpectrumError:
             continue
-        nb = [pulses[j] for j in (i - 1, i + 1) if 0 <= j < len(pulses)]
+        if local_h:
+            nb = local_neighbours(pu, params, local_h)
+        else:
+            nb = [pulses[j] for j in (i - 1, i + 1) if 0 <= j < len(pulses)]
         if not nb:
             continue
         row = pulse_overlap(pu, mode, nb, params.v_star)
