@@ -159,6 +159,56 @@ def cmd_overlap(path, csv_out=None, figure=None, sbi_dirs=(), local_h=None, labe
     return rows
 
 
+def cmd_figure(out, csvs, pair_dirs=(), labels=()):
+    """overlap and departure fraction against τ_d from ``overlap --csv`` files (one style each,
+    named by ``labels``), with the departure fraction the eigenmode-seeded SBI pairs measure."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.3))
+    marks = ["o-", "s-", "^-", "d-"]
+    for i, path in enumerate(csvs):
+        with open(path) as fh:
+            rows = sorted(csv.DictReader(fh), key=lambda r: float(r["tau_d_ratio"]))
+        q = np.array([float(r["tau_d_ratio"]) for r in rows])
+        lab = labels[i] if i < len(labels) else os.path.basename(path)
+        ax[0].plot(q, [float(r["overlap"]) for r in rows], marks[i % 4], ms=5, label=lab)
+        f = np.array([float(r["departure_fraction"]) for r in rows])
+        ax[1].plot(q, np.clip(f, -1.5, 1.5), marks[i % 4], ms=5, label=f"eigenmode, {lab}")
+    sbi = []
+    for d in pair_dirs:
+        for key, p, m in _pairs(d):
+            a = pair_analysis(key, p, m)
+            pulse, params = read_pulse(key[0], key[1])
+            mode = leading_mode(pulse, params, path=key[0], compute=False)
+            from slippulse.stability.eigenmode import local_neighbours, pulse_overlap
+            ov = pulse_overlap(pulse, mode, local_neighbours(pulse, params), params.v_star)
+            f = 1 - ov["line_slope"] * a["dL_per_dv_sbi"] / a["dc_per_dv_sbi"]
+            sbi.append((pulse.tau_d_ratio, f))
+            print(f"SBI pair {key[1]} ({os.path.basename(key[0])}, eps {key[3]:g}): departure "
+                  f"fraction {f:.4g} (mode {ov['departure_fraction']:.4g})")
+    if sbi:
+        sq, sf = zip(*sbi)
+        ax[1].plot(sq, sf, "k*", ms=12, label="SBI, eigenmode-seeded ±ε pairs (measured)")
+    ax[0].set_xlabel("τ_d/τ_min")
+    ax[0].set_ylabel("overlap |⟨m, t⟩| / (‖m‖ ‖t‖)")
+    ax[0].set_ylim(0, 1.05)
+    ax[0].set_title("unstable eigenmode m vs family tangent t = d(y, ln φ)/dτ_d\n"
+                    "(front frame, translation removed, ζ ∈ [−1.5, 0.5] L)", fontsize=9)
+    ax[0].legend(fontsize=8)
+    ax[1].axhline(0, color="0.6", lw=0.6)
+    ax[1].axhline(1, color="0.8", lw=0.6, ls=":")
+    ax[1].set_xlabel("τ_d/τ_min")
+    ax[1].set_ylabel("departure fraction f = 1 − slope_line/slope_mode")
+    ax[1].set_title("c_p/c_p⁰(L) − 1 ≈ f · δ ln c_p (0: along the steady line;\n"
+                    "1: c_p changes at fixed L; > 1: L and c_p move oppositely)", fontsize=9)
+    ax[1].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    print(f"figure {out}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[1])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -170,11 +220,18 @@ def main(argv=None):
     o.add_argument("--local-h", type=float, default=None,
                    help="tangent from pulses at tau_d +- h solved on each pulse's grid")
     o.add_argument("--labels", nargs="*", default=None)
+    fg = sub.add_parser("figure")
+    fg.add_argument("out")
+    fg.add_argument("--csv", nargs="+", required=True)
+    fg.add_argument("--labels", nargs="*", default=[])
+    fg.add_argument("--pairs", nargs="*", default=[])
     p = sub.add_parser("pairs")
     p.add_argument("dirs", nargs="+")
     a = ap.parse_args(argv)
     if a.cmd == "overlap":
         cmd_overlap(a.family, a.csv, a.figure, a.sbi, a.local_h, a.labels)
+    elif a.cmd == "figure":
+        cmd_figure(a.out, a.csv, a.pairs, a.labels)
     else:
         cmd_pairs(a.dirs)
 

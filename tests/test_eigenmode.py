@@ -182,7 +182,8 @@ def test_overlap_is_one_when_mode_and_tangent_coincide(pulse12, params):
 def test_seeded_mode_grows_at_its_eigenvalue_at_1p1(params, tmp_path):
     """A ±ε pair seeded along the eigenmode at 1.1 τ_min grows at the eigenvalue within 2 % over
     0.4 L (no start-up transient to wait for). Steady pulse N = 2000 (continued from 1.2), its
-    spectrum, 4 mm SBI grid, 3+2 L domain. ~5–10 min."""
+    spectrum, 4 mm SBI grid, 4+4 L domain (on 3+2 L the mode's periodic images lower the rate by
+    ≈ 3 %, docs/stability.md §10.3; measured here: −1.2 %). ~5–10 min."""
     from slippulse.stability.perturbation import pair_growth, read_series, run_case
     from slippulse.stability.spectrum import run_spectrum
     from slippulse.steady.continuation import run_family
@@ -190,11 +191,11 @@ def test_seeded_mode_grows_at_its_eigenvalue_at_1p1(params, tmp_path):
     run_family(params, path, start=1.2, stop=1.1, step=0.02, n_points=2000)
     run_spectrum(path, labels=["td1.1000"], extra=False)
     rows = []
-    for eps in (1e-4, -1e-4):
+    for eps in (1e-3, -1e-3):
         case = {"steady": path, "label": "td1.1000", "perturbation": "mode", "eps": eps,
-                "dx": 4e-3, "ahead": 2.0, "behind": 3.0, "distance": 0.4, "samples_per_L": 200}
+                "dx": 4e-3, "ahead": 4.0, "behind": 4.0, "distance": 0.4, "samples_per_L": 200}
         rows.append(run_case(case, str(tmp_path / f"m{eps}.h5")))
-    g = pair_growth(read_series(rows[0]["file"]), read_series(rows[1]["file"]), 1e-4)
+    g = pair_growth(read_series(rows[0]["file"]), read_series(rows[1]["file"]), 1e-3)
     s_eig = rows[0]["eigen_s_per_L"]
     assert g["regime"] == "growth"
     assert g["s_per_L"] == pytest.approx(s_eig, rel=0.02)
