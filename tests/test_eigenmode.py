@@ -199,3 +199,37 @@ def test_seeded_mode_grows_at_its_eigenvalue_at_1p1(params, tmp_path):
     s_eig = rows[0]["eigen_s_per_L"]
     assert g["regime"] == "growth"
     assert g["s_per_L"] == pytest.approx(s_eig, rel=0.02)
+
+
+def test_scan_case_with_mode_perturbation_is_checked():
+    from slippulse.core.params import ParameterError
+    from slippulse.stability.perturbation import check_case
+    ok = check_case({"steady": "f.h5", "label": "td1.2000", "perturbation": "mode", "eps": -1e-3})
+    assert ok["mode_file"] == ""
+    with pytest.raises(ParameterError, match="0.01"):
+        check_case({"steady": "f.h5", "label": "td1.2000", "perturbation": "mode", "eps": 0.05})
+    with pytest.raises(ParameterError, match="'mode'"):
+        check_case({"steady": "f.h5", "label": "td1.2000", "perturbation": "shape"})
+
+
+def test_growing_past_in_the_soe_history_is_the_exact_integral():
+    """prefill_translating(sigma=σ): Y = ∫₀^∞ e^{zωs} (Re, Im) V_k(−s) ds for V_k(t) =
+    V̂ e^{(σ − ikc)t}, against quadrature; add=True adds it to what is there."""
+    from slippulse.dynamics.sbi import SOEHistory
+    omega = np.array([0.0, 3.0, 50.0])
+    h = SOEHistory(omega, x_min=1e-2, x_max=1e2, h=1.0)
+    kabs = omega / 2.0
+    c, sigma = 0.7, 1.3
+    vhat = np.array([0.0, 0.4 - 0.2j, -1.1 + 0.5j])
+    h.Y[:] = 1.0
+    h.prefill_translating(vhat, kabs, c, sigma=sigma, add=True)
+    for k in (1, 2):
+        for j in (0, h.p // 2, h.p - 1):
+            zw = h.Z[j] * omega[k]
+            rate = sigma - zw.real                       # decay of the integrand
+            s = np.linspace(0.0, 40.0 / rate, 400_001)   # ≥ 60 points per oscillation
+            V = vhat[k] * np.exp(-(sigma - 1j * kabs[k] * c) * s)
+            for part, f in ((0, np.real), (1, np.imag)):
+                want = np.trapezoid(np.exp(zw * s) * f(V), s)
+                assert h.Y[k, j, part] - 1.0 == pytest.approx(want, rel=1e-6, abs=1e-12)
+    assert np.all(h.Y[0] == 1.0)                     # k = 0 untouched (no elastic stress)
