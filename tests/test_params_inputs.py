@@ -172,19 +172,21 @@ def test_dynamic_run_params_file_into_config(tmp_path, capsys):
     assert not os.path.exists(bad)
 
 
-def test_verify_quotes_table_rates_only_for_table_params():
-    """The measured growth rates of docs/stability.md are Table I's: a pulse of other parameters
-    gets no rate attributed."""
+def test_verify_attributes_drift_to_the_pulses_eigenvalue_for_any_params():
+    """Issue 20 replaced the table of Table-I rates by the pulse's own eigenvalue: a pulse of other
+    parameters (table_I False) gets its drift attributed to its eigenvalue; none without one."""
     import numpy as np
 
     from slippulse.stability.verify import VerifyResult, drift_verdict, mode_growth
-    assert mode_growth(1.2)[0] == 23.5 and mode_growth(1.2, table_i=False) is None
-    info = {"tau_d_ratio": 1.2, "growth_rate_v_max": 23.0, "travelled": 0.3,
+    info = {"tau_d_ratio": 1.2, "growth_rate_v_max": 48.5, "travelled": 0.3,
             "status": "finished", "table_I": False}
     res = VerifyResult(t=np.zeros(5), x_front=np.zeros(5), series={}, errors={}, info=info)
     verdict, text = drift_verdict(res)
-    assert verdict is None and "known for these parameters" in text
-    assert drift_verdict(dc.replace(res, info={**info, "table_I": True}))[0] is True
+    assert mode_growth(info) is None and verdict is None and "no eigenvalue" in text
+    eig = {**info, "eigen_s_per_L": 48.98, "eigen_translation_s_per_L": 1e-4,
+           "eigen_source": "stored"}
+    assert mode_growth(eig)[0] == 48.98
+    assert drift_verdict(dc.replace(res, info=eig))[0] is True
 
 
 @pytest.mark.slow

@@ -125,14 +125,15 @@ def test_seed_from_file_round_trip(tmp_path, pulse12, params):
     assert s.stepper.law.tau_load.shape == (s.stepper.n,)
 
 
-def test_verify_cli_writes_errors_series_and_figure(tmp_path, pulse12, params, capsys):
-    """`slippulse dynamic verify`: HDF5 attributes + time series, PNG beside it, one-line summary."""
+def test_verify_cli_writes_errors_series_and_figure(tmp_path, pulse12, params, capsys,
+                                                    steady12_with_spectrum):
+    """`slippulse dynamic verify`: HDF5 attributes + time series, PNG beside it, one-line summary
+    (the pulse's spectrum stored in its file: the verdict's eigenvalue is read, not computed)."""
     import h5py
 
     from slippulse.cli.app import main
-    src = str(tmp_path / "fam.h5")
+    src = steady12_with_spectrum
     pu = pulse12.to_pulse()
-    write_pulse(src, pu, params)
     out = str(tmp_path / "v.h5")
     rc = main(["dynamic", "verify", "--steady", src, "--label", pu.label, "--distance", "0.01",
                "--dx", "4e-3", "--samples", "4", "--out", out, "--no-progress"])

@@ -67,6 +67,7 @@ def register(subparsers) -> None:
                    help="add the isolated pulse's far field to the loading (default steady)")
     v.add_argument("--xi-stab", type=float, default=0.5, help="time.xi_stab of the adaptive rule")
     v.add_argument("--samples", type=int, default=100, help="measurements (default 100)")
+    _mode_args(v)
     v.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     v.add_argument("--allow-unconverged", action="store_true",
                     help="use a pulse marked converged=False (default: refuse it); the output "
@@ -92,6 +93,7 @@ def register(subparsers) -> None:
     sd.add_argument("--allow-unconverged", action="store_true",
                     help="use a pulse marked converged=False (default: refuse it); the output "
                          "says so (attribute steady_converged = False)")
+    _mode_args(sd)
     add_params_args(sd)
     sd.set_defaults(func=cmd_seed)
     try:                                   # ``dynamic scan`` (cli/scan.py)
@@ -102,6 +104,41 @@ def register(subparsers) -> None:
             raise
     else:
         cli_scan.register(sub)
+
+
+def _mode_args(p) -> None:
+    """--perturb/--eps/--mode-file: the eigenmode-seeded start (stability/eigenmode.py)."""
+    p.add_argument("--perturb", choices=("none", "mode"), default="none",
+                   help="'mode': add eps x the pulse's unstable eigenmode, with a past that grew "
+                        "as exp(sigma t) (docs/stability.md section 10)")
+    p.add_argument("--eps", type=float, default=1e-3,
+                   help="mode amplitude: largest change of ln(v/v*+1), 0 < |eps| <= 0.01 "
+                        "(default 1e-3)")
+    p.add_argument("--mode-file", metavar="FILE", default=None,
+                   help="take the stored mode from FILE (default: the steady file's spectrum, "
+                        "else computed now); it must belong to the same pulse")
+
+
+def _eigenmode(args, pulse, params, required: bool):
+    """The pulse's eigenmode for --perturb mode (required) or for the drift verdict (None when
+    it has none). Bad input (eps, a mode of another pulse, no spectrum) is a UsageError."""
+    from ..core.params import ParameterError
+    from ..stability.eigenmode import SpectrumError, check_eps, leading_mode, stored_mode
+    try:
+        if required:
+            check_eps(args.eps)
+        src = args.mode_file or args.steady
+        if stored_mode(src, pulse.label) is None and not args.mode_file:
+            print(f"no spectrum stored for {pulse.label} in {args.steady}: computing it "
+                  f"(N = {pulse.xi.size}; 'slippulse steady stability' stores it)", file=sys.stderr)
+        return leading_mode(pulse, params, path=args.steady, mode_path=args.mode_file)
+    except SpectrumError as exc:
+        if required or args.mode_file:
+            raise UsageError(str(exc))
+        print(f"note: {exc}", file=sys.stderr)
+        return None
+    except ParameterError as exc:
+        raise UsageError(str(exc))
 
 
 def cmd_run(args) -> int:
@@ -259,12 +296,14 @@ def cmd_verify(args) -> int:
     _check_grid(dx, args.ahead, args.behind, pulse.L)
     if not 2 <= args.samples <= 100_000:
         raise UsageError(f"--samples={args.samples} must be in [2, 100000]")
+    eigen = _eigenmode(args, pulse, params, required=args.perturb == "mode")
     try:
         spec = DomainSpec(dx=dx, ahead=args.ahead, behind=args.behind)
         rule = TimeStepRule(kind="adaptive", xi_stab=args.xi_stab)
         res = verify_pulse(pulse, params, args.distance, spec, rule=rule,
                            far_field=args.far_field, n_samples=args.samples,
-                           progress=not args.no_progress)
+                           progress=not args.no_progress, eigen=eigen,
+                           perturbation=("mode", args.eps) if args.perturb == "mode" else None)
     except ParameterError as exc:
         raise UsageError(str(exc))
     write_result(out, res, params, source=os.path.abspath(args.steady), label=label,
@@ -294,16 +333,28 @@ def cmd_seed(args) -> int:
     from ..stability.seeding import default_dx
     dx = default_dx(params) if args.dx is None else args.dx
     _check_grid(dx, args.ahead, args.behind, pulse.L)
+    eigen = _eigenmode(args, pulse, params, required=True) if args.perturb == "mode" else None
     try:
         seed = seed_pulse(pulse, params, DomainSpec(dx=dx, ahead=args.ahead,
                                                     behind=args.behind),
                           far_field=args.far_field)
+        if eigen is not None:
+            from ..stability.eigenmode import perturb_along_mode
+            perturb_along_mode(seed, eigen, args.eps)
     except ParameterError as exc:
         raise UsageError(str(exc))
     mis = write_seed(out, seed, source=os.path.abspath(args.steady), label=pulse.label)
+    if eigen is not None:
+        import h5py
+        with h5py.File(out, "a") as h5:
+            h5.attrs["perturbation"], h5.attrs["eps"] = "mode", float(args.eps)
+            h5.attrs["eigen_s_per_L"], h5.attrs["eigen_sigma"] = eigen.s_per_L, eigen.sigma.real
+            h5.attrs["eigen_source"] = eigen.source
     st = seed.stepper
     print(_unconverged_prefix(pulse) + f"seed {pulse.label}: N={st.n}, dx={st.dx * 1e3:.3g} mm, domain {st.length:.4g} m "
           f"({args.behind:g} L behind + {args.ahead:g} L ahead); t = 0 stress vs steady: "
           f"{mis['stress']:.2e} tau_d over the pulse, {mis['stress_all']:.2e} anywhere; "
-          f"friction imbalance {mis['friction']:.2e} tau_d; output {out}")
+          f"friction imbalance {mis['friction']:.2e} tau_d"
+          + (f"; perturbed by eps = {args.eps:g} x the unstable mode (s = {eigen.s_per_L:.5g} "
+             f"per L, {eigen.source})" if eigen is not None else "") + f"; output {out}")
     return 0

@@ -478,20 +478,32 @@ class SOEHistory(HistoryPolicy):
         self._next_dt = float(dt)
         self.count += 1
 
-    def prefill_translating(self, vhat_k, kabs, c):
+    def prefill_translating(self, vhat_k, kabs, c, sigma=0.0, add=False):
         """History of a slip-rate field that has translated at speed c (toward +x) forever:
         V_k(t) = V̂_k e^{−ikct} for t ≤ 0, so Y_jk(0) = ∫_0^∞ e^{z_j ω_k s} V_k(−s) ds with
         ∫_0^∞ e^{zωs} e^{±ikcs} ds = −1/(zω ± ikc) (Re z < 0) for the real and imaginary parts.
-        Mode k = 0 (no elastic stress) is left empty."""
+        Mode k = 0 (no elastic stress) is left empty.
+
+        ``sigma`` (real, ≥ 0, 1/s): the field also grew as e^{σt} in the past, V_k(t) =
+        V̂_k e^{(σ − ikc)t} for t ≤ 0 (an unstable eigenmode, docs/stability.md §10); then
+        ∫_0^∞ e^{zωs} e^{−σs} e^{±ikcs} ds = −1/(zω − σ ± ikc). ``add``: add this past to the
+        accumulators (the perturbation over a steady past) instead of replacing them."""
         vhat = np.asarray(vhat_k, dtype=complex)[:, None]
-        zw = self.Z[None, :] * self.omega[:, None]
+        zw = self.Z[None, :] * self.omega[:, None] - float(sigma)
         kc = 1j * np.asarray(kabs, dtype=float)[:, None] * c
         with np.errstate(all="ignore"):
             plus = -vhat / (zw + kc)
             minus = -np.conj(vhat) / (zw - kc)
-            self.Y[:, :, 0] = 0.5 * (plus + minus)
-            self.Y[:, :, 1] = (plus - minus) / 2j
-        self.Y[self.omega == 0.0] = 0.0
+            yu, yw = 0.5 * (plus + minus), (plus - minus) / 2j
+        zero = self.omega == 0.0
+        yu[zero] = 0.0
+        yw[zero] = 0.0
+        if add:
+            self.Y[:, :, 0] += yu
+            self.Y[:, :, 1] += yw
+        else:
+            self.Y[:, :, 0] = yu
+            self.Y[:, :, 1] = yw
         self._next_dt = None
 
     def shift(self, theta: np.ndarray) -> None:
@@ -551,7 +563,7 @@ class QuasiDynamicHistory(HistoryPolicy):
     def commit(self, vbar_k, dt):
         pass
 
-    def prefill_translating(self, vhat_k, kabs, c):
+    def prefill_translating(self, vhat_k, kabs, c, sigma=0.0, add=False):
         pass
 
     def shift(self, theta):

@@ -169,7 +169,7 @@ def plot_verify_result(path_png: str, res: VerifyResult, pulse, params) -> None:
     err = np.abs(np.asarray(res.series["v_max_error"], dtype=float))
     ok = np.isfinite(err) & (err > 0)
     ax.semilogy(dist[ok], err[ok], "C0o-", ms=3, lw=1, label="|v_max/v_max⁰ − 1| (SBI)")
-    known = mode_growth(res.info["tau_d_ratio"], bool(res.info.get("table_I", True)))
+    known = mode_growth(res.info)
     if known is not None and ok.sum() >= 2:
         sv, serr, how = known
         win = ok & (err >= 3e-4) & (err <= 3e-2)          # growth_rate's fit window
@@ -177,7 +177,7 @@ def plot_verify_result(path_png: str, res: VerifyResult, pulse, params) -> None:
         lnA = float(np.mean(np.log(err[base]) - sv * dist[base]))
         dd = np.linspace(0.0, float(np.nanmax(dist)), 200)
         ax.semilogy(dd, np.exp(lnA + sv * dd), "k--", lw=1.2,
-                    label=f"e^(s d), unstable mode s = {sv:.3g} ± {serr:.2g} per L ({how})")
+                    label=f"e^(s d), unstable mode s = {sv:.4g} per L (eigenvalue)")
     ax.set_xlabel("distance travelled d (L⁰)")
     ax.set_ylabel("|v_max error|")
     verdict, text = drift_verdict(res)

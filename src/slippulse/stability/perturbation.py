@@ -35,7 +35,8 @@ from ..core.params import ParameterError
 CASE_DEFAULTS = {
     "steady": None,          # steady family file (HDF5 pulse schema), required
     "label": None,           # pulse group, e.g. "td1.0500", required
-    "perturbation": "excess",  # "excess" | "tau_d"
+    "perturbation": "excess",  # "excess" | "tau_d" | "mode" (the unstable eigenmode)
+    "mode_file": "",         # "mode": file holding the pulse's spectrum ("": the steady file)
     "eps": 1e-3,             # relative perturbation (signed); 0: unperturbed
     "dx": 4e-3,              # SBI grid spacing, m
     "ahead": 2.0,            # domain ahead of the front, L⁰
@@ -66,8 +67,14 @@ def check_case(case: dict) -> dict:
     for key in ("steady", "label"):
         if not isinstance(c[key], str) or not c[key]:
             raise ParameterError(f"case key {key!r} is required (a string)")
-    if c["perturbation"] not in ("excess", "tau_d"):
-        raise ParameterError(f"perturbation={c['perturbation']!r} must be 'excess' or 'tau_d'")
+    if c["perturbation"] not in ("excess", "tau_d", "mode"):
+        raise ParameterError(f"perturbation={c['perturbation']!r} must be 'excess', 'tau_d' or "
+                             "'mode'")
+    if c["perturbation"] == "mode" and float(c["eps"]) != 0:
+        from .eigenmode import check_eps
+        check_eps(c["eps"])
+    if not isinstance(c["mode_file"], str):
+        raise ParameterError("case key 'mode_file' must be a string (a file path, or '')")
     if c["history"] not in HISTORIES:
         raise ParameterError(f"history={c['history']!r} must be one of {sorted(HISTORIES)}")
     if not abs(float(c["eps"])) < 0.5:
@@ -330,7 +337,11 @@ def run_perturbation(case: dict, progress: bool = False):
         return None
 
     eps = float(c["eps"])
-    res = verify_pulse(pulse, params, float(c["distance"]), spec, rule=rule,
+    eigen = None
+    if c["perturbation"] == "mode":
+        from .eigenmode import leading_mode
+        eigen = leading_mode(pulse, params, path=c["steady"], mode_path=c["mode_file"] or None)
+    res = verify_pulse(pulse, params, float(c["distance"]), spec, rule=rule, eigen=eigen,
                        n_samples=max(10, int(round(float(c["distance"]) * float(c["samples_per_L"])))),
                        n_snapshots=8, progress=progress,
                        history_options=HISTORIES[c["history"]], threads=int(c["threads"]),
@@ -360,7 +371,8 @@ def analyse(res, pulse, c: dict) -> dict:
             "n_steps": res.info["n_steps"], "n_points": res.info["n"],
             "wall_time": res.info["wall_time"],
             "tau_d_ratio": pulse.tau_d_ratio, "L0": pulse.L, "c_p0": pulse.c_p,
-            "beta0": pulse.beta, "v_max0": res.info["v_max_ref"]}
+            "beta0": pulse.beta, "v_max0": res.info["v_max_ref"],
+            "eigen_s_per_L": float(res.info.get("eigen_s_per_L", math.nan))}
 
 
 def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
@@ -407,6 +419,8 @@ def read_row(out_path: str) -> dict:
         for k in keys:
             v = h5.attrs[k]
             row[k] = v.item() if hasattr(v, "item") else v
+        v = h5.attrs.get("eigen_s_per_L", math.nan)       # files before issue 20: none
+        row["eigen_s_per_L"] = v.item() if hasattr(v, "item") else v
     return row
 
 
@@ -442,7 +456,7 @@ def pair_rows(rows: list[dict]) -> list[tuple[dict, dict]]:
 PAIR_COLUMNS = ("label", "tau_d_ratio", "eps", "dx", "xi_stab", "ahead", "behind", "history",
                 "perturbation", "s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "t0", "t1",
                 "n", "regime", "sym_ratio", "mode_spread", "fate_plus", "fate_minus",
-                "wall_time")
+                "wall_time", "eigen_s_per_L", "rel_to_eigen")
 
 
 def pair_table(rows: list[dict]) -> list[dict]:
@@ -460,6 +474,9 @@ def pair_table(rows: list[dict]) -> list[dict]:
         row.update({k: g[k] for k in ("s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "t0",
                                       "t1", "n", "regime", "sym_ratio", "mode_spread")})
         row["fate_plus"], row["fate_minus"] = rp.get("fate"), rm.get("fate")
+        se = float(rp.get("eigen_s_per_L", math.nan))
+        row["eigen_s_per_L"] = se
+        row["rel_to_eigen"] = g["s_per_L"] / se - 1.0 if math.isfinite(se) and se else math.nan
         row["wall_time"] = float(rp.get("wall_time", math.nan)) + float(rm.get("wall_time", math.nan))
         row["_growth"] = g
         row["_file_plus"], row["_file_minus"] = rp["file"], rm["file"]

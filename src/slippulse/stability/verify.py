@@ -42,7 +42,7 @@ EXTRA_SERIES = {"L": "m", "v_max": "m/s", "slip": "m", "distance": "1", "c_p": "
 #: Window and sampling of the stored deviation field y − y⁰ (in L⁰ relative to the front).
 DEV_WINDOW = (-1.5, 0.5)
 DEV_POINTS = 201
-PERTURBATIONS = ("excess", "tau_d")
+PERTURBATIONS = ("excess", "tau_d", "mode")
 
 
 class PulseLost(RuntimeError):
@@ -126,6 +126,10 @@ def perturbed_pulse(pulse, kind: str, eps: float):
         raise ValueError(f"perturbation={kind!r} must be one of {PERTURBATIONS}")
     if not (math.isfinite(eps) and abs(eps) < 0.5):
         raise ValueError(f"eps={eps!r} must satisfy |eps| < 0.5")
+    if kind == "mode":                 # seeded unperturbed, then eigenmode.perturb_along_mode
+        from .eigenmode import check_eps
+        check_eps(eps)
+        return pulse
     if kind == "excess":
         v = pulse.v + eps * np.maximum(pulse.v - pulse.v_stick, 0.0)
         return replace(pulse, v=v)
@@ -185,7 +189,7 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
                  lost_factor: float = 20.0, history_start: str = "steady",
                  perturbation: tuple[str, float] | None = None,
                  stop_check=None, history: str = "soe",
-                 wrap_dislocation: bool = False) -> VerifyResult:
+                 wrap_dislocation: bool = False, eigen=None) -> VerifyResult:
     """Seed ``pulse`` and propagate it over ``distance`` steady pulse lengths.
 
     Parameters
@@ -221,8 +225,14 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
         measured (grew or arrested by the sign of v_max − v_max⁰).
     perturbation : (kind, ε), optional
         Start from a perturbed pulse (:func:`perturb_seed`): ``("excess", ε)`` scales the slip-rate
-        excess by 1 + ε, ``("tau_d", ε)`` raises the driving stress by ε·τ_d. The errors are still
+        excess by 1 + ε, ``("tau_d", ε)`` raises the driving stress by ε·τ_d, ``("mode", ε)`` adds
+        ε × the unstable eigenmode ``eigen`` with its growing past
+        (``eigenmode.perturb_along_mode``; 0 < |ε| ≤ ``eigenmode.EPS_MAX``). The errors are still
         measured against the unperturbed steady pulse.
+    eigen : eigenmode.Eigenmode, optional
+        The pulse's unstable eigenmode (``eigenmode.leading_mode``): required by ``("mode", ε)``;
+        its eigenvalue goes into ``info`` (:func:`eigen_info`) and is what :func:`drift_verdict`
+        compares the drift with.
     stop_check : callable, optional
         ``stop_check(rows) -> str | None``, called after each measurement with the list of rows
         (t, X, L, v_max, lnv_error, slip); a string ends the run with that status (e.g. the
@@ -247,7 +257,12 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
                       history_options=history_options, threads=threads,
                       history_start=history_start, history=history,
                       wrap_dislocation=wrap_dislocation)
-    if perturbation is not None:
+    if perturbation is not None and perturbation[0] == "mode":
+        from .eigenmode import perturb_along_mode
+        if eigen is None:
+            raise ValueError("perturbation ('mode', eps) needs the pulse's eigenmode (eigen=)")
+        perturb_along_mode(seed, eigen, float(perturbation[1]))
+    elif perturbation is not None:
         perturb_seed(seed, pulse, *perturbation)
     # run: step to t_end = distance·L⁰/c_p⁰, sampling n_samples times
     rec = _Recorder(seed, pulse, params, distance, n_samples, n_snapshots)
@@ -276,6 +291,8 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
             "beta_cfl": st.rule.beta_cfl, "xi": st.rule.xi, "xi_stab": st.rule.xi_stab,
             "t0_v_max_error": float(series["v_max_error"][0]),
             "t0_L_error": float(series["L_error"][0]), "t0_lnv_error": float(series["lnv_error"][0])}
+    if eigen is not None:
+        info.update(eigen_info(eigen))
     # write: the caller stores the result (write_result) and draws it (plotting.stability)
     return VerifyResult(t=t, x_front=X, series=series, errors=errors, info=info,
                         snapshots=rec.snapshots, x=st.x.copy())
@@ -392,63 +409,57 @@ def _measure(rec: _Recorder, pulse):
     return series, errors, (t, X, slip)
 
 
-#: Growth rate s (per steady pulse length L⁰ travelled) of the pulse's unstable mode, with its
-#: uncertainty, measured by the ±ε perturbation study. Source: docs/stability.md, §3 "Growth
-#: rates" table (1.20: 23.5 ± 0.8, 1.10: 8.0 ± 0.2; 1.05: 0.6 on the 3+2 L domain, 0.74
-#: extrapolated in the period, ± 0.1 systematic — 0.7 ± 0.1 here).
-MODE_GROWTH = ((1.05, 0.7, 0.1), (1.10, 8.0, 0.2), (1.20, 23.5, 0.8))
-#: Relative band within which a measured growth rate counts as the mode's (the fit-model
-#: systematic of docs/stability.md is 4–7 % at 1.2 and 1.1 τ_min; verify runs are short).
+#: Relative band within which a measured growth rate counts as the mode's: the verify runs are
+#: short single runs seeded with the steady pulse, whose drift starts with a transient of the
+#: other modes (docs/stability.md §3: +4 % at 1.2 τ_min with the plateau rule).
 GROWTH_TOLERANCE = 0.25
 
 
-def mode_growth(tau_d_ratio: float, table_i: bool = True):
-    """(s, s_err, how) of the unstable mode at τ_d/τ_min from :data:`MODE_GROWTH`, or None.
+def eigen_info(mode) -> dict:
+    """The info entries of a run that describe its pulse's unstable eigenvalue
+    (``eigenmode.Eigenmode``): eigen_s_per_L, eigen_sigma (1/s), eigen_source,
+    eigen_translation_s_per_L (the error indicator, exact 0)."""
+    return {"eigen_s_per_L": float(mode.s_per_L), "eigen_sigma": float(mode.sigma.real),
+            "eigen_source": str(mode.source),
+            "eigen_translation_s_per_L": float(mode.translation_s_per_L)}
 
-    The table was measured with the Table-I parameters: for others (``table_i`` False) nothing is
-    known and None is returned.
 
-    ``how`` is "measured" at a table entry (within 1e-6) and "interpolated" between two entries
-    (linear in ln s and in the relative error); outside the table's range (1.05–1.2) the rate is
-    not known and None is returned: nothing is extrapolated.
+def mode_growth(info: dict):
+    """(s, s_err, how) of the run's pulse's unstable mode, s per L⁰, or None.
+
+    s is the leading eigenvalue of the linearised problem about the pulse the run seeded
+    (docs/spectrum.md), stored in the run's info by :func:`verify_pulse` (``eigen=``, from the
+    pulse's spectrum group or computed on the fly, ``eigenmode.leading_mode``); s_err is the
+    translation eigenvalue's size (exact 0: the discretisation's error indicator, NaN if unknown);
+    ``how`` says where s came from. None when the run carries no eigenvalue. No table of
+    measured rates: any τ_d.
     """
-    if not table_i:
+    s = info.get("eigen_s_per_L")
+    if s is None or not math.isfinite(float(s)):
         return None
-    r = float(tau_d_ratio)
-    for x, sv, err in MODE_GROWTH:
-        if abs(r - x) < 1e-6:
-            return sv, err, "measured"
-    for (x0, s0, e0), (x1, s1, e1) in zip(MODE_GROWTH[:-1], MODE_GROWTH[1:]):
-        if x0 < r < x1:
-            w = (r - x0) / (x1 - x0)
-            sv = math.exp((1 - w) * math.log(s0) + w * math.log(s1))
-            return sv, sv * ((1 - w) * e0 / s0 + w * e1 / s1), "interpolated"
-    return None
+    err = abs(float(info.get("eigen_translation_s_per_L", math.nan)))
+    return float(s), err, f"eigenvalue, {info.get('eigen_source', '?')}"
 
 
 def drift_verdict(res: VerifyResult):
     """Is the drift of v_max the growth e^{s d} of the pulse's unstable mode?
 
     Returns ``(verdict, text)``: verdict True (the measured growth rate of |v_max error| per L⁰,
-    :func:`growth_rate`, is within :data:`GROWTH_TOLERANCE` of the mode's s, :func:`mode_growth`,
-    and the mode grows by more than e over the run), False (it is not), or None (s unknown at
-    this τ_d, the mode grows by less than e over the run, too few samples to fit a rate, or a run
+    :func:`growth_rate`, is within :data:`GROWTH_TOLERANCE` of the pulse's eigenvalue s,
+    :func:`mode_growth`, and the mode grows by more than e over the run), False (it is not), or
+    None (no eigenvalue known, the pulse stable, the mode grows by less than e over the run, too few samples to fit a rate, or a run
     that ended before its third measurement).
     ``text`` says which, in one clause.
     """
     i = res.info
-    known = mode_growth(i["tau_d_ratio"], bool(i.get("table_I", True)))
+    known = mode_growth(i)
     s_meas = i.get("growth_rate_v_max", float("nan"))
-    if known is None and not i.get("table_I", True):
-        return None, ("no growth rate of the unstable mode is known for these parameters (the "
-                      "table of docs/stability.md is Table I's; see steady stability): drift not "
-                      "attributed")
     if known is None:
-        return None, (f"no growth rate of the unstable mode is known at tau_d/tau_min = "
-                      f"{i['tau_d_ratio']:.4g} (table: 1.05-1.2): drift not attributed")
+        return None, ("no eigenvalue of the pulse's unstable mode is known (no stored spectrum "
+                      "and none computed): drift not attributed")
     sv, err, how = known
     efolds = sv * i["travelled"]
-    mode = f"unstable mode s = {sv:.3g} ± {err:.2g} per L ({how}, docs/stability.md)"
+    mode = f"unstable mode s = {sv:.4g} per L ({how})"
     if i["status"] != "finished" and res.t.size < 3:
         return None, (f"the run ended after {res.t.size} measurement(s) ({i['status']}): too "
                       f"few to compare with the {mode}")
@@ -457,7 +468,7 @@ def drift_verdict(res: VerifyResult):
                       "the drift is not its growth (start-up transient or discretisation)")
     if not math.isfinite(s_meas):
         return None, f"too few samples to fit a growth rate to compare with the {mode}"
-    if abs(s_meas - sv) <= GROWTH_TOLERANCE * sv + err:
+    if abs(s_meas - sv) <= GROWTH_TOLERANCE * sv + (err if math.isfinite(err) else 0.0):
         return True, (f"|v_max error| grows as e^({s_meas:.3g} d), consistent with the {mode}: "
                       "the pulse's physical instability, not a numerical error")
     return False, (f"|v_max error| grows as e^({s_meas:.3g} d), NOT consistent with the {mode}")
