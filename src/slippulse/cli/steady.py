@@ -184,6 +184,9 @@ def spectrum_line(label, res) -> str:
 def cmd_stability(args) -> int:
     from ..stability.spectrum_family import check_family_file, run_spectrum
     labels = args.labels or None
+    if not (isinstance(args.min_points, int) and 0 <= args.min_points <= 8000):
+        raise ParameterError(f"min-points={args.min_points!r} is invalid: must be an integer in "
+                             "[0, 8000] (smallest N of the spectrum's first level)")
     if not (isinstance(args.levels, int) and 0 <= args.levels <= 3):
         raise ParameterError(f"levels={args.levels!r} is invalid: must be an integer in [0, 3] "
                              "(nested refinements for the error estimate)")
@@ -212,7 +215,7 @@ def cmd_stability(args) -> int:
 
     rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
                        progress=progress, levels=args.levels, count_box=box,
-                       level_progress=level_progress)
+                       level_progress=level_progress, min_points=args.min_points)
     bar.close()
     done = [r for r in rep.results if r.status == "converged"]
     print(family_summary(args.file, done, rep))
@@ -326,6 +329,10 @@ def register(sub) -> None:
                    help="nested refinements of each pulse's grid (N -> 2N-1) for the error of "
                         "the leading growth rate: s is the finest level's, s_err the last change "
                         "(default 1; 0: no estimate)")
+    p.add_argument("--min-points", type=int, default=1500,
+                   help="refine (nested, N -> 2N-1) a pulse with fewer points before its first "
+                        "level (default 1500: the family's N = 1000/1250 grids give unreliable "
+                        "eigenvalues near tau_min; 0: use the pulse's own grid)")
     p.add_argument("--count", type=float, nargs=3, default=None, metavar=("X0", "X1", "Y1"),
                    help="also count the eigenvalues with X0 <= Re sigma L/c_p <= X1, "
                         "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "

@@ -101,7 +101,8 @@ def plot_family_spectrum(path, out, mode_labels=None):
         if o["label"] in picks and o["sigma"].size:
             pulse, params = read_pulse(path, o["label"])
             y0 = np.log(pulse.v / params.v_star + 1.0)
-            eta, e = front_frame_mode(pulse.xi, y0, o["lnv"][0].real, pulse.L)
+            y1 = np.interp(pulse.xi, o["xi"], o["lnv"][0].real)   # modes may sit on a refinement
+            eta, e = front_frame_mode(pulse.xi, y0, y1, pulse.L)
             x = eta / pulse.L
             sel = (x > -1.6) & (x < 0.6)
             body = sel & (np.abs(x) > 0.02)

@@ -396,6 +396,7 @@ class PulseSpectrum:
     refined: object = None        # RefinedRate of the leading eigenvalue (stability.refine)
     count: object = None          # ContourCount (stability.count), if asked for
     operator: object = field(default=None, repr=False)   # the StabilityOperator (not stored)
+    xi: object = None             # the grid of the modes (the pulse's, or a nested refinement)
 
     @property
     def n_unstable(self):
@@ -502,7 +503,7 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
     return PulseSpectrum(label or pulse.label, np.array([f.sigma for f in found], complex), modes,
                          neutral, terr, unit, op.n, status, msg, t3 - t0, iters, failures,
                          {"leading": t1 - t0, "extra": t2 - t1, "neutral": t3 - t2},
-                         operator=op)
+                         operator=op, xi=op.xi)
 
 
 # ------------------------------------------------------------------------------- storage
@@ -585,6 +586,15 @@ def write_spectrum(path, res: PulseSpectrum, settings: dict):
         eig = coordinate(g, "eigenvalue", np.arange(nm, dtype="i8"), units="1", dtype="i8",
                          long_name="eigenvalue index, by decreasing Re sigma")
         xi = grp_p["xi"]
+        sel = slice(None)
+        if res.xi is not None and np.asarray(res.xi).size != xi.shape[0]:
+            rx, px = np.asarray(res.xi, float), xi[...]
+            step = (rx.size - 1) // max(px.size - 1, 1)
+            if step >= 1 and rx.size - 1 == step * (px.size - 1) and np.array_equal(rx[::step], px):
+                sel = slice(None, None, step)      # a nested refinement: the pulse's own nodes
+            else:
+                xi = coordinate(g, "xi_mode", rx, units="m",
+                                long_name="co-moving coordinate of the modes")
         for part in ("real", "imag"):
             describe(g.create_dataset(f"sigma_{part}", data=getattr(res.sigmas, part)), "1/s",
                      f"eigenvalue sigma ({part} part), perturbations ~ exp(sigma t)", (eig,))
@@ -592,8 +602,8 @@ def write_spectrum(path, res: PulseSpectrum, settings: dict):
                                       data=getattr(res.sigmas, part) / res.rate_unit), "1",
                      f"sigma L / c_p ({part} part): e-folds per pulse length travelled", (eig,))
         for name, (unit, long) in MODE_FIELDS.items():
-            arr = (np.stack([m[name] for m in res.modes]) if nm
-                   else np.zeros((0, res.n_points), complex))
+            arr = (np.stack([m[name][sel] for m in res.modes]) if nm
+                   else np.zeros((0, xi.shape[0]), complex))
             for part in ("real", "imag"):
                 describe(g.create_dataset(f"{name}_{part}", data=getattr(arr, part)), unit,
                          f"{long} ({part} part)", (eig, xi))
@@ -613,7 +623,7 @@ def read_spectrum(path, label):
         out["sigma"] = g["sigma_real"][...] + 1j * g["sigma_imag"][...]
         for name in MODE_FIELDS:
             out[name] = g[f"{name}_real"][...] + 1j * g[f"{name}_imag"][...]
-        out["xi"] = grp["xi"][...]
+        out["xi"] = (g["xi_mode"] if "xi_mode" in g else grp["xi"])[...]
         out["tau_d_ratio"] = float(grp.attrs["tau_d_ratio"])
         out["L"] = float(grp.attrs["L"])
         out["c_p"] = float(grp.attrs["c_p"])

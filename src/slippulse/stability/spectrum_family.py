@@ -13,9 +13,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..steady import solver
 from .count import count_unstable
 from .refine import check_refinable, order4_pulse, refine_leading
-from .spectrum import MIN_RE, pulse_spectrum, read_spectrum, write_spectrum
+from .spectrum import MIN_RE, PulseSpectrum, pulse_spectrum, read_spectrum, write_spectrum
 
 
 @dataclass
@@ -71,8 +72,32 @@ def check_family_file(path, labels=None):
     return good, params
 
 
+#: Default smallest N of the spectrum's level 0: coarser pulse grids are refined (nested) first.
+#: Measured on the default family (N = 1000/1250): level 0 on the pulse's own grid gives
+#: s L/c_p = 0.219 at 1.03 τ_min (0.10 refined) and fails at 1.025 (docs/spectrum.md §5).
+MIN_SPECTRUM_POINTS = 1500
+
+
+def _at_least(pulse, params, min_points):
+    """The pulse on nested refinements of its grid until N ≥ min_points; (pulse, '') or
+    (pulse, why) when a steady re-solve fails."""
+    while pulse.n_points < min_points:
+        sol = solver.refine_nested(params, pulse)
+        if not sol.stats.converged:
+            return pulse, (f"steady re-solve on the nested grid (N = {sol.problem.n}, "
+                           f"--min-points {min_points}) did not converge: {sol.stats.message}")
+        pulse = sol.to_pulse()
+    return pulse, ""
+
+
+def _failed(label, pulse, message):
+    """A PulseSpectrum that stores the failure and no eigenvalue."""
+    return PulseSpectrum(label, np.zeros(0, complex), [], np.zeros(2), float("nan"),
+                         pulse.c_p / pulse.L, int(pulse.n_points), "failed", message, 0.0)
+
+
 def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progress=None,
-                 levels=1, count_box=None, level_progress=None):
+                 levels=1, count_box=None, level_progress=None, min_points=MIN_SPECTRUM_POINTS):
     """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
 
     Pulses are taken by decreasing τ_d; each starts from its neighbour's eigenvalues at equal
@@ -87,12 +112,16 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         argument principle (:func:`slippulse.stability.count.count_unstable`), on the pulse's grid.
         x1 and y1 are raised to 1.5 times the leading s L/c_p where that is larger.
     level_progress : callable(str) or None, told about each refinement level / count evaluation.
+    min_points : a pulse with fewer points is refined (nested, N → 2N − 1, the steady equations
+        re-solved) until it has at least this many before level 0; a re-solve that fails marks
+        the pulse failed.
     """
     from ..core.h5io import read_pulse
     t0 = time.perf_counter()
     chosen, params = check_family_file(path, labels)
     settings = {"tol": tol, "extra": int(bool(extra)), "min_re_c_over_L": MIN_RE,
-                "levels": int(levels), "count": int(count_box is not None)}
+                "levels": int(levels), "count": int(count_box is not None),
+                "min_points": int(min_points)}
     prev_mode = None                                     # (ξ/L, V₁) of the last pulse's leading mode
     rep = SpectrumReport()
     prev = None                                          # (σ array, c/L) of the last pulse
@@ -109,6 +138,15 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         if levels:
             check_refinable(pulse, levels)
         pulse = order4_pulse(pulse, params)
+        pulse, why = _at_least(pulse, params, min_points)
+        if why:
+            res = _failed(lab, pulse, why)
+            write_spectrum(path, res, settings)
+            rep.results.append(res)
+            rep.failed.append(lab)
+            if progress:
+                progress(lab, res, None)
+            continue
         unit = pulse.c_p / pulse.L
         guesses, modes = [], None
         if prev is not None and prev[0].size:
