@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 from scipy.special import kve
 
+from ..steady.equations import adjugate3
 from ..steady.hilbert import _GL_N, _GL_NODES, _GL_RMIN, _GL_WEIGHTS
 
 X_SERIES = 2.0          # |x| ≤ X_SERIES: power series; beyond: scaled Bessel functions
@@ -327,16 +328,7 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
 @njit(cache=True, inline="always")
 def _inv3(M, Mi):
     """Mi = M⁻¹ for a complex 3×3 M (adjugate / determinant)."""
-    Mi[0, 0] = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]
-    Mi[0, 1] = M[0, 2] * M[2, 1] - M[0, 1] * M[2, 2]
-    Mi[0, 2] = M[0, 1] * M[1, 2] - M[0, 2] * M[1, 1]
-    Mi[1, 0] = M[1, 2] * M[2, 0] - M[1, 0] * M[2, 2]
-    Mi[1, 1] = M[0, 0] * M[2, 2] - M[0, 2] * M[2, 0]
-    Mi[1, 2] = M[0, 2] * M[1, 0] - M[0, 0] * M[1, 2]
-    Mi[2, 0] = M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]
-    Mi[2, 1] = M[0, 1] * M[2, 0] - M[0, 0] * M[2, 1]
-    Mi[2, 2] = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
-    det = M[0, 0] * Mi[0, 0] + M[0, 1] * Mi[1, 0] + M[0, 2] * Mi[2, 0]
+    det = adjugate3(M, Mi)
     for r in range(3):
         for k in range(3):
             Mi[r, k] /= det

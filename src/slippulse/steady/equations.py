@@ -167,6 +167,21 @@ def integrate_state_radau(xi, y, beta_cs, phi_end, v_star, D, A, c, with_jacobia
     return phi, P, dphi_dc, G
 
 
+@njit(cache=True, inline="always")
+def adjugate3(M, Mi):
+    """Mi = adj(M) of a 3×3 M (real or complex); returns det M (so M⁻¹ = Mi/det)."""
+    Mi[0, 0] = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]
+    Mi[0, 1] = M[0, 2] * M[2, 1] - M[0, 1] * M[2, 2]
+    Mi[0, 2] = M[0, 1] * M[1, 2] - M[0, 2] * M[1, 1]
+    Mi[1, 0] = M[1, 2] * M[2, 0] - M[1, 0] * M[2, 2]
+    Mi[1, 1] = M[0, 0] * M[2, 2] - M[0, 2] * M[2, 0]
+    Mi[1, 2] = M[0, 2] * M[1, 0] - M[0, 0] * M[1, 2]
+    Mi[2, 0] = M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]
+    Mi[2, 1] = M[0, 1] * M[2, 0] - M[0, 0] * M[2, 1]
+    Mi[2, 2] = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+    return M[0, 0] * Mi[0, 0] + M[0, 1] * Mi[1, 0] + M[0, 2] * Mi[2, 0]
+
+
 @njit(cache=True)
 def _radau_workspace():
     """Scratch arrays of :func:`_radau_cell`: Lagrange weights (2×4), w and ∂w/∂y at the stages,
@@ -210,16 +225,7 @@ def _radau_cell(xi, y, i, beta_cs, phi_next, v_star, D, A, c, m, work):
         for k in range(3):
             M[r, k] = h * A[r, k] * wk[k] + (1.0 if r == k else 0.0)
             rhs[r] += h * A[r, k] * f[k]
-    Mi[0, 0] = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]
-    Mi[0, 1] = M[0, 2] * M[2, 1] - M[0, 1] * M[2, 2]
-    Mi[0, 2] = M[0, 1] * M[1, 2] - M[0, 2] * M[1, 1]
-    Mi[1, 0] = M[1, 2] * M[2, 0] - M[1, 0] * M[2, 2]
-    Mi[1, 1] = M[0, 0] * M[2, 2] - M[0, 2] * M[2, 0]
-    Mi[1, 2] = M[0, 2] * M[1, 0] - M[0, 0] * M[1, 2]
-    Mi[2, 0] = M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]
-    Mi[2, 1] = M[0, 1] * M[2, 0] - M[0, 0] * M[2, 1]
-    Mi[2, 2] = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
-    det = M[0, 0] * Mi[0, 0] + M[0, 1] * Mi[1, 0] + M[0, 2] * Mi[2, 0]
+    det = adjugate3(M, Mi)
     for r in range(3):
         psi[r] = (Mi[r, 0] * rhs[0] + Mi[r, 1] * rhs[1] + Mi[r, 2] * rhs[2]) / det
     omega = h * (A[2, 0] * wk[0] + A[2, 1] * wk[1] + A[2, 2] * wk[2])
