@@ -128,8 +128,8 @@ class StabilityOperator:
 
     The pulse must have been solved with the order-4 state integrator (``state_order`` 4): M(0) is
     then exactly the Jacobian of the discrete steady problem in v, and the state and slip
-    recursions of M(σ) are of the same order (docs/spectrum.md §2). :func:`order4_pulse` re-solves
-    an older (order-2) pulse on its own grid first.
+    recursions of M(σ) are of the same order (docs/spectrum.md §2). :func:`slippulse.stability.refine.order4_pulse`
+    re-solves an older (order-2) pulse on its own grid first.
     """
 
     def __init__(self, pulse, params):
@@ -147,9 +147,10 @@ class StabilityOperator:
         self.tau_d = float(pulse.tau_d)
         v = np.asarray(pulse.v, float)
         y = np.log(v)
-        # the converged state of the order-4 map (bit for bit the steady solver's)
-        phi = integrate_state_radau(self.xi, y, self.c, float(pulse.phi[-1]), p.v_star, p.D,
-                                    RADAU_A, RADAU_C, False)[0]
+        # the converged state of the order-4 map (bit for bit the steady solver's) and its
+        # Jacobian ∂φ/∂y
+        phi, P = integrate_state_radau(self.xi, y, self.c, float(pulse.phi[-1]), p.v_star, p.D,
+                                       RADAU_A, RADAU_C, True)[:2]
         self.v0, self.phi0 = v, phi
         la = p.law_args
         self.fv = p.sigma * fr.df_dv(v, phi, *la)
@@ -166,10 +167,8 @@ class StabilityOperator:
         # Φ(σ) is corrected by the σ-independent O(h⁴) difference that makes Φ(0) the exact
         # derivative ∂φ/∂v of the steady map, so that M(0) is exactly the linearised discrete
         # steady problem (docs/spectrum.md §2)
-        P = integrate_state_radau(self.xi, y, self.c, float(pulse.phi[-1]), p.v_star, p.D, RADAU_A,
-                                  RADAU_C, True)[1] * self.inv_v[None, :]
         Phi0 = self._state(0.0, np.eye(self.n, dtype=complex), False)[0]
-        self.state_correction = P - Phi0.real
+        self.state_correction = P * self.inv_v[None, :] - Phi0.real
         self.phi_correction = self.fphi[:, None] * self.state_correction
         self.elastic = ElasticOperator(self.xi, self.beta, p.c_s, p.mu)
         self.S = slope_matrix(self.xi)
