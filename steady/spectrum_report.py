@@ -1,20 +1,17 @@
 """Report of the stability spectrum study (docs/stability.md §9): table, fits, comparison figures.
 
-    slippulse steady stability runs/steady/family_spectrum.h5          # the family (≈ 30 s/pulse)
-    python steady/spectrum_convergence.py runs/steady/family.h5 td1.1000 td1.0500 ... --nested 1 \
-        --out runs/steady/spectrum_nested.json                          # refined values
-    python steady/spectrum_report.py runs/steady/family_spectrum.h5 \
-        --nested runs/steady/spectrum_nested.json                       # seconds
+    slippulse steady stability runs/steady/family.h5 --levels 1       # s ± s_err of every pulse
+    python steady/spectrum_report.py runs/steady/family.h5              # seconds
 
-Prints the markdown table of s(τ_d), the refined values and the fit of s L/c_p near τ_min (on the
-refined values only: the N = 2000 family values carry grid errors of the size of s there), the SBI
+Prints the markdown table of s(τ_d), the refined values (s ± s_err as the command stored them, with
+the value of every level) and the fit of s L/c_p near τ_min (on the values whose sign is resolved),
+the SBI
 ±ε rates of this study, and writes docs/figures/spectrum_growth.png and (when the SBI scans of
 dynamic/scans/eigen_modes.toml are present) docs/figures/stability_modes.png.
 """
 from __future__ import annotations
 
 import argparse
-import json
 import os
 
 import numpy as np
@@ -67,8 +64,6 @@ def main(argv=None):
     from slippulse.plotting.spectrum import family_spectra
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("file")
-    ap.add_argument("--nested", nargs="*", default=[],
-                    help="JSON files of spectrum_convergence.py --nested")
     ap.add_argument("--figdir", default="docs/figures")
     args = ap.parse_args(argv)
     sp = family_spectra(args.file)
@@ -83,16 +78,20 @@ def main(argv=None):
     for o, a, b, c, d, n in zip(sp, sl, lead, st, unit, nun):
         print(f"| {o['tau_d_ratio']:.4f} | {o['c_p'] / 2739.0:.5f} | {o['L']:.4g} | {a:.4f} | "
               f"{b.real:.4g} | {b.imag / d:.1e} | {n} | {c:.1e} |")
+    # the refined values as `slippulse steady stability --levels K` stored them
     nested, allrows, fit = [], [], None
-    for fn in args.nested:
-        if os.path.exists(fn):
-            rows = json.load(open(fn))
-            allrows += rows
-            nested += [r for r in rows if "extrapolated" in r]
-    nested.sort(key=lambda r: -float(r["label"][2:]))
+    for o in sp:
+        if "s_per_L" not in o:
+            continue
+        u = o["rate_unit_c_over_L"]
+        nested.append(dict(label=o["label"], extrapolated=float(o["s_per_L"]),
+                           uncertainty=float(o["s_err_per_L"])))
+        for n_, s_, t_ in zip(o["refine_n_points"], o["refine_s_levels"],
+                              o["refine_translation_levels"]):
+            allrows.append(dict(label=o["label"], N=int(n_), sL_c=s_ / u, translation=t_ / u))
     if nested:
         print("\n| τ_d/τ_min | N (levels) | s L/c_p per level | σ_t L/c_p per level | "
-              "extrapolated s L/c_p | s (1/s) |")
+              "s L/c_p ± s_err | s (1/s) |")
         print("|---|---|---|---|---|---|")
         for r in nested:
             lv = [a for a in allrows if a["label"] == r["label"]]
@@ -134,14 +133,14 @@ def main(argv=None):
     for a, logy in zip(ax, (False, True)):
         x = (q - 1.0) if logy else q
         xf = (lambda t: t - 1.0) if logy else (lambda t: t)
-        a.plot(x, sl, "-", color="C0", lw=1.5, label="eigenvalue, family grids (N = 2000)")
+        a.plot(x, sl, "-", color="C0", lw=1.5, label="eigenvalue on the family grids")
         a.plot(x, np.abs(st), ":", color="0.5", lw=1,
                label="|translation eigenvalue| (exact 0: error indicator)")
         if nested:
             a.errorbar([xf(float(r["label"][2:])) for r in nested],
                        [r["extrapolated"] for r in nested],
                        yerr=[max(r["uncertainty"], 1e-4) for r in nested], fmt="s", color="C0",
-                       ms=5, capsize=3, label="eigenvalue, nested refinement (extrapolated)")
+                       ms=5, capsize=3, label="eigenvalue ± s_err (slippulse steady stability)")
         for t, sv, e, dom in SBI_TABLE:
             if logy and sv <= 0:
                 continue

@@ -185,7 +185,7 @@ def test_seeded_mode_grows_at_its_eigenvalue_at_1p1(params, tmp_path):
     spectrum, 4 mm SBI grid, 4+4 L domain (on 3+2 L the mode's periodic images lower the rate by
     ≈ 3 %, docs/stability.md §10.3; measured here: −1.2 %). ~5–10 min."""
     from slippulse.stability.perturbation import pair_growth, read_series, run_case
-    from slippulse.stability.spectrum import run_spectrum
+    from slippulse.stability.spectrum_family import run_spectrum
     from slippulse.steady.continuation import run_family
     path = str(tmp_path / "fam.h5")
     run_family(params, path, start=1.2, stop=1.1, step=0.02, n_points=2000)

@@ -55,7 +55,7 @@ def stubs(monkeypatch):
     import slippulse.dynamics.stepper as stepper
     import slippulse.plotting.steady as ps
     import slippulse.stability.seeding as seeding
-    import slippulse.stability.spectrum as spectrum
+    import slippulse.stability.spectrum_family as spectrum
     import slippulse.stability.verify as verify
     import slippulse.steady.analysis as an
     import slippulse.steady.continuation as cont

@@ -278,23 +278,54 @@ def cmd_family(args) -> int:
 
 
 def spectrum_line(label, res) -> str:
-    """One line per pulse: leading σ (in c_p/L and 1/s), number unstable, neutral check, cost."""
+    """One line per pulse: the leading growth rate with its measured uncertainty (or 'sign not
+    resolved'), whether it is real, the translation check per level, the count, the cost."""
     if res.status != "converged":
-        return f"{label}: EIGEN-SOLVE FAILED ({res.message}); nothing stored"
+        return f"{label}: FAILED ({res.message}); nothing stored"
     if res.sigmas.size == 0:
-        lead = "no eigenvalue with Re sigma > 0.001 c_p/L (stable or below resolution)"
+        return (f"{label}: no eigenvalue with Re sigma > 0.001 c_p/L found (stable or below "
+                f"resolution); N={res.n_points}, {res.wall_time:.1f} s")
+    s = res.leading
+    kind = "real" if abs(s.imag) <= 1e-8 * abs(s) else f"complex, Im {s.imag / res.rate_unit:.4g}"
+    ref = res.refined
+    if ref is None:
+        rate = (f"s L/c_p = {s.real / res.rate_unit:.5g} on N={res.n_points} (no error estimate: "
+                "--levels 0)")
+        trans = f"{res.neutral[1].real / res.rate_unit:.1e}"
+        levels = f"N={res.n_points}"
     else:
-        s = res.leading
-        kind = "real" if abs(s.imag) <= 1e-8 * abs(s) else f"complex, Im {s.imag / res.rate_unit:.4g}"
-        lead = (f"s = {s.real / res.rate_unit:.5g} c_p/L = {s.real:.5g} 1/s ({kind}), "
-                f"{res.n_unstable} unstable")
-    return (f"{label}: {lead}; translation sigma_t = {res.neutral[1].real / res.rate_unit:.1e} c_p/L;"
-            f" N={res.n_points}, {res.wall_time:.1f} s")
+        rate = ref.describe()
+        if ref.sign_resolved:
+            rate += f" (s = {ref.s:.4g} ± {ref.s_err:.1g} 1/s)"
+        trans = "/".join(f"{t / u:.1e}" for t, u in zip(ref.translation_levels,
+                                                         [res.rate_unit] + [ref.rate_unit] * 9))
+        levels = "N=" + "/".join(str(n) for n in ref.n_points)
+    line = f"{label}: {rate}, {kind}; translation sigma_t L/c_p = {trans} (exact 0); {levels}"
+    if res.count is not None:
+        c = res.count
+        line += (f"; count: {c.count} in Re in [{c.box[0]:g}, {c.box[1]:.3g}], |Im| <= "
+                 f"{c.box[2]:.3g} c_p/L ({c.n_evals} det)" if c.count is not None
+                 else f"; count FAILED: {c.message}")
+    return line + f"; {res.wall_time + (ref.wall_time if ref else 0.0):.1f} s"
 
 
 def cmd_stability(args) -> int:
-    from ..stability.spectrum import check_family_file, run_spectrum
+    from ..stability.spectrum_family import check_family_file, run_spectrum
     labels = args.labels or None
+    if not (isinstance(args.min_points, int) and 0 <= args.min_points <= 8000):
+        raise ParameterError(f"min-points={args.min_points!r} is invalid: must be an integer in "
+                             "[0, 8000] (smallest N of the spectrum's first level)")
+    if not (isinstance(args.levels, int) and 0 <= args.levels <= 3):
+        raise ParameterError(f"levels={args.levels!r} is invalid: must be an integer in [0, 3] "
+                             "(nested refinements for the error estimate)")
+    box = None
+    if args.count is not None:
+        box = tuple(args.count)
+        if not (all(math.isfinite(b) for b in box) and 0.0 < box[0] < box[1] and box[2] > 0.0):
+            raise ParameterError(f"count={list(box)!r} is invalid: need X0 X1 Y1 with "
+                                 "0 < X0 < X1 and Y1 > 0 (units of c_p/L)")
+    if args.figure:
+        _check_figure_path(args.figure)
     chosen, _ = check_family_file(args.file, labels)      # bad input fails here, before any work
     _check_file_params(args, args.file)
     check_writable(args.file, "FILE")                     # the spectra go into FILE
@@ -312,22 +343,19 @@ def cmd_stability(args) -> int:
         if res is not None:
             tqdm.write(spectrum_line(label, res), file=sys.stdout)
         else:
-            tqdm.write(f"{label}: stored spectrum kept (s = {stored['leading_s_per_L']:.5g} c_p/L)",
-                       file=sys.stdout)
+            tqdm.write(f"{label}: stored spectrum kept ({stored_rate(stored)})", file=sys.stdout)
         bar.set_postfix_str(label)
         bar.update(1)
 
+    def level_progress(msg):
+        bar.set_postfix_str(msg[:50])
+
     rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
-                       progress=progress)
+                       progress=progress, levels=args.levels, count_box=box,
+                       level_progress=level_progress, min_points=args.min_points)
     bar.close()
     done = [r for r in rep.results if r.status == "converged"]
-    lead = [(r.label, r.leading.real / r.rate_unit) for r in done if r.sigmas.size]
-    span = (f"leading s from {lead[0][1]:.4g} ({lead[0][0]}) to {lead[-1][1]:.4g} c_p/L "
-            f"({lead[-1][0]})" if lead else "no unstable eigenvalue found")
-    n_unst = sorted({r.n_unstable for r in done})
-    print(f"stability {args.file}: {len(done)} pulses solved, {len(rep.skipped)} kept, "
-          f"{len(rep.failed)} failed; {span}; unstable modes per pulse: {n_unst}; "
-          f"wall={rep.wall_time:.1f} s")
+    print(family_summary(args.file, done, rep))
     if args.figure:
         from ..plotting.spectrum import plot_family_spectrum
         plot_family_spectrum(args.file, args.figure)
@@ -345,6 +373,48 @@ def cmd_analyse(args) -> int:
     if os.path.isfile(args.file):
         _check_file_params(args, args.file)
     return run(args)
+
+
+def stored_rate(stored) -> str:
+    """The stored leading rate as the summary line states it."""
+    if "s_per_L" not in stored:
+        return f"s L/c_p = {stored['leading_s_per_L']:.5g}, no error estimate"
+    s, e = float(stored["s_per_L"]), float(stored["s_err_per_L"])
+    if abs(s) < 2.0 * e:
+        return f"sign not resolved, s L/c_p in [{s - e:.2g}, {s + e:.2g}]"
+    return f"s L/c_p = {s:.4g} ± {e:.1g}"
+
+
+def family_summary(path, done, rep) -> str:
+    """The run's last line: how many pulses have a resolved sign, the range of the rates, the
+    counts, failures and wall time. It names no count it did not make."""
+    refined = [r for r in done if r.refined is not None and r.sigmas.size]
+    unstable = [r.label for r in refined if r.refined.sign_resolved and r.refined.s > 0]
+    stable = [r.label for r in refined if r.refined.sign_resolved and r.refined.s < 0]
+    unresolved = [r.label for r in refined if not r.refined.sign_resolved]
+    parts = [f"stability {path}: {len(done)} pulses solved, {len(rep.skipped)} kept, "
+             f"{len(rep.failed)} failed"]
+    if refined:
+        parts.append(f"unstable (s > 2 s_err) at {len(unstable)}, stable (s < -2 s_err) at "
+                     f"{len(stable)}, sign not resolved at {len(unresolved)}"
+                     + (f" ({', '.join(unresolved[:4])}{' ...' if len(unresolved) > 4 else ''})"
+                        if unresolved else ""))
+    counted = [r.count.count for r in done if r.count is not None and r.count.count is not None]
+    if counted:
+        parts.append(f"contour counts {sorted(set(counted))} at {len(counted)} pulses")
+    else:
+        parts.append("unstable modes not counted (--count)")
+    return "; ".join(parts) + f"; wall={rep.wall_time:.1f} s"
+
+
+def _check_figure_path(path) -> None:
+    """Refuse, before the work, a figure path matplotlib cannot write (unknown extension)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+    ext = os.path.splitext(path)[1].lower().lstrip(".")
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if ext not in formats:
+        raise ParameterError(f"figure={path!r} is invalid: the extension must be one of "
+                             f"{', '.join(sorted(formats))}")
 
 
 def register(sub) -> None:
@@ -409,14 +479,28 @@ def register(sub) -> None:
                       description="Eigenvalues sigma (perturbations ~ exp(sigma t) in the co-moving "
                                   "frame) and modes of each converged pulse, from the steady "
                                   "solution alone (nonlinear eigenproblem on the pulse's grid, "
-                                  "docs/stability.md section 8). Results go into each pulse's "
-                                  "group ('spectrum'); rerunning resumes.")
+                                  "docs/spectrum.md). The leading growth rate s comes with an "
+                                  "error s_err measured by nested refinement; where |s| < 2 s_err "
+                                  "its sign is reported as not resolved. Results go into each "
+                                  "pulse's group ('spectrum'); rerunning resumes.")
     p.add_argument("file", metavar="FILE", help="HDF5 pulse or family file")
     p.add_argument("--labels", nargs="+", default=None, metavar="LABEL",
                    help="pulses to analyse, e.g. td1.2000 td1.0500 (default: all converged)")
     p.add_argument("--overwrite", action="store_true", help="recompute stored spectra")
     p.add_argument("--no-extra", action="store_true",
                    help="only the leading eigenvalue (skip the search below it)")
+    p.add_argument("--levels", type=int, default=1,
+                   help="nested refinements of each pulse's grid (N -> 2N-1) for the error of "
+                        "the leading growth rate: s is the finest level's, s_err the last change "
+                        "(default 1; 0: no estimate)")
+    p.add_argument("--min-points", type=int, default=1500,
+                   help="refine (nested, N -> 2N-1) a pulse with fewer points before its first "
+                        "level (default 1500: the family's N = 1000/1250 grids give unreliable "
+                        "eigenvalues near tau_min; 0: use the pulse's own grid)")
+    p.add_argument("--count", type=float, nargs=3, default=None, metavar=("X0", "X1", "Y1"),
+                   help="also count the eigenvalues with X0 <= Re sigma L/c_p <= X1, "
+                        "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "
+                        "times the leading rate), e.g. --count 0.01 4 4")
     p.add_argument("--figure", default=None, metavar="PNG",
                    help="also draw s(tau_d) and the leading modes into this file")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -10,10 +10,12 @@ def family_spectra(path):
     from ..stability.spectrum import read_spectrum
     with h5py.File(path, "r") as h5:
         labels = [k for k in h5["pulses"] if "spectrum" in h5["pulses"][k]]
-    out = [read_spectrum(path, lab) for lab in labels]
-    out = [o for o in out if o is not None and o.get("status") == "converged"]
-    for o, lab in zip(out, labels):
-        o["label"] = lab
+    out = []
+    for lab in labels:
+        o = read_spectrum(path, lab)
+        if o is not None and o.get("status") == "converged":
+            o["label"] = lab                 # labelled before filtering: a failed pulse shifts none
+            out.append(o)
     return sorted(out, key=lambda o: -o["tau_d_ratio"])
 
 
@@ -54,7 +56,18 @@ def plot_family_spectrum(path, out, mode_labels=None):
     st = np.array([abs(o["translation_sigma"]) for o in sp])
     fig, ax = plt.subplots(2, 2, figsize=(11, 8))
     a = ax[0, 0]
-    a.plot(q - 1, lead.real / unit, "o-", ms=3, label="leading eigenvalue, s L/c_p")
+    s_l = np.array([o.get("s_per_L", np.nan) for o in sp], float)
+    e_l = np.array([o.get("s_err_per_L", np.nan) for o in sp], float)
+    ok = np.isfinite(s_l) & (np.abs(s_l) >= 2 * e_l)
+    a.plot(q - 1, lead.real / unit, "-", lw=0.8, color="C0", alpha=0.5,
+           label="leading eigenvalue on the pulse's grid")
+    if ok.any():
+        a.errorbar(q[ok] - 1, s_l[ok], yerr=e_l[ok], fmt="o", ms=3, color="C0", capsize=2,
+                   label=r"$s\,L/c_p \pm$ s_err (nested refinement)")
+    unres = np.isfinite(s_l) & ~ok
+    if unres.any():
+        a.plot(q[unres] - 1, np.abs(s_l[unres]) + e_l[unres], "v", ms=5, color="C3",
+               mfc="none", label="sign not resolved: |s| + s_err (upper bound)")
     a.plot(q - 1, st / unit, "x", ms=4, color="0.5",
            label="|translation eigenvalue| (exact 0: error indicator)")
     a.set_xscale("log")
@@ -88,7 +101,8 @@ def plot_family_spectrum(path, out, mode_labels=None):
         if o["label"] in picks and o["sigma"].size:
             pulse, params = read_pulse(path, o["label"])
             y0 = np.log(pulse.v / params.v_star + 1.0)
-            eta, e = front_frame_mode(pulse.xi, y0, o["lnv"][0].real, pulse.L)
+            y1 = np.interp(pulse.xi, o["xi"], o["lnv"][0].real)   # modes may sit on a refinement
+            eta, e = front_frame_mode(pulse.xi, y0, y1, pulse.L)
             x = eta / pulse.L
             sel = (x > -1.6) & (x < 0.6)
             body = sel & (np.abs(x) > 0.02)

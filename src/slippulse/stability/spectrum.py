@@ -27,8 +27,10 @@ import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
 from ..core import friction as fr
+from ..steady.equations import RADAU_A, RADAU_C, integrate_state_radau, radau_stage_values
 from ..steady.hilbert import _tail_columns, add_times_slopes, hilbert_matrix
-from .spectrum_kernels import KernelTables, assemble_w, slip_coefficients, state_rows, times_D
+from .spectrum_kernels import (KernelTables, assemble_w, slip_coefficients4, state_rows4,
+                               times_D4)
 
 
 # ----------------------------------------------------------------------- spline helpers
@@ -122,41 +124,70 @@ def symbol(k, sigma, beta, c_s, mu):
 
 # ------------------------------------------------------------------ full stability operator
 class StabilityOperator:
-    """M(σ) for one steady pulse on its own grid (see module notes)."""
+    """M(σ) for one steady pulse on its own grid (see module notes).
+
+    The pulse must have been solved with the order-4 state integrator (``state_order`` 4): M(0) is
+    then exactly the Jacobian of the discrete steady problem in v, and the state and slip
+    recursions of M(σ) are of the same order (docs/spectrum.md §2). :func:`slippulse.stability.refine.order4_pulse`
+    re-solves an older (order-2) pulse on its own grid first.
+    """
 
     def __init__(self, pulse, params):
         p = params
         self.params = p
         self.pulse = pulse
+        order = int(pulse.extra.get("state_order", 2))
+        if order != 4:
+            raise ValueError(f"pulse {pulse.label}: state_order={order}; the stability operator "
+                             "needs an order-4 pulse (order4_pulse re-solves it)")
         self.xi = np.ascontiguousarray(pulse.xi, dtype=float)
         self.n = self.xi.size
         self.beta = float(pulse.beta)
         self.c = self.beta * p.c_s
         self.tau_d = float(pulse.tau_d)
-        v, phi = np.asarray(pulse.v, float), np.asarray(pulse.phi, float)
+        v = np.asarray(pulse.v, float)
+        y = np.log(v)
+        # the converged state of the order-4 map (bit for bit the steady solver's) and its
+        # Jacobian ∂φ/∂y
+        phi, P = integrate_state_radau(self.xi, y, self.c, float(pulse.phi[-1]), p.v_star, p.D,
+                                       RADAU_A, RADAU_C, True)[:2]
         self.v0, self.phi0 = v, phi
         la = p.law_args
         self.fv = p.sigma * fr.df_dv(v, phi, *la)
         self.fphi = p.sigma * fr.df_dphi(v, phi, *la)
-        self.w = fr.heal_rate(v, p.v_star, p.D)
-        self.src = v / (p.D * p.D * self.w) * phi                # w_v φ₀ = −∂g/∂v
+        self.inv_v = 1.0 / v
+        # the order-4 map's stages: Φ(σ) and D(σ) are Radau IIA steps on the same stages
+        hs, j0s, lws, ws, phis, omegas = radau_stage_values(self.xi, y, self.c, phi, p.v_star, p.D,
+                                                            RADAU_A, RADAU_C)
+        vst = np.empty_like(ws)
+        vst[:, :2] = np.exp(np.einsum("ikl,il->ik", lws, y[j0s[:, None] + np.arange(4)]))
+        vst[:, 2] = v[:-1]
+        G = -phis * vst ** 2 / (p.D ** 2 * ws)                    # −φ₀ ∂w/∂ln v at the stages
+        self.cells = (hs, j0s, lws, ws, G, omegas, vst)
+        # Φ(σ) is corrected by the σ-independent O(h⁴) difference that makes Φ(0) the exact
+        # derivative ∂φ/∂v of the steady map, so that M(0) is exactly the linearised discrete
+        # steady problem (docs/spectrum.md §2)
+        Phi0 = self._state(0.0, np.eye(self.n, dtype=complex), False)[0]
+        self.state_correction = P * self.inv_v[None, :] - Phi0.real
+        self.phi_correction = self.fphi[:, None] * self.state_correction
         self.elastic = ElasticOperator(self.xi, self.beta, p.c_s, p.mu)
         self.S = slope_matrix(self.xi)
-        # Φ(σ) is the exponential recursion for (σ − c∂_ξ + w) φ₁ = −w_v φ₀ V₁; it is corrected by
-        # the σ-independent O(h²) difference that makes Φ(0) the exact derivative ∂φ/∂v of the steady
-        # solver's discrete state map, so that M(0) is exactly the linearised discrete steady
-        # problem (measured at 1.05 τ_min, N = 2000: the translation eigenvalue drops 3×).
-        from ..steady.equations import SteadyProblem
-        # the state integrator the pulse was solved with (files before issue 11: order 2)
-        probe = SteadyProblem(p, pulse.tau_d_ratio, self.xi, 0, 0.0, H=np.zeros((1, 1)),
-                              state_order=int(pulse.extra.get("state_order", 2)))
-        P = probe.state(v, self.beta)[1] / v[None, :]
-        Phi0 = np.empty((self.n, self.n), complex)
-        state_rows(self.xi, self.c, self.w, self.src, 0j, np.eye(self.n, dtype=complex), Phi0,
-                   np.empty((1, 1), complex), False, False)
-        self.phi_correction = (self.fphi[:, None] * (P - Phi0)).real
         self.length = float(pulse.L)
         self.rate_unit = self.c / self.length                      # c_p / L, 1/s
+
+    def _state(self, sigma, Vm, deriv):
+        """(Φ(σ) Vm, ∂_σΦ(σ) Vm) without the correction (the second only if deriv)."""
+        hs, j0s, lws, ws, G, omegas, _ = self.cells
+        Vm = np.ascontiguousarray(Vm, dtype=complex)
+        Y = np.empty(Vm.shape, complex)
+        dY = np.empty(Vm.shape if deriv else (1, 1), complex)
+        state_rows4(hs, j0s, lws, ws, G, omegas, self.inv_v, RADAU_A, complex(sigma), Vm, Y, dY,
+                    deriv)
+        return Y, (dY if deriv else None)
+
+    def _slip(self, sigma):
+        hs, j0s, lws, _, _, _, vst = self.cells
+        return slip_coefficients4(hs, j0s, lws, vst, self.inv_v, RADAU_A, complex(sigma))
 
     def matrices(self, sigma, deriv=True):
         """(M(σ), M′(σ)) acting on the slip-rate perturbation V₁ (rows divided by τ_d).
@@ -170,10 +201,7 @@ class StabilityOperator:
         n = self.n
         el = self.elastic
         lam, c = el.lam, self.c
-        eye = np.eye(n, dtype=complex)
-        Phi = np.empty((n, n), complex)
-        dPhi = np.empty((n, n) if deriv else (1, 1), complex)
-        state_rows(self.xi, c, self.w, self.src, sigma, eye, Phi, dPhi, deriv, False)
+        Phi, dPhi = self._state(sigma, np.eye(n, dtype=complex), deriv)
         M = self.fphi[:, None] * Phi
         M += self.phi_correction
         M[np.diag_indices(n)] += self.fv
@@ -193,10 +221,10 @@ class StabilityOperator:
             dX += (lam * el.gamma(1.0) / math.pi) * el.H0
         else:
             dX = np.empty((1, 1), complex)
-        coef = slip_coefficients(self.xi, c, sigma)
+        a, B, da, dB = self._slip(sigma)
         XD = np.empty((n, n), complex)
         dXD = np.empty((n, n) if deriv else (1, 1), complex)
-        times_D(X, dX, *coef, XD, dXD, deriv)
+        times_D4(X, dX, a, B, self.cells[1], da, dB, XD, dXD, deriv)
         M -= XD
         M /= self.tau_d
         if deriv:
@@ -205,20 +233,20 @@ class StabilityOperator:
         return M, dM
 
     def slip(self, sigma, V):
-        """δ₁ = D(σ) V₁ (the recursion of :func:`slip_coefficients` applied to a vector)."""
-        a, b, bp = slip_coefficients(self.xi, self.c, complex(sigma))[:3]
+        """δ₁ = D(σ) V₁ (the recursion of :func:`slip_coefficients4` applied to a vector)."""
+        a, B, _, _ = self._slip(sigma)
+        j0s = self.cells[1]
+        V = np.asarray(V, complex)
         d = np.zeros(self.n, complex)
         for i in range(self.n - 2, -1, -1):
-            d[i] = a[i] * d[i + 1] + b[i] * V[i + 1] + bp[i] * V[i]
+            j0 = j0s[i]
+            d[i] = a[i] * d[i + 1] + B[i] @ V[j0:j0 + 4]
         return d
 
     def state(self, sigma, V):
-        """φ₁ = Φ(σ) V₁."""
-        Y = np.empty((self.n, 1), complex)
-        state_rows(self.xi, self.c, self.w, self.src, complex(sigma),
-                   np.ascontiguousarray(np.asarray(V, complex)[:, None]), Y,
-                   np.empty((1, 1), complex), False, False)
-        return Y[:, 0]
+        """φ₁ = Φ(σ) V₁ (with the correction of Φ(0))."""
+        V = np.asarray(V, complex)
+        return self._state(sigma, V[:, None], False)[0][:, 0] + self.state_correction @ V
 
     def fields(self, sigma, V):
         """Mode fields from the slip-rate perturbation V₁: δ₁, V₁, φ₁ and the perturbation of
@@ -239,9 +267,7 @@ class StabilityOperator:
         n = self.n
         Vm = -self.c * self.S.astype(complex)
         Vm[np.diag_indices(n)] += sigma
-        Y = np.empty((n, n), complex)
-        state_rows(self.xi, self.c, self.w, self.src, sigma, Vm, Y, np.empty((1, 1), complex),
-                   False)
+        Y = self._state(sigma, Vm, False)[0] + self.state_correction @ Vm
         K = self.elastic.matrices(sigma, deriv=False)[0]
         return (self.fv[:, None] * Vm + self.fphi[:, None] * Y - K) / self.tau_d
 
@@ -366,6 +392,10 @@ class PulseSpectrum:
     newton_iterations: int = 0
     failures: list = field(default_factory=list)
     stage_times: dict = field(default_factory=dict)
+    refined: object = None        # RefinedRate of the leading eigenvalue (stability.refine)
+    count: object = None          # ContourCount (stability.count), if asked for
+    operator: object = field(default=None, repr=False)   # the StabilityOperator (not stored)
+    xi: object = None             # the grid of the modes (the pulse's, or a nested refinement)
 
     @property
     def n_unstable(self):
@@ -471,7 +501,8 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
     t3 = time.perf_counter()
     return PulseSpectrum(label or pulse.label, np.array([f.sigma for f in found], complex), modes,
                          neutral, terr, unit, op.n, status, msg, t3 - t0, iters, failures,
-                         {"leading": t1 - t0, "extra": t2 - t1, "neutral": t3 - t2})
+                         {"leading": t1 - t0, "extra": t2 - t1, "neutral": t3 - t2},
+                         operator=op, xi=op.xi)
 
 
 # ------------------------------------------------------------------------------- storage
@@ -515,16 +546,54 @@ def write_spectrum(path, res: PulseSpectrum, settings: dict):
         g.attrs["wall_time"] = res.wall_time
         g.attrs["newton_iterations"] = res.newton_iterations
         g.attrs["failures"] = "; ".join(res.failures)
+        ref = res.refined
+        if ref is not None:
+            # the leading growth rate of record: finest nested level, error = last correction
+            g.attrs["refine_status"] = ref.status
+            g.attrs["refine_message"] = ref.message
+            g.attrs["refine_n_points"] = np.asarray(ref.n_points, dtype="i8")
+            g.attrs["refine_s_levels"] = np.asarray(ref.s_levels, dtype=float)
+            g.attrs["refine_imag_levels"] = np.asarray(ref.imag_levels, dtype=float)
+            g.attrs["refine_translation_levels"] = np.asarray(ref.translation_levels, float)
+            g.attrs["refine_order"] = ref.order
+            if ref.status == "converged":
+                g.attrs["s"] = ref.s
+                g.attrs["s_err"] = ref.s_err
+                g.attrs["s_per_L"] = ref.s / ref.rate_unit
+                g.attrs["s_err_per_L"] = ref.s_err / ref.rate_unit
+                g.attrs["sign_resolved"] = int(ref.sign_resolved)
+        cnt = res.count
+        if cnt is not None:
+            g.attrs["count_status"] = cnt.status
+            g.attrs["count_message"] = cnt.message
+            g.attrs["count_box_c_over_L"] = np.asarray(cnt.box, dtype=float)
+            g.attrs["count_evaluations"] = int(cnt.n_evals)
+            g.attrs["count_winding"] = float(cnt.winding)
+            g.attrs["count_max_step_rad"] = float(cnt.max_step)
+            if cnt.count is not None:
+                g.attrs["count"] = int(cnt.count)
         for k, v in settings.items():
             g.attrs[f"setting_{k}"] = v
         units = {"leading_sigma_real": "1/s", "leading_sigma_imag": "1/s",
-                 "rate_unit_c_over_L": "1/s", "translation_sigma": "1/s", "wall_time": "s"}
+                 "rate_unit_c_over_L": "1/s", "translation_sigma": "1/s", "wall_time": "s",
+                 "s": "1/s", "s_err": "1/s", "refine_s_levels": "1/s",
+                 "refine_imag_levels": "1/s", "refine_translation_levels": "1/s"}
         for k, u in units.items():
-            g.attrs[f"{k}_units"] = u
+            if k in g.attrs:
+                g.attrs[f"{k}_units"] = u
         nm = len(res.modes)
         eig = coordinate(g, "eigenvalue", np.arange(nm, dtype="i8"), units="1", dtype="i8",
                          long_name="eigenvalue index, by decreasing Re sigma")
         xi = grp_p["xi"]
+        sel = slice(None)
+        if res.xi is not None and np.asarray(res.xi).size != xi.shape[0]:
+            rx, px = np.asarray(res.xi, float), xi[...]
+            step = (rx.size - 1) // max(px.size - 1, 1)
+            if step >= 1 and rx.size - 1 == step * (px.size - 1) and np.array_equal(rx[::step], px):
+                sel = slice(None, None, step)      # a nested refinement: the pulse's own nodes
+            else:
+                xi = coordinate(g, "xi_mode", rx, units="m",
+                                long_name="co-moving coordinate of the modes")
         for part in ("real", "imag"):
             describe(g.create_dataset(f"sigma_{part}", data=getattr(res.sigmas, part)), "1/s",
                      f"eigenvalue sigma ({part} part), perturbations ~ exp(sigma t)", (eig,))
@@ -532,8 +601,8 @@ def write_spectrum(path, res: PulseSpectrum, settings: dict):
                                       data=getattr(res.sigmas, part) / res.rate_unit), "1",
                      f"sigma L / c_p ({part} part): e-folds per pulse length travelled", (eig,))
         for name, (unit, long) in MODE_FIELDS.items():
-            arr = (np.stack([m[name] for m in res.modes]) if nm
-                   else np.zeros((0, res.n_points), complex))
+            arr = (np.stack([m[name][sel] for m in res.modes]) if nm
+                   else np.zeros((0, xi.shape[0]), complex))
             for part in ("real", "imag"):
                 describe(g.create_dataset(f"{name}_{part}", data=getattr(arr, part)), unit,
                          f"{long} ({part} part)", (eig, xi))
@@ -553,110 +622,8 @@ def read_spectrum(path, label):
         out["sigma"] = g["sigma_real"][...] + 1j * g["sigma_imag"][...]
         for name in MODE_FIELDS:
             out[name] = g[f"{name}_real"][...] + 1j * g[f"{name}_imag"][...]
-        out["xi"] = grp["xi"][...]
+        out["xi"] = (g["xi_mode"] if "xi_mode" in g else grp["xi"])[...]
         out["tau_d_ratio"] = float(grp.attrs["tau_d_ratio"])
         out["L"] = float(grp.attrs["L"])
         out["c_p"] = float(grp.attrs["c_p"])
     return out
-
-
-# ------------------------------------------------------------------------------- a family
-@dataclass
-class SpectrumReport:
-    results: list = field(default_factory=list)     # PulseSpectrum, in the order computed
-    skipped: list = field(default_factory=list)     # labels with a stored converged spectrum
-    failed: list = field(default_factory=list)
-    wall_time: float = 0.0
-
-
-def check_family_file(path, labels=None):
-    """Labels to analyse (decreasing τ_d), after checking the file: readable HDF5 with slippulse
-    parameters and converged mode-III pulses. Raises SchemaError naming the problem."""
-    import h5py
-
-    from ..core.h5io import SchemaError, pulse_converged, read_parameters, require_converged
-    try:
-        h5 = h5py.File(path, "r")
-    except (OSError, FileNotFoundError) as exc:
-        raise SchemaError(f"{path}: not a readable HDF5 file ({exc})") from None
-    with h5:
-        try:
-            params = read_parameters(h5)
-        except SchemaError as exc:
-            raise SchemaError(f"{path}: not a slippulse pulse file ({exc})") from None
-        if "pulses" not in h5 or len(h5["pulses"]) == 0:
-            raise SchemaError(f"{path}: holds no pulses")
-        grp = h5["pulses"]
-        present = sorted(grp.keys(), key=lambda s: -float(s[2:]) if s[2:].replace(".", "", 1)
-                         .isdigit() else 0.0)
-        if labels:
-            missing = [lab for lab in labels if lab not in grp]
-            if missing:
-                raise SchemaError(f"{path}: no pulse {missing[0]!r}; present: "
-                                  f"{present[0]} ... {present[-1]} ({len(present)} pulses)")
-            chosen = [lab for lab in present if lab in set(labels)]
-        else:
-            chosen = present
-        good = []
-        for lab in chosen:
-            a = grp[lab].attrs
-            if not pulse_converged(grp[lab]):
-                if labels:
-                    require_converged(path, [lab], hint="its spectrum would be meaningless")
-                continue
-            if str(a.get("mode", "III")) != "III":
-                raise SchemaError(f"{path}: pulse {lab} is a mode-{a.get('mode')} pulse; the "
-                                  f"spectrum is for mode III")
-            good.append(lab)
-        if not good:
-            raise SchemaError(f"{path}: holds no converged pulse")
-    return good, params
-
-
-def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progress=None):
-    """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
-
-    Pulses are taken by decreasing τ_d; each starts from its neighbour's eigenvalues at equal
-    σL/c (tracking), else from the default shifts. A stored converged spectrum with the same
-    settings is kept (resume) unless `overwrite`. A failed eigen-solve stores its status and
-    message and no eigenvalues. progress(label, result or None, stored dict or None).
-    """
-    from ..core.h5io import read_pulse
-    t0 = time.perf_counter()
-    chosen, params = check_family_file(path, labels)
-    settings = {"tol": tol, "extra": int(bool(extra)), "min_re_c_over_L": MIN_RE}
-    prev_mode = None                                     # (ξ/L, V₁) of the last pulse's leading mode
-    rep = SpectrumReport()
-    prev = None                                          # (σ array, c/L) of the last pulse
-    for lab in chosen:
-        stored = None if overwrite else read_spectrum(path, lab)
-        if stored is not None and stored.get("status") == "converged" and all(
-                stored.get(f"setting_{k}") == v for k, v in settings.items()):
-            rep.skipped.append(lab)
-            prev = (stored["sigma"], float(stored["rate_unit_c_over_L"]))
-            if progress:
-                progress(lab, None, stored)
-            continue
-        pulse, _ = read_pulse(path, lab)
-        unit = pulse.c_p / pulse.L
-        guesses, modes = [], None
-        if prev is not None and prev[0].size:
-            s0 = prev[0][0]
-            guesses = [complex(s0.real, abs(s0.imag)) * unit / prev[1]]
-            if prev_mode is not None:
-                x = pulse.xi / pulse.L
-                modes = [np.interp(x, prev_mode[0], prev_mode[1].real)
-                         + 1j * np.interp(x, prev_mode[0], prev_mode[1].imag)]
-        res = pulse_spectrum(pulse, params, guesses=guesses, extra=extra, tol=tol, label=lab,
-                             guess_modes=modes)
-        write_spectrum(path, res, settings)
-        rep.results.append(res)
-        if res.status != "converged":
-            rep.failed.append(lab)
-        else:
-            prev = (res.sigmas, res.rate_unit)
-            prev_mode = (pulse.xi / pulse.L, res.modes[0]["V"]) if res.modes else None
-        if progress:
-            progress(lab, res, None)
-    rep.wall_time = time.perf_counter() - t0
-    return rep

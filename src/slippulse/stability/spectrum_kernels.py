@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 from scipy.special import kve
 
+from ..steady.equations import adjugate3
 from ..steady.hilbert import _GL_N, _GL_NODES, _GL_RMIN, _GL_WEIGHTS
 
 X_SERIES = 2.0          # |x| ≤ X_SERIES: power series; beyond: scaled Bessel functions
@@ -323,123 +324,167 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
             BS[i, j + 1] += h * d1
 
 
-# --------------------------------------------------------------------------- state recursion
+# ---------------------------------------------------- order 4: state and slip recursions (Radau IIA)
 @njit(cache=True, inline="always")
-def _Ec(x):
-    """E(x) = (1 − e^{−x})/x and E′(x) for complex x (series for |x| < 1e-2)."""
-    if abs(x) < 1e-2:
-        e = 1.0 - x / 2.0 + x * x / 6.0 - x ** 3 / 24.0 + x ** 4 / 120.0 - x ** 5 / 720.0
-        de = -0.5 + x / 3.0 - x * x / 8.0 + x ** 3 / 30.0 - x ** 4 / 144.0
-        return e, de
-    em = cmath.exp(-x)
-    e = (1.0 - em) / x
-    return e, (em - e) / x
+def _inv3(M, Mi):
+    """Mi = M⁻¹ for a complex 3×3 M (adjugate / determinant)."""
+    det = adjugate3(M, Mi)
+    for r in range(3):
+        for k in range(3):
+            Mi[r, k] /= det
+
+
+@njit(cache=True, inline="always")
+def _radau_row(A, h, rates, M, Mi, T, r, dr):
+    """r = h e₃ᵀ (I + h A R)⁻¹ A and dr = ∂r/∂σ for R = diag(rates) (rates = w_k + σ, or σ):
+    the weights of the stage sources in the last stage of one Radau IIA step for
+    y' = −R(s) y + g(s) from y = 0; ∂(I + hAR)/∂σ = hA, so dr = −h e₃ᵀ M⁻¹ (hA) M⁻¹ A."""
+    for a_ in range(3):
+        for k in range(3):
+            M[a_, k] = h * A[a_, k] * rates[k] + (1.0 if a_ == k else 0.0)
+    _inv3(M, Mi)
+    for k in range(3):                              # T = M⁻¹ A
+        for a_ in range(3):
+            T[a_, k] = Mi[a_, 0] * A[0, k] + Mi[a_, 1] * A[1, k] + Mi[a_, 2] * A[2, k]
+    for k in range(3):
+        r[k] = h * T[2, k]
+        dr[k] = -h * h * (T[2, 0] * T[0, k] + T[2, 1] * T[1, k] + T[2, 2] * T[2, k])
 
 
 @njit(cache=True)
-def state_rows(xi, c, w, src, sigma, Vm, Y, dY, deriv, dvm_is_identity=True):
-    """Rows of Y = Φ(σ) Vm and dY = ∂_σ(Φ(σ) Vm) (with ∂_σ Vm = I).
+def state_rows4(hs, j0s, lws, ws, G, omegas, inv_v, A, sigma, Vm, Y, dY, deriv):
+    """Rows of Y = Φ(σ) Vm and dY = ∂_σΦ(σ) Vm (Vm independent of σ), order 4.
 
-    Φ maps a slip-rate perturbation V to the state perturbation φ₁ solving
-    (σ − c ∂_ξ) φ₁ = −w φ₁ − src V, i.e. along a material point dφ₁/dt = −(w + σ) φ₁ − src V,
-    integrated from the rest state ahead (φ₁ = 0 at ξ_N) with the exponential scheme of the
-    steady state equation: rate frozen at ξ_{i+1} over the first half of the crossing, at ξ_i over
-    the second, source likewise.
+    Φ(σ) maps a slip-rate perturbation V to the state perturbation φ₁ of
+    dφ₁/ds = −(w + σ) φ₁ + G(s) (V/v₀)(s) along a material point (G = −φ₀ ∂w/∂ln v), from φ₁ = 0
+    at ξ_N. Over the crossing of cell i (time h), the homogeneous part exactly and the forced
+    part by one step of 3-stage Radau IIA:
+
+        φ₁,i = e^{−Ω − σh} φ₁,i+1 + Σ_k r_k G_k (V/v₀)(s_k),   r = h e₃ᵀ (I + hA(W + σ))⁻¹ A,
+
+    with w and φ₀ at the stages from the steady order-4 map (``ws``; G from its stage values) and
+    V/v₀ at the inner stages from the cubic through nodes j0..j0+3 (``lws``), at the last from
+    node i. Stiffly accurate for any (w + σ)h (φ₁,i → G_3 (V/v₀)_i/(w_i + σ)); order 4.
     """
-    n = xi.size
+    n = hs.size + 1
     ncol = Vm.shape[1]
+    cl = np.empty(4, np.complex128)
+    dcl = np.empty(4, np.complex128)
+    M = np.empty((3, 3), np.complex128)
+    Mi = np.empty((3, 3), np.complex128)
+    T = np.empty((3, 3), np.complex128)
+    r = np.empty(3, np.complex128)
+    dr = np.empty(3, np.complex128)
+    rates = np.empty(3, np.complex128)
     for col in range(ncol):
         Y[n - 1, col] = 0.0
         if deriv:
             dY[n - 1, col] = 0.0
     for i in range(n - 2, -1, -1):
-        h2 = 0.5 * (xi[i + 1] - xi[i]) / c
-        xa = (w[i + 1] + sigma) * h2
-        xb = (w[i] + sigma) * h2
-        ea, dea = _Ec(xa)
-        eb, deb = _Ec(xb)
-        exb = cmath.exp(-xb)
-        a = cmath.exp(-xa) * exb
-        bi1 = -h2 * ea * exb * src[i + 1]            # coefficient of V_{i+1}
-        bi0 = -h2 * eb * src[i]                      # coefficient of V_i
-        da = -2.0 * h2 * a
-        dbi1 = -h2 * src[i + 1] * h2 * (dea - ea) * exb
-        dbi0 = -h2 * src[i] * h2 * deb
+        h = hs[i]
+        for k in range(3):
+            rates[k] = ws[i, k] + sigma
+        _radau_row(A, h, rates, M, Mi, T, r, dr)
+        e0 = cmath.exp(-omegas[i] - sigma * h)
+        j0 = j0s[i]
+        for l in range(4):
+            cl[l] = (r[0] * G[i, 0] * lws[i, 0, l] + r[1] * G[i, 1] * lws[i, 1, l]) * inv_v[j0 + l]
+            dcl[l] = (dr[0] * G[i, 0] * lws[i, 0, l] + dr[1] * G[i, 1] * lws[i, 1, l]) \
+                * inv_v[j0 + l]
+        cl[i - j0] += r[2] * G[i, 2] * inv_v[i]
+        dcl[i - j0] += dr[2] * G[i, 2] * inv_v[i]
         for col in range(ncol):
             y1 = Y[i + 1, col]
-            Y[i, col] = a * y1 + bi1 * Vm[i + 1, col] + bi0 * Vm[i, col]
+            acc = e0 * y1
+            for l in range(4):
+                acc += cl[l] * Vm[j0 + l, col]
+            Y[i, col] = acc
             if deriv:
-                dY[i, col] = (a * dY[i + 1, col] + da * y1 + dbi1 * Vm[i + 1, col]
-                              + dbi0 * Vm[i, col])
-        if deriv and dvm_is_identity:
-            dY[i, i + 1] += bi1
-            dY[i, i] += bi0
+                dacc = e0 * dY[i + 1, col] - h * e0 * y1
+                for l in range(4):
+                    dacc += dcl[l] * Vm[j0 + l, col]
+                dY[i, col] = dacc
 
 
-# ------------------------------------------------------------------------- slip from slip rate
 @njit(cache=True)
-def slip_coefficients(xi, c, sigma):
-    """Recursion δ_i = a_i δ_{i+1} + b_i V_{i+1} + b′_i V_i for (σ − c∂_ξ) δ = V, integrated from
-    δ = 0 at ξ_N (bounded ahead): along a material point dδ/dt = V − σδ over the crossing time
-    h = Δξ/c, exact for V frozen at V_{i+1} on the first half and V_i on the second:
-    a = e^{−σh}, b = (h/2) E(σh/2) e^{−σh/2}, b′ = (h/2) E(σh/2); and their σ-derivatives."""
-    n = xi.size
-    a = np.empty(n - 1, np.complex128)
-    b = np.empty(n - 1, np.complex128)
-    bp = np.empty(n - 1, np.complex128)
-    da = np.empty(n - 1, np.complex128)
-    db = np.empty(n - 1, np.complex128)
-    dbp = np.empty(n - 1, np.complex128)
-    for i in range(n - 1):
-        h2 = 0.5 * (xi[i + 1] - xi[i]) / c
-        x = sigma * h2
-        e, de = _Ec(x)
-        ex = cmath.exp(-x)
-        a[i] = ex * ex
-        b[i] = h2 * e * ex
-        bp[i] = h2 * e
-        da[i] = -2.0 * h2 * a[i]
-        db[i] = h2 * h2 * (de - e) * ex
-        dbp[i] = h2 * h2 * de
-    return a, b, bp, da, db, dbp
+def slip_coefficients4(hs, j0s, lws, vst, inv_v, A, sigma):
+    """Order-4 recursion δ_i = a_i δ_{i+1} + Σ_l B_il V_{j0+l} for (σ − c∂_ξ) δ = V, bounded ahead
+    (δ = 0 at ξ_N), and the σ-derivatives (da, dB).
+
+    Along a material point dδ/ds = V − σδ over the crossing time h: a_i = e^{−σh} exactly, the
+    forced part by one step of 3-stage Radau IIA, r = h e₃ᵀ (I + σhA)⁻¹ A, with V at the stages
+    = v₀(s_k) (V/v₀)(s_k) (v₀ from the cubic of ln v, ``vst``; V/v₀ from the cubic of the nodal
+    values; the last stage is node i). Stiffly accurate (σh → ∞: δ_i → V_i/σ); order 4.
+    """
+    n1 = hs.size
+    a = np.empty(n1, np.complex128)
+    da = np.empty(n1, np.complex128)
+    B = np.zeros((n1, 4), np.complex128)
+    dB = np.zeros((n1, 4), np.complex128)
+    M = np.empty((3, 3), np.complex128)
+    Mi = np.empty((3, 3), np.complex128)
+    T = np.empty((3, 3), np.complex128)
+    r = np.empty(3, np.complex128)
+    dr = np.empty(3, np.complex128)
+    rates = np.empty(3, np.complex128)
+    for k in range(3):
+        rates[k] = sigma
+    for i in range(n1):
+        h = hs[i]
+        a[i] = cmath.exp(-sigma * h)
+        da[i] = -h * a[i]
+        _radau_row(A, h, rates, M, Mi, T, r, dr)
+        j0 = j0s[i]
+        for l in range(4):
+            s0 = vst[i, 0] * lws[i, 0, l] * inv_v[j0 + l]
+            s1 = vst[i, 1] * lws[i, 1, l] * inv_v[j0 + l]
+            B[i, l] = r[0] * s0 + r[1] * s1
+            dB[i, l] = dr[0] * s0 + dr[1] * s1
+        B[i, i - j0] += r[2]
+        dB[i, i - j0] += dr[2]
+    return a, B, da, dB
 
 
 @njit(cache=True, inline="always")
-def _row_times_D(x, a, b, bp, z, out):
-    """out = x D for one row x, D = (I − U)⁻¹ B (U[i, i+1] = a_i, B[i, i+1] = b_i, B[i, i] = b′_i,
-    last row of B zero); z = x (I − U)⁻¹ is left in z."""
+def _row_times_D4(x, a, B, j0s, z, out):
+    """out = x D for one row x, D = (I − U)⁻¹ B (U[i, i+1] = a_i; row i of B: B[i, l] at column
+    j0_i + l; last row zero); z = x (I − U)⁻¹ is left in z."""
     n = x.size
     z[0] = x[0]
     for j in range(1, n):
         z[j] = x[j] + a[j - 1] * z[j - 1]
-    out[0] = z[0] * bp[0]
-    for k in range(1, n - 1):
-        out[k] = z[k - 1] * b[k - 1] + z[k] * bp[k]
-    out[n - 1] = z[n - 2] * b[n - 2]
+    for k in range(n):
+        out[k] = 0.0
+    for i in range(n - 1):
+        zi = z[i]
+        j0 = j0s[i]
+        for l in range(4):
+            out[j0 + l] += zi * B[i, l]
 
 
 @njit(parallel=True, cache=True)
-def times_D(X, dX, a, b, bp, da, db, dbp, XD, dXD, deriv):
-    """XD = X D(σ) and, if deriv, dXD = X′ D + X D′ (D′ = (I−U)⁻¹(U′ D + B′)), row by row, O(N²)."""
+def times_D4(X, dX, a, B, j0s, da, dB, XD, dXD, deriv):
+    """XD = X D(σ) and, if deriv, dXD = X′ D + X D′ (D′ = (I−U)⁻¹(U′ D + B′)), row by row, O(N²),
+    for the banded B of the order-4 slip recursion."""
     m, n = X.shape
     for r in prange(m):
         z = np.empty(n, np.complex128)
         t = np.empty(n, np.complex128)
         u = np.empty(n, np.complex128)
-        _row_times_D(X[r], a, b, bp, z, t)
+        _row_times_D4(X[r], a, B, j0s, z, t)
         XD[r] = t
         if deriv:
-            _row_times_D(dX[r], a, b, bp, u, t)        # X′ D
-            # Z U′ (then · D) + Z B′
-            u[0] = 0.0
+            _row_times_D4(dX[r], a, B, j0s, u, t)        # X′ D
+            u[0] = 0.0                                    # Z U′, then · D
             for j in range(1, n):
                 u[j] = z[j - 1] * da[j - 1]
             zz = np.empty(n, np.complex128)
             w = np.empty(n, np.complex128)
-            _row_times_D(u, a, b, bp, zz, w)
-            w[0] += z[0] * dbp[0]
-            for k in range(1, n - 1):
-                w[k] += z[k - 1] * db[k - 1] + z[k] * dbp[k]
-            w[n - 1] += z[n - 2] * db[n - 2]
+            _row_times_D4(u, a, B, j0s, zz, w)
+            for i in range(n - 1):                       # + Z B′
+                zi = z[i]
+                j0 = j0s[i]
+                for l in range(4):
+                    w[j0 + l] += zi * dB[i, l]
             for k in range(n):
                 dXD[r, k] = t[k] + w[k]

@@ -150,71 +150,12 @@ def integrate_state_radau(xi, y, beta_cs, phi_end, v_star, D, A, c, with_jacobia
     G[n - 1] = 1.0
     phi[n - 1] = phi_end
     m = 4 if n >= 4 else n
-    lw = np.empty((2, 4))
-    wk = np.empty(3)
-    dwk = np.empty(3)
-    f = np.empty(3)
-    M = np.empty((3, 3))
-    Mi = np.empty((3, 3))
-    psi = np.empty(3)
-    mu = np.empty(3)
-    rhs = np.empty(3)
-    D2 = D * D
-    vs2 = v_star * v_star
+    work = _radau_workspace()
+    lw = work[0]
+    dwk = work[2]
     for i in range(n - 2, -1, -1):
-        dx = xi[i + 1] - xi[i]
-        h = dx / beta_cs
-        j0 = min(max(i - 1, 0), n - m)
-        # w at the stages: interior ones from the cubic of ln v, the last one at node i
-        for k in range(2):
-            _lagrange(xi, j0, m, xi[i + 1] - c[k] * dx, lw[k])
-            yk = 0.0
-            for l in range(m):
-                yk += lw[k, l] * y[j0 + l]
-            v2 = math.exp(2.0 * yk)
-            wk[k] = math.sqrt(v2 + vs2) / D
-            dwk[k] = v2 / (D2 * wk[k])
-        v2 = math.exp(2.0 * y[i])
-        wk[2] = math.sqrt(v2 + vs2) / D
-        dwk[2] = v2 / (D2 * wk[2])
-        w3 = wk[2]
-        for k in range(3):
-            f[k] = 1.0 - wk[k] / w3
-        f[2] = 0.0
-        # M = I + h A W, rhs = h A f; Mi = M⁻¹ by the adjugate
-        for r in range(3):
-            rhs[r] = 0.0
-            for k in range(3):
-                M[r, k] = h * A[r, k] * wk[k] + (1.0 if r == k else 0.0)
-                rhs[r] += h * A[r, k] * f[k]
-        Mi[0, 0] = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]
-        Mi[0, 1] = M[0, 2] * M[2, 1] - M[0, 1] * M[2, 2]
-        Mi[0, 2] = M[0, 1] * M[1, 2] - M[0, 2] * M[1, 1]
-        Mi[1, 0] = M[1, 2] * M[2, 0] - M[1, 0] * M[2, 2]
-        Mi[1, 1] = M[0, 0] * M[2, 2] - M[0, 2] * M[2, 0]
-        Mi[1, 2] = M[0, 2] * M[1, 0] - M[0, 0] * M[1, 2]
-        Mi[2, 0] = M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]
-        Mi[2, 1] = M[0, 1] * M[2, 0] - M[0, 0] * M[2, 1]
-        Mi[2, 2] = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
-        det = M[0, 0] * Mi[0, 0] + M[0, 1] * Mi[1, 0] + M[0, 2] * Mi[2, 0]
-        for r in range(3):
-            psi[r] = (Mi[r, 0] * rhs[0] + Mi[r, 1] * rhs[1] + Mi[r, 2] * rhs[2]) / det
-        omega = h * (A[2, 0] * wk[0] + A[2, 1] * wk[1] + A[2, 2] * wk[2])
-        ex = math.exp(-omega)
-        one_m = -math.expm1(-omega)
-        phi[i] = phi[i + 1] * ex + one_m / w3 + psi[2]
-        # derivatives: λ = row 3 of M⁻¹, μ = h Aᵀ λ
-        for k in range(3):
-            mu[k] = h * (Mi[2, 0] * A[0, k] + Mi[2, 1] * A[1, k] + Mi[2, 2] * A[2, k]) / det
-        d_om = ex * (1.0 / w3 - phi[i + 1])                   # ∂φ_i/∂Ω
-        dw0 = d_om * h * A[2, 0] - mu[0] * (1.0 / w3 + psi[0])
-        dw1 = d_om * h * A[2, 1] - mu[1] * (1.0 / w3 + psi[1])
-        dw2 = (d_om * h * A[2, 2] + (mu[0] * wk[0] + mu[1] * wk[1]) / (w3 * w3) - mu[2] * psi[2]
-               - one_m / (w3 * w3))
-        dh = d_om * omega / h
-        for k in range(3):
-            dh += mu[k] * (f[k] - wk[k] * psi[k]) / h
-        a = ex                                                  # ∂φ_i/∂φ_{i+1}
+        phi[i], a, dw0, dw1, dw2, dh, h, j0 = _radau_cell(xi, y, i, beta_cs, phi[i + 1], v_star,
+                                                          D, A, c, m, work)
         dphi_dc[i] = a * dphi_dc[i + 1] - h * dh / beta_cs      # h ∝ 1/(β c_s)
         G[i] = a * G[i + 1]
         if with_jacobian:
@@ -224,6 +165,123 @@ def integrate_state_radau(xi, y, beta_cs, phi_end, v_star, D, A, c, with_jacobia
                 P[i, j0 + l] += (dw0 * dwk[0] * lw[0, l] + dw1 * dwk[1] * lw[1, l])
             P[i, i] += dw2 * dwk[2]
     return phi, P, dphi_dc, G
+
+
+@njit(cache=True, inline="always")
+def adjugate3(M, Mi):
+    """Mi = adj(M) of a 3×3 M (real or complex); returns det M (so M⁻¹ = Mi/det)."""
+    Mi[0, 0] = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]
+    Mi[0, 1] = M[0, 2] * M[2, 1] - M[0, 1] * M[2, 2]
+    Mi[0, 2] = M[0, 1] * M[1, 2] - M[0, 2] * M[1, 1]
+    Mi[1, 0] = M[1, 2] * M[2, 0] - M[1, 0] * M[2, 2]
+    Mi[1, 1] = M[0, 0] * M[2, 2] - M[0, 2] * M[2, 0]
+    Mi[1, 2] = M[0, 2] * M[1, 0] - M[0, 0] * M[1, 2]
+    Mi[2, 0] = M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]
+    Mi[2, 1] = M[0, 1] * M[2, 0] - M[0, 0] * M[2, 1]
+    Mi[2, 2] = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+    return M[0, 0] * Mi[0, 0] + M[0, 1] * Mi[1, 0] + M[0, 2] * Mi[2, 0]
+
+
+@njit(cache=True)
+def _radau_workspace():
+    """Scratch arrays of :func:`_radau_cell`: Lagrange weights (2×4), w and ∂w/∂y at the stages,
+    f, M, M⁻¹ (adjugate), Ψ, μ, right-hand side."""
+    return (np.empty((2, 4)), np.empty(3), np.empty(3), np.empty(3), np.empty((3, 3)),
+            np.empty((3, 3)), np.empty(3), np.empty(3), np.empty(3))
+
+
+@njit(cache=True, inline="always")
+def _radau_cell(xi, y, i, beta_cs, phi_next, v_star, D, A, c, m, work):
+    """One cell [ξ_i, ξ_{i+1}] of :func:`integrate_state_radau`: φ_i from φ_{i+1} and its local
+    derivatives. Returns (φ_i, a = ∂φ_i/∂φ_{i+1}, ∂φ_i/∂w_1, ∂φ_i/∂w_2, ∂φ_i/∂w_3, ∂φ_i/∂h, h, j0);
+    the Lagrange weights of the inner stages (nodes j0..j0+m−1) and ∂w/∂y at the stages are left in
+    work[0] and work[2]."""
+    lw, wk, dwk, f, M, Mi, psi, mu, rhs = work
+    n = xi.size
+    D2 = D * D
+    vs2 = v_star * v_star
+    dx = xi[i + 1] - xi[i]
+    h = dx / beta_cs
+    j0 = min(max(i - 1, 0), n - m)
+    # w at the stages: interior ones from the cubic of ln v, the last one at node i
+    for k in range(2):
+        _lagrange(xi, j0, m, xi[i + 1] - c[k] * dx, lw[k])
+        yk = 0.0
+        for l in range(m):
+            yk += lw[k, l] * y[j0 + l]
+        v2 = math.exp(2.0 * yk)
+        wk[k] = math.sqrt(v2 + vs2) / D
+        dwk[k] = v2 / (D2 * wk[k])
+    v2 = math.exp(2.0 * y[i])
+    wk[2] = math.sqrt(v2 + vs2) / D
+    dwk[2] = v2 / (D2 * wk[2])
+    w3 = wk[2]
+    for k in range(3):
+        f[k] = 1.0 - wk[k] / w3
+    f[2] = 0.0
+    # M = I + h A W, rhs = h A f; Mi = M⁻¹ by the adjugate
+    for r in range(3):
+        rhs[r] = 0.0
+        for k in range(3):
+            M[r, k] = h * A[r, k] * wk[k] + (1.0 if r == k else 0.0)
+            rhs[r] += h * A[r, k] * f[k]
+    det = adjugate3(M, Mi)
+    for r in range(3):
+        psi[r] = (Mi[r, 0] * rhs[0] + Mi[r, 1] * rhs[1] + Mi[r, 2] * rhs[2]) / det
+    omega = h * (A[2, 0] * wk[0] + A[2, 1] * wk[1] + A[2, 2] * wk[2])
+    ex = math.exp(-omega)
+    one_m = -math.expm1(-omega)
+    phi_i = phi_next * ex + one_m / w3 + psi[2]
+    # derivatives: λ = row 3 of M⁻¹, μ = h Aᵀ λ
+    for k in range(3):
+        mu[k] = h * (Mi[2, 0] * A[0, k] + Mi[2, 1] * A[1, k] + Mi[2, 2] * A[2, k]) / det
+    d_om = ex * (1.0 / w3 - phi_next)                     # ∂φ_i/∂Ω
+    dw0 = d_om * h * A[2, 0] - mu[0] * (1.0 / w3 + psi[0])
+    dw1 = d_om * h * A[2, 1] - mu[1] * (1.0 / w3 + psi[1])
+    dw2 = (d_om * h * A[2, 2] + (mu[0] * wk[0] + mu[1] * wk[1]) / (w3 * w3) - mu[2] * psi[2]
+           - one_m / (w3 * w3))
+    dh = d_om * omega / h
+    for k in range(3):
+        dh += mu[k] * (f[k] - wk[k] * psi[k]) / h
+    return phi_i, ex, dw0, dw1, dw2, dh, h, j0
+
+
+@njit(cache=True)
+def radau_stage_values(xi, y, beta_cs, phi, v_star, D, A, c):
+    """The order-4 state map's stages, cell by cell, for the stability operator.
+
+    For the converged state φ (of :func:`integrate_state_radau` on the same data) returns the
+    crossing times h (n−1), the stencil start j0 (n−1) and Lagrange weights ℓ (n−1, 2, 4) of the
+    inner stages (ln v at stage k = Σ_l ℓ_kl y_{j0+l}), w at the three stages (n−1, 3), φ at the three
+    stages (n−1, 3): φ(c_k h) = φ_{i+1} e^{−W_k} + (1 − e^{−W_k})/w_i + Ψ_k with W_k = h Σ_j A_kj w_j
+    (the Radau collocation values; the last one is φ_i), and Ω = ∫w over the crossing (n−1)."""
+    n = xi.size
+    m = 4 if n >= 4 else n
+    lws = np.zeros((n - 1, 2, 4))
+    j0s = np.empty(n - 1, np.int64)
+    hs = np.empty(n - 1)
+    ws = np.empty((n - 1, 3))
+    phis = np.empty((n - 1, 3))
+    omegas = np.empty(n - 1)
+    work = _radau_workspace()
+    lw, wk, psi = work[0], work[1], work[6]
+    for i in range(n - 2, -1, -1):
+        _, _, _, _, _, _, h, j0 = _radau_cell(xi, y, i, beta_cs, phi[i + 1], v_star, D, A, c, m,
+                                              work)
+        for k in range(2):
+            for l in range(m):
+                lws[i, k, l] = lw[k, l]
+        j0s[i] = j0
+        hs[i] = h
+        w3 = wk[2]
+        for k in range(3):
+            ws[i, k] = wk[k]
+            Wk = h * (A[k, 0] * wk[0] + A[k, 1] * wk[1] + A[k, 2] * wk[2])
+            phis[i, k] = phi[i + 1] * math.exp(-Wk) - math.expm1(-Wk) / w3 + psi[k]
+        phis[i, 2] = phi[i]
+        omegas[i] = h * (A[2, 0] * wk[0] + A[2, 1] * wk[1] + A[2, 2] * wk[2])
+    return hs, j0s, lws, ws, phis, omegas
+
 
 
 #: State integrators by order: 2, the exponential update with w frozen on half cells

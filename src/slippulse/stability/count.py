@@ -1,0 +1,125 @@
+"""A count of the unstable eigenvalues of a pulse by the argument principle (docs/spectrum.md §6).
+
+M(σ) (:class:`slippulse.stability.spectrum.StabilityOperator`) is analytic in Re σ > 0, so det M(σ)
+has no poles there and the number of its zeros inside a closed contour C in that half-plane is the
+winding number of det M along C:
+
+    Z = (1/2π) Δ_C arg det M(σ).
+
+arg det M comes from the LU factors (Σ arg u_ii plus π per row interchange). The contour is the
+rectangle x0 ≤ Re σ ≤ x1, |Im σ| ≤ y1 (in units of c_p/L), walked counter-clockwise; points are
+inserted between neighbours until the wrapped change of arg det between them is below
+``max_step`` radians (so that no turn of 2π can hide between two evaluations), and the sum of the
+changes must be within ``integer_tol`` of an integer multiple of 2π. A walk that does not meet
+either condition within ``max_evals`` evaluations reports status 'failed' and no count.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import lu_factor
+
+
+def arg_det(M) -> tuple[float, float]:
+    """(ln|det M|, arg det M ∈ (−π, π]) from the LU factorisation of M."""
+    lu, piv = lu_factor(M, check_finite=False)
+    d = np.diag(lu)
+    swaps = int(np.count_nonzero(piv != np.arange(piv.size)))
+    arg = float(np.sum(np.angle(d))) + math.pi * swaps
+    return float(np.sum(np.log(np.abs(d)))), math.remainder(arg, 2.0 * math.pi)
+
+
+def _wrap(x):
+    return math.remainder(x, 2.0 * math.pi)
+
+
+@dataclass
+class ContourCount:
+    """Result of :func:`count_unstable`: Z zeros of det M inside the box (units c_p/L)."""
+
+    count: int | None
+    winding: float                   # (1/2π) Σ Δarg (an integer up to the walk's error)
+    box: tuple                       # (x0, x1, y1) in c_p/L
+    n_evals: int
+    max_step: float                  # largest |Δarg| between neighbours after refinement, rad
+    status: str
+    message: str
+    wall_time: float
+    points: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))   # σ L/c_p walked
+    args: np.ndarray = field(default_factory=lambda: np.zeros(0))              # unwrapped arg det
+
+
+def _rectangle(x0, x1, y1, per_side):
+    """Counter-clockwise corners-and-edges of the box, closed (last point = first)."""
+    corners = [complex(x0, -y1), complex(x1, -y1), complex(x1, y1), complex(x0, y1)]
+    pts = []
+    for a, b in zip(corners, corners[1:] + corners[:1]):
+        t = np.linspace(0.0, 1.0, per_side, endpoint=False)
+        pts.extend(a + (b - a) * t)
+    pts.append(corners[0])
+    return pts
+
+
+def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, integer_tol=0.05,
+                   progress=None):
+    """Count the eigenvalues of M(σ) in the box x0 ≤ Re σ L/c ≤ x1, |Im σ L/c| ≤ y1.
+
+    Parameters
+    ----------
+    op : StabilityOperator
+    box : (x0, x1, y1) in units of c_p/L; x0 > 0 (the analytic half-plane).
+    max_step : largest accepted change of arg det M between neighbouring points, rad.
+    per_side : starting points per side of the rectangle.
+    max_evals : budget of determinant evaluations (one LU of an N×N complex matrix each).
+    integer_tol : largest accepted distance of the winding number from an integer.
+    progress : callable(n_evals) or None.
+    """
+    t0 = time.perf_counter()
+    x0, x1, y1 = (float(b) for b in box)
+    if not (0.0 < x0 < x1 and y1 > 0.0):
+        raise ValueError(f"box={box!r}: need 0 < x0 < x1 and y1 > 0 (units of c_p/L)")
+    unit = op.rate_unit
+    cache = {}
+
+    def arg_at(z):
+        if z not in cache:
+            cache[z] = arg_det(op.matrices(z * unit, deriv=False)[0])[1]
+            if progress:
+                progress(len(cache))
+        return cache[z]
+
+    pts = _rectangle(x0, x1, y1, per_side)
+    vals = [arg_at(z) for z in pts]
+    status, msg = "converged", ""
+    while True:
+        steps = [abs(_wrap(b - a)) for a, b in zip(vals, vals[1:])]
+        bad = [k for k, s in enumerate(steps) if s > max_step]
+        if not bad:
+            break
+        if len(cache) + len(bad) > max_evals:
+            status = "failed"
+            msg = (f"arg det M still changes by {max(steps):.2f} rad between neighbours after "
+                   f"{len(cache)} evaluations (budget {max_evals})")
+            break
+        for k in reversed(bad):
+            zm = 0.5 * (pts[k] + pts[k + 1])
+            pts.insert(k + 1, zm)
+            vals.insert(k + 1, arg_at(zm))
+    dargs = np.array([_wrap(b - a) for a, b in zip(vals, vals[1:])])
+    unwrapped = np.concatenate([[vals[0]], vals[0] + np.cumsum(dargs)])
+    winding = float(np.sum(dargs) / (2.0 * math.pi))
+    count = None
+    if status == "converged":
+        if abs(winding - round(winding)) > integer_tol:
+            status = "failed"
+            msg = f"winding number {winding:.3f} is not an integer within {integer_tol}"
+        else:
+            count = int(round(winding))
+            msg = (f"{count} eigenvalue(s) in {x0:g} <= Re sigma L/c <= {x1:g}, "
+                   f"|Im sigma L/c| <= {y1:g}")
+    return ContourCount(count, winding, (x0, x1, y1), len(cache),
+                        float(np.max(np.abs(dargs))) if dargs.size else 0.0, status, msg,
+                        time.perf_counter() - t0, np.array(pts), unwrapped)

@@ -1,0 +1,186 @@
+"""The spectrum of every pulse of a file, with the leading rate's error estimate and an optional
+count (``slippulse steady stability``; method: docs/spectrum.md).
+
+Per pulse: :func:`slippulse.stability.spectrum.pulse_spectrum` on the pulse's grid (tracked from
+its neighbour), :func:`slippulse.stability.refine.refine_leading` on nested refinements (s ± s_err),
+:func:`slippulse.stability.count.count_unstable` if asked; stored by
+:func:`slippulse.stability.spectrum.write_spectrum` in the pulse's group, resumable.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..steady import solver
+from .count import count_unstable
+from .refine import check_refinable, order4_pulse, refine_leading
+from .spectrum import MIN_RE, PulseSpectrum, pulse_spectrum, read_spectrum, write_spectrum
+
+
+@dataclass
+class SpectrumReport:
+    results: list = field(default_factory=list)     # PulseSpectrum, in the order computed
+    skipped: list = field(default_factory=list)     # labels with a stored converged spectrum
+    failed: list = field(default_factory=list)
+    wall_time: float = 0.0
+
+
+def check_family_file(path, labels=None):
+    """Labels to analyse (decreasing τ_d), after checking the file: readable HDF5 with slippulse
+    parameters and converged mode-III pulses. Raises SchemaError naming the problem."""
+    import h5py
+
+    from ..core.h5io import SchemaError, pulse_converged, read_parameters, require_converged
+    try:
+        h5 = h5py.File(path, "r")
+    except (OSError, FileNotFoundError) as exc:
+        raise SchemaError(f"{path}: not a readable HDF5 file ({exc})") from None
+    with h5:
+        try:
+            params = read_parameters(h5)
+        except SchemaError as exc:
+            raise SchemaError(f"{path}: not a slippulse pulse file ({exc})") from None
+        if "pulses" not in h5 or len(h5["pulses"]) == 0:
+            raise SchemaError(f"{path}: holds no pulses")
+        grp = h5["pulses"]
+        present = sorted(grp.keys(), key=lambda s: -float(s[2:]) if s[2:].replace(".", "", 1)
+                         .isdigit() else 0.0)
+        if labels:
+            missing = [lab for lab in labels if lab not in grp]
+            if missing:
+                raise SchemaError(f"{path}: no pulse {missing[0]!r}; present: "
+                                  f"{present[0]} ... {present[-1]} ({len(present)} pulses)")
+            chosen = [lab for lab in present if lab in set(labels)]
+        else:
+            chosen = present
+        good = []
+        for lab in chosen:
+            a = grp[lab].attrs
+            if not pulse_converged(grp[lab]):
+                if labels:
+                    require_converged(path, [lab], hint="its spectrum would be meaningless")
+                continue
+            if str(a.get("mode", "III")) != "III":
+                raise SchemaError(f"{path}: pulse {lab} is a mode-{a.get('mode')} pulse; the "
+                                  f"spectrum is for mode III")
+            good.append(lab)
+        if not good:
+            raise SchemaError(f"{path}: holds no converged pulse")
+    return good, params
+
+
+#: Default smallest N of the spectrum's level 0: coarser pulse grids are refined (nested) first.
+#: Measured on the default family (N = 1000/1250): level 0 on the pulse's own grid gives
+#: s L/c_p = 0.219 at 1.03 τ_min (0.10 refined) and fails at 1.025 (docs/spectrum.md §5).
+MIN_SPECTRUM_POINTS = 1500
+
+
+def _at_least(pulse, params, min_points):
+    """The pulse on nested refinements of its grid until N ≥ min_points; (pulse, '') or
+    (pulse, why) when a steady re-solve fails."""
+    while pulse.n_points < min_points:
+        sol = solver.refine_nested(params, pulse)
+        if not sol.stats.converged:
+            return pulse, (f"steady re-solve on the nested grid (N = {sol.problem.n}, "
+                           f"--min-points {min_points}) did not converge: {sol.stats.message}")
+        pulse = sol.to_pulse()
+    return pulse, ""
+
+
+def _failed(label, pulse, message):
+    """A PulseSpectrum that stores the failure and no eigenvalue."""
+    return PulseSpectrum(label, np.zeros(0, complex), [], np.zeros(2), float("nan"),
+                         pulse.c_p / pulse.L, int(pulse.n_points), "failed", message, 0.0)
+
+
+def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progress=None,
+                 levels=1, count_box=None, level_progress=None, min_points=MIN_SPECTRUM_POINTS):
+    """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
+
+    Pulses are taken by decreasing τ_d; each starts from its neighbour's eigenvalues at equal
+    σL/c (tracking), else from the default shifts. A stored converged spectrum with the same
+    settings is kept (resume) unless `overwrite`. A failed eigen-solve stores its status and
+    message and no eigenvalues. progress(label, result or None, stored dict or None).
+
+    levels : nested refinements of each pulse's grid for the leading eigenvalue's error estimate
+        (:func:`slippulse.stability.refine.refine_leading`); a refinement that fails marks the
+        pulse failed and stores no eigenvalue. 0 skips the estimate (no s, s_err stored).
+    count_box : (x0, x1, y1) in c_p/L, or None: also count the eigenvalues in that box by the
+        argument principle (:func:`slippulse.stability.count.count_unstable`), on the pulse's grid.
+        x1 and y1 are raised to 1.5 times the leading s L/c_p where that is larger.
+    level_progress : callable(str) or None, told about each refinement level / count evaluation.
+    min_points : a pulse with fewer points is refined (nested, N → 2N − 1, the steady equations
+        re-solved) until it has at least this many before level 0; a re-solve that fails marks
+        the pulse failed.
+    """
+    from ..core.h5io import read_pulse
+    t0 = time.perf_counter()
+    chosen, params = check_family_file(path, labels)
+    settings = {"tol": tol, "extra": int(bool(extra)), "min_re_c_over_L": MIN_RE,
+                "levels": int(levels), "count": int(count_box is not None),
+                "min_points": int(min_points)}
+    prev_mode = None                                     # (ξ/L, V₁) of the last pulse's leading mode
+    rep = SpectrumReport()
+    prev = None                                          # (σ array, c/L) of the last pulse
+    for lab in chosen:
+        stored = None if overwrite else read_spectrum(path, lab)
+        if stored is not None and stored.get("status") == "converged" and all(
+                stored.get(f"setting_{k}") == v for k, v in settings.items()):
+            rep.skipped.append(lab)
+            prev = (stored["sigma"], float(stored["rate_unit_c_over_L"]))
+            if progress:
+                progress(lab, None, stored)
+            continue
+        pulse, _ = read_pulse(path, lab)
+        if levels:
+            check_refinable(pulse, levels)
+        pulse = order4_pulse(pulse, params)
+        pulse, why = _at_least(pulse, params, min_points)
+        if why:
+            res = _failed(lab, pulse, why)
+            write_spectrum(path, res, settings)
+            rep.results.append(res)
+            rep.failed.append(lab)
+            if progress:
+                progress(lab, res, None)
+            continue
+        unit = pulse.c_p / pulse.L
+        guesses, modes = [], None
+        if prev is not None and prev[0].size:
+            s0 = prev[0][0]
+            guesses = [complex(s0.real, abs(s0.imag)) * unit / prev[1]]
+            if prev_mode is not None:
+                x = pulse.xi / pulse.L
+                modes = [np.interp(x, prev_mode[0], prev_mode[1].real)
+                         + 1j * np.interp(x, prev_mode[0], prev_mode[1].imag)]
+        res = pulse_spectrum(pulse, params, guesses=guesses, extra=extra, tol=tol, label=lab,
+                             guess_modes=modes)
+        if res.status == "converged" and res.sigmas.size and levels:
+            res.refined = refine_leading(pulse, params, res, levels, tol=tol,
+                                         progress=level_progress)
+            if res.refined.status != "converged":
+                res.status = "failed"
+                res.message = f"refinement failed: {res.refined.message}"
+        if res.status == "converged" and count_box is not None:
+            lead = res.leading.real / res.rate_unit if res.sigmas.size else 0.0
+            box = (count_box[0], max(count_box[1], 1.5 * lead), max(count_box[2], 1.5 * lead))
+            res.count = count_unstable(res.operator, box,
+                                       progress=(lambda k: level_progress(f"count: {k} det"))
+                                       if level_progress else None)
+        res.operator = None                             # N×N matrices: not kept per pulse
+        if res.status != "converged":                   # a failure stores no eigenvalue
+            res.sigmas = np.zeros(0, complex)
+            res.modes = []
+        write_spectrum(path, res, settings)
+        rep.results.append(res)
+        if res.status != "converged":
+            rep.failed.append(lab)
+        else:
+            prev = (res.sigmas, res.rate_unit)
+            prev_mode = (pulse.xi / pulse.L, res.modes[0]["V"]) if res.modes else None
+        if progress:
+            progress(lab, res, None)
+    rep.wall_time = time.perf_counter() - t0
+    return rep
