@@ -325,7 +325,7 @@ def cmd_stability(args) -> int:
             raise ParameterError(f"count={list(box)!r} is invalid: need X0 X1 Y1 with "
                                  "0 < X0 < X1 and Y1 > 0 (units of c_p/L)")
     if args.figure:
-        _check_figure_path(args.figure)
+        check_figure(args.figure, "--figure")             # format and writability, before the work
     chosen, _ = check_family_file(args.file, labels)      # bad input fails here, before any work
     _check_file_params(args, args.file)
     check_writable(args.file, "FILE")                     # the spectra go into FILE
@@ -334,8 +334,6 @@ def cmd_stability(args) -> int:
         left = require_converged(args.file, allow=True)
         if left:
             print(f"left out (marked converged=False): {', '.join(left)}", file=sys.stderr)
-    if args.figure:
-        check_figure(args.figure, "--figure")
     bar = tqdm(total=len(chosen), desc="spectrum", unit="pulse", disable=args.quiet,
                file=sys.stderr)
 
@@ -405,16 +403,6 @@ def family_summary(path, done, rep) -> str:
     else:
         parts.append("unstable modes not counted (--count)")
     return "; ".join(parts) + f"; wall={rep.wall_time:.1f} s"
-
-
-def _check_figure_path(path) -> None:
-    """Refuse, before the work, a figure path matplotlib cannot write (unknown extension)."""
-    from matplotlib.backend_bases import FigureCanvasBase
-    ext = os.path.splitext(path)[1].lower().lstrip(".")
-    formats = FigureCanvasBase.get_supported_filetypes()
-    if ext not in formats:
-        raise ParameterError(f"figure={path!r} is invalid: the extension must be one of "
-                             f"{', '.join(sorted(formats))}")
 
 
 def register(sub) -> None:
