@@ -334,6 +334,14 @@ def _inv3(M, Mi):
             Mi[r, k] /= det
 
 
+@njit(cache=True)
+def _radau_scratch():
+    """Scratch arrays of :func:`_radau_row`: M, M⁻¹, M⁻¹A (3×3), r, ∂r/∂σ, the rates (3)."""
+    return (np.empty((3, 3), np.complex128), np.empty((3, 3), np.complex128),
+            np.empty((3, 3), np.complex128), np.empty(3, np.complex128),
+            np.empty(3, np.complex128), np.empty(3, np.complex128))
+
+
 @njit(cache=True, inline="always")
 def _radau_row(A, h, rates, M, Mi, T, r, dr):
     """r = h e₃ᵀ (I + h A R)⁻¹ A and dr = ∂r/∂σ for R = diag(rates) (rates = w_k + σ, or σ):
@@ -370,12 +378,7 @@ def state_rows4(hs, j0s, lws, ws, G, omegas, inv_v, A, sigma, Vm, Y, dY, deriv):
     ncol = Vm.shape[1]
     cl = np.empty(4, np.complex128)
     dcl = np.empty(4, np.complex128)
-    M = np.empty((3, 3), np.complex128)
-    Mi = np.empty((3, 3), np.complex128)
-    T = np.empty((3, 3), np.complex128)
-    r = np.empty(3, np.complex128)
-    dr = np.empty(3, np.complex128)
-    rates = np.empty(3, np.complex128)
+    M, Mi, T, r, dr, rates = _radau_scratch()
     for col in range(ncol):
         Y[n - 1, col] = 0.0
         if deriv:
@@ -421,12 +424,7 @@ def slip_coefficients4(hs, j0s, lws, vst, inv_v, A, sigma):
     da = np.empty(n1, np.complex128)
     B = np.zeros((n1, 4), np.complex128)
     dB = np.zeros((n1, 4), np.complex128)
-    M = np.empty((3, 3), np.complex128)
-    Mi = np.empty((3, 3), np.complex128)
-    T = np.empty((3, 3), np.complex128)
-    r = np.empty(3, np.complex128)
-    dr = np.empty(3, np.complex128)
-    rates = np.empty(3, np.complex128)
+    M, Mi, T, r, dr, rates = _radau_scratch()
     for k in range(3):
         rates[k] = sigma
     for i in range(n1):
