@@ -22,7 +22,7 @@ import numpy as np
 
 from ..core.errors import UsageError
 from ..steady import solver
-from .spectrum import pulse_spectrum
+from .spectrum import order4_pulse, pulse_spectrum  # noqa: F401 (order4_pulse: re-exported)
 
 #: The error estimate needs a nested level of at least this many points below it (and the
 #: finest level must fit the dense solver, :data:`slippulse.steady.solver.MAX_POINTS`).
@@ -62,22 +62,6 @@ class RefinedRate:
         if not self.sign_resolved:
             return f"sign not resolved (s L/c_p in [{s - e:.2g}, {s + e:.2g}], |s| < 2 s_err)"
         return f"s L/c_p = {s:.4g} ± {e:.1g}"
-
-
-def order4_pulse(pulse, params):
-    """The pulse itself if it was solved with the order-4 state integrator; otherwise (files
-    before issue 11, ``state_order`` 2) re-solved at order 4 on its own grid from its own ln v
-    and β. Raises UsageError if that re-solve does not converge."""
-    if int(pulse.extra.get("state_order", 2)) == 4:
-        return pulse
-    t0 = time.perf_counter()
-    prob, x, stats = solver.solve_on_grid(params, pulse.tau_d_ratio, np.asarray(pulse.xi, float),
-                                   np.log(pulse.v), pulse.beta, state_order=4)
-    if not stats.converged:
-        raise UsageError(f"pulse {pulse.label} was solved with state order 2 and could not be "
-                         f"re-solved at order 4 on its grid ({stats.message}): re-solve it with "
-                         "the current `slippulse steady solve`/`family`")
-    return solver.SteadySolution(prob, x, stats, time.perf_counter() - t0, 0).to_pulse()
 
 
 def check_refinable(pulse, levels):

@@ -128,7 +128,7 @@ class StabilityOperator:
 
     The pulse must have been solved with the order-4 state integrator (``state_order`` 4): M(0) is
     then exactly the Jacobian of the discrete steady problem in v, and the state and slip
-    recursions of M(σ) are of the same order (docs/spectrum.md §2). :func:`slippulse.stability.refine.order4_pulse`
+    recursions of M(σ) are of the same order (docs/spectrum.md §2). :func:`order4_pulse`
     re-solves an older (order-2) pulse on its own grid first.
     """
 
@@ -423,6 +423,28 @@ def _translation_check(op, sigs, vecs):
     return best
 
 
+def order4_pulse(pulse, params):
+    """The pulse itself if it was solved with the order-4 state integrator; otherwise (files
+    before issue 11, ``state_order`` 2) re-solved at order 4 on its own grid from its own ln v
+    and β. Raises UsageError if that re-solve does not converge."""
+    try:
+        order = int(pulse.extra.get("state_order", 2))
+    except (TypeError, ValueError):
+        order = 2
+    if order == 4:
+        return pulse
+    from ..core.errors import UsageError
+    from ..steady.solver import SteadySolution, solve_on_grid
+    t0 = time.perf_counter()
+    prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, np.asarray(pulse.xi, float),
+                                   np.log(pulse.v), pulse.beta, state_order=4)
+    if not stats.converged:
+        raise UsageError(f"pulse {pulse.label} was solved with state order 2 and could not be "
+                         f"re-solved at order 4 on its grid ({stats.message}): re-solve it with "
+                         "the current `slippulse steady solve`/`family`")
+    return SteadySolution(prob, x, stats, time.perf_counter() - t0, 0).to_pulse()
+
+
 def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", guess_modes=None):
     """Leading eigenvalues and modes of one pulse.
 
@@ -436,7 +458,7 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
         converges.
     """
     t0 = time.perf_counter()
-    op = StabilityOperator(pulse, params)
+    op = StabilityOperator(order4_pulse(pulse, params), params)
     unit = op.rate_unit
     found, failures, iters = [], [], 0
 

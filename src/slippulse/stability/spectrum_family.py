@@ -15,8 +15,9 @@ import numpy as np
 
 from ..steady import solver
 from .count import count_unstable
-from .refine import check_refinable, order4_pulse, refine_leading
-from .spectrum import MIN_RE, PulseSpectrum, pulse_spectrum, read_spectrum, write_spectrum
+from .refine import check_refinable, refine_leading
+from .spectrum import (MIN_RE, PulseSpectrum, order4_pulse, pulse_spectrum, read_spectrum,
+                       write_spectrum)
 
 
 @dataclass
