@@ -310,14 +310,19 @@ def spectrum_line(label, res) -> str:
 
 
 def cmd_stability(args) -> int:
-    from ..stability.spectrum_family import check_family_file, run_spectrum
+    from ..stability.spectrum_family import (DEFAULT_LEVELS, MIN_SPECTRUM_POINTS,
+                                             check_family_file, run_spectrum)
     labels = args.labels or None
+    if args.levels is None:
+        args.levels = DEFAULT_LEVELS
+    if args.min_points is None:
+        args.min_points = MIN_SPECTRUM_POINTS
     if not (isinstance(args.min_points, int) and 0 <= args.min_points <= 8000):
         raise ParameterError(f"min-points={args.min_points!r} is invalid: must be an integer in "
                              "[0, 8000] (smallest N of the spectrum's first level)")
-    if not (isinstance(args.levels, int) and 0 <= args.levels <= 3):
-        raise ParameterError(f"levels={args.levels!r} is invalid: must be an integer in [0, 3] "
-                             "(nested refinements for the error estimate)")
+    if not (isinstance(args.levels, int) and 0 <= args.levels <= 6):
+        raise ParameterError(f"levels={args.levels!r} is invalid: must be an integer in [0, 6] "
+                             "(levels N_0 sqrt(2)^k above level 0 for the error estimate)")
     box = None
     if args.count is not None:
         box = tuple(args.count)
@@ -468,7 +473,9 @@ def register(sub) -> None:
                                   "frame) and modes of each converged pulse, from the steady "
                                   "solution alone (nonlinear eigenproblem on the pulse's grid, "
                                   "docs/spectrum.md). The leading growth rate s comes with an "
-                                  "error s_err measured by nested refinement; where |s| < 2 s_err "
+                                  "error s_err measured on a ladder of grids of one smooth map of "
+                                  "the pulse's grid (N_0, sqrt(2) N_0, 2 N_0, ...; observed order "
+                                  "and Roache's grid convergence index); where |s| < 2 s_err "
                                   "its sign is reported as not resolved. Results go into each "
                                   "pulse's group ('spectrum'); rerunning resumes.")
     p.add_argument("file", metavar="FILE", help="HDF5 pulse or family file")
@@ -477,14 +484,15 @@ def register(sub) -> None:
     p.add_argument("--overwrite", action="store_true", help="recompute stored spectra")
     p.add_argument("--no-extra", action="store_true",
                    help="only the leading eigenvalue (skip the search below it)")
-    p.add_argument("--levels", type=int, default=1,
-                   help="nested refinements of each pulse's grid (N -> 2N-1) for the error of "
-                        "the leading growth rate: s is the finest level's, s_err the last change "
-                        "(default 1; 0: no estimate)")
-    p.add_argument("--min-points", type=int, default=1500,
-                   help="refine (nested, N -> 2N-1) a pulse with fewer points before its first "
-                        "level (default 1500: the family's N = 1000/1250 grids give unreliable "
-                        "eigenvalues near tau_min; 0: use the pulse's own grid)")
+    p.add_argument("--levels", type=int, default=None,
+                   help="levels above level 0 (N_0 sqrt(2)^k points, the pulse re-solved on one "
+                        "smooth map of its grid) for the error of the leading growth rate: s is "
+                        "the finest level's; s_err from the observed order with 2 levels or more "
+                        "(default 2; 0: no estimate; docs/spectrum.md section 5)")
+    p.add_argument("--min-points", type=int, default=None,
+                   help="level 0 has N_0 = max(N, MIN_POINTS) points (default 2000: coarser "
+                        "levels are not yet in the asymptotic "
+                        "range near tau_min; 0: the pulse's own N)")
     p.add_argument("--count", type=float, nargs=3, default=None, metavar=("X0", "X1", "Y1"),
                    help="also count the eigenvalues with X0 <= Re sigma L/c_p <= X1, "
                         "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "
