@@ -22,5 +22,5 @@ def test_docs_site_builds_without_warnings(tmp_path):
     # the pages and the API reference are there, with the documented functions in them
     api = (out / "api.html").read_text(encoding="utf-8")
     assert 'id="slippulse.steady.solver.solve_pulse"' in api
-    for page in ("index", "stability", "spectrum", "steady"):
+    for page in ("index", "results", "guide", "stability", "spectrum", "steady"):
         assert (out / f"{page}.html").is_file(), page
