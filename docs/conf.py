@@ -37,16 +37,18 @@ suppress_warnings = ["ref.python"]
 
 # Docstrings that are plain text, not reStructuredText (aligned key/value lists without a numpydoc
 # section header): shown verbatim, as a literal block, so that the build stays warning-free.
-VERBATIM_DOCSTRINGS = {
+VERBATIM_DOCSTRINGS = {  # modules, by full name
     "slippulse.dynamics.config",
     "slippulse.dynamics.sbi",
     "slippulse.dynamics.stepper",
-    "slippulse.dynamics.stepper.TimeStepRule",
-    "slippulse.stability.spectrum.pulse_spectrum",
-    "slippulse.stability.spectrum_family.run_spectrum",
-    "slippulse.steady.continuation.arclength.DeepSettings",
-    "slippulse.steady.hilbert.hilbert_matrix_fft",
-    "slippulse.steady.solver.GridSpec",
+}
+VERBATIM_OBJECTS = {  # functions and classes, by their own name (so that a move keeps the rule)
+    "pulse_spectrum",
+    "run_spectrum",
+    "DeepSettings",
+    "hilbert_matrix_fft",
+    "GridSpec",
+    "TimeStepRule",
 }
 
 
@@ -72,7 +74,8 @@ def _escape_bars(lines):
 
 
 def _verbatim(app, what, name, obj, options, lines):
-    if name in VERBATIM_DOCSTRINGS and lines:
+    verbatim = name in VERBATIM_DOCSTRINGS if what == "module" else name.rsplit(".", 1)[-1] in VERBATIM_OBJECTS
+    if verbatim and lines:
         lines[:] = ["::", ""] + ["    " + line for line in lines] + [""]
     else:
         lines[:] = _escape_bars(lines)
