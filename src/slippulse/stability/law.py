@@ -110,7 +110,7 @@ def fit_shifted_power_law(x, y, y_err, lo=None):
     """Fit y = A (x − x*)^n for x*, A, n (x* < min x, and ≥ lo if given).
 
     The profile χ²(x*) of the linear fit in logs is minimised over a fine grid of x* and refined
-    by a parabola; the error of x* is where the profile, scaled by χ²_red at its minimum, rises
+    by a bounded scalar minimisation; the error of x* is where the profile, scaled by χ²_red at its minimum, rises
     by 1. Raises ValueError with fewer than 4 usable points."""
     x, y, e = (np.asarray(a, float) for a in (x, y, y_err))
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(e) & (y > 0) & (e > 0)
@@ -128,7 +128,11 @@ def fit_shifted_power_law(x, y, y_err, lo=None):
 
     prof = np.array([chi2(g)[0] for g in gaps])
     k = int(np.argmin(prof))
-    best_gap = gaps[k]
+    from scipy.optimize import minimize_scalar
+    a, b = np.log(gaps[max(k - 1, 0)]), np.log(gaps[min(k + 1, gaps.size - 1)])
+    opt = minimize_scalar(lambda lg: chi2(np.exp(lg))[0], bounds=(a, b), method="bounded",
+                          options={"xatol": 1e-10})
+    best_gap = float(np.exp(opt.x)) if opt.fun <= prof[k] else gaps[k]
     c2, law = chi2(best_gap)
     scale = max(1.0, c2 / max(x.size - 3, 1))
     target = c2 + scale
