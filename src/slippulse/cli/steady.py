@@ -385,12 +385,16 @@ def cmd_rates(args) -> int:
         raise ParameterError(f"tau-star={args.tau_star!r} is invalid: must be in (0.9, 1.1)")
     if args.figure:
         check_figure(args.figure, "--figure")
-    check_family_file(args.file)
-    _check_file_params(args, args.file)
+    prm = [check_family_file(f)[1] for f in args.file]
+    for f, q in zip(args.file[1:], prm[1:]):
+        if q != prm[0]:
+            raise UsageError(f"{f}: its parameters differ from {args.file[0]}'s; rates of "
+                             "different interfaces are not one family")
+    check_files(args, args.file)
     r = family_rates(args.file)
     if r["tau_d_ratio"].size == 0:
-        raise UsageError(f"{args.file}: no growth rate with an error estimate stored; run "
-                         "`slippulse steady stability FILE` first")
+        raise UsageError(f"{' '.join(args.file)}: no growth rate with an error estimate stored; "
+                         "run `slippulse steady stability FILE` first")
     x, y, e = r["tau_d_ratio"], r["s_per_L"], r["s_err_per_L"]
     for k in range(x.size):
         sign = ("unstable" if y[k] > 2 * e[k] else "stable" if y[k] < -2 * e[k]
@@ -429,7 +433,7 @@ def cmd_rates(args) -> int:
              "s does not cross zero (unstable at every resolved pulse)" if n_un and not n_st else
              "no resolved unstable pulse")
     lo = x[res].min() if np.any(res) else float("nan")
-    print(f"rates {args.file}: {x.size} pulses, unstable at {n_un}, stable at {n_st}, sign not "
+    print(f"rates {' '.join(args.file)}: {x.size} pulses, unstable at {n_un}, stable at {n_st}, sign not "
           f"resolved at {x.size - n_un - n_st}; {cross} down to tau_d/tau_min = {lo:.6f} "
           f"(L = {r['L'][x == lo][0] if np.any(res) else float('nan'):.4g} m)")
     return 0
@@ -587,7 +591,9 @@ def register(sub) -> None:
                                   "tau_star (tau_star fitted too unless given) and against L, on "
                                   "the pulses with tau_d/tau_min <= --below (docs/stability.md "
                                   "section 9.0).")
-    p.add_argument("file", metavar="FILE", help="HDF5 family file with stored spectra")
+    p.add_argument("file", metavar="FILE", nargs="+",
+                   help="HDF5 family file(s) with stored spectra (several: their pulses are "
+                        "taken together, e.g. a family and its deep continuation)")
     p.add_argument("--below", type=float, default=1.05,
                    help="fit the pulses with tau_d/tau_min <= BELOW (default 1.05)")
     p.add_argument("--tau-star", type=float, default=None,

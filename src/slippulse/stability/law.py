@@ -70,22 +70,27 @@ def local_exponents(x, y):
     return np.exp(0.5 * (lx[1:] + lx[:-1])), np.diff(ly) / np.diff(lx)
 
 
-def family_rates(path):
-    """The growth rates of record of a family file: dict of arrays (τ_d/τ_min, L, c_p, s, s_err,
-    s_per_L, s_err_per_L, sign_resolved) over the pulses whose spectrum has ``s`` stored,
-    by decreasing τ_d."""
+def family_rates(paths):
+    """The growth rates of record of one or several family files: dict of arrays (τ_d/τ_min, L,
+    c_p, s, s_err, s_per_L, s_err_per_L, sign_resolved) and labels, over the pulses whose
+    spectrum has ``s`` stored, by decreasing τ_d (a label present in several files: the first
+    file's)."""
     import h5py
-    rows = []
-    with h5py.File(path, "r") as h5:
-        for lab, grp in h5["pulses"].items():
-            g = grp.get("spectrum")
-            if g is None or "s" not in g.attrs or g.attrs.get("status") != "converged":
-                continue
-            a = grp.attrs
-            rows.append((float(a["tau_d_ratio"]), float(a["L"]), float(a["c_p"]),
-                         float(g.attrs["s"]), float(g.attrs["s_err"]),
-                         float(g.attrs["s_per_L"]), float(g.attrs["s_err_per_L"]),
-                         int(g.attrs["sign_resolved"]), lab))
+    rows, seen = [], set()
+    for path in ([paths] if isinstance(paths, (str, bytes)) or hasattr(paths, "__fspath__")
+                 else paths):
+        with h5py.File(path, "r") as h5:
+            for lab, grp in h5["pulses"].items():
+                g = grp.get("spectrum")
+                if (lab in seen or g is None or "s" not in g.attrs
+                        or g.attrs.get("status") != "converged"):
+                    continue
+                seen.add(lab)
+                a = grp.attrs
+                rows.append((float(a["tau_d_ratio"]), float(a["L"]), float(a["c_p"]),
+                             float(g.attrs["s"]), float(g.attrs["s_err"]),
+                             float(g.attrs["s_per_L"]), float(g.attrs["s_err_per_L"]),
+                             int(g.attrs["sign_resolved"]), lab))
     rows.sort(key=lambda r: -r[0])
     names = ("tau_d_ratio", "L", "c_p", "s", "s_err", "s_per_L", "s_err_per_L", "sign_resolved")
     out = {k: np.array([r[i] for r in rows]) for i, k in enumerate(names)}
