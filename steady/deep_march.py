@@ -29,7 +29,7 @@ from slippulse.steady.continuation import GRID_TOLERANCE, DeepMarch, DeepSetting
 from slippulse.steady.continuation.gridcheck import as_both, check_pulse
 from slippulse.steady.equations import SteadyProblem
 from slippulse.steady.newton import SolveStats
-from slippulse.steady.solver import SteadySolution, front_pin, solve_pulse
+from slippulse.steady.solver import MAX_POINTS, SteadySolution, front_pin, solve_pulse
 
 
 def rebuild(params, xi, x, pin_index, y_pin, state_order=4):
@@ -63,7 +63,8 @@ def main(argv=None):
     ap.add_argument("--ds-max", type=float, default=0.4)
     ap.add_argument("--stretch", action="store_true")
     ap.add_argument("--check", action="store_true")
-    ap.add_argument("--max-points", type=int, default=16000)
+    ap.add_argument("--max-points", type=int, default=MAX_POINTS,
+                    help="largest grid of the N vs 2N check (default: the solver's MAX_POINTS, %(default)s)")
     ap.add_argument("--max-length", type=float, default=math.inf)
     ap.add_argument("--max-iter", type=int, default=25)
     ap.add_argument("--resolve", type=int, default=0, metavar="N",

@@ -10,7 +10,7 @@ import numpy as np
 
 from ...core.h5io import list_pulses, read_pulse, write_pulse
 from ...core.params import ParameterError, Parameters
-from ..solver import GridSpec, solve_pulse
+from ..solver import MAX_POINTS, GridSpec, solve_pulse
 from .arclength import DeepSettings
 from .deep import DeepMarch, march_arclength
 from .gridcheck import as_both, check_grid_2n, check_pulse
@@ -54,7 +54,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
                spec: GridSpec = GridSpec(), progress=None, max_iter: int = 12,
                beta_switch: float = 0.85, deep: str = "beta",
                deep_settings: DeepSettings | None = None, tolerance: GridTolerance = GRID_TOLERANCE,
-               n_max: int = 16000, max_length: float = math.inf,
+               n_max: int = MAX_POINTS, max_length: float = math.inf,
                deep_points: int | None = None, log=None) -> FamilyReport:
     """Solve the family from `start` down to `stop` (τ_d/τ_min) and write it to `out`.
 

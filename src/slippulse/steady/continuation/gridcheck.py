@@ -10,7 +10,7 @@ import numpy as np
 
 from ..equations import SteadyProblem
 from ..newton import newton
-from ..solver import GridSpec, SteadySolution, front_pin, fwhm, interpolate, regrid_guess
+from ..solver import MAX_POINTS, GridSpec, SteadySolution, front_pin, fwhm, interpolate, regrid_guess
 from .arclength import ArclengthProblem, family_tangent
 from .homotopy import solve_robust
 from .tolerance import GRID_TOLERANCE
@@ -175,7 +175,7 @@ class GridCheck:
                 "grid_check_message": self.message, "grid_check_wall_time": float(self.wall_time)}
 
 
-def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=16000, body_levels=2,
+def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINTS, body_levels=2,
                 max_iter=15, stages=4, log=None) -> GridCheck:
     """Grid-check a pulse and refine it until it passes: N, or the body refinement, per pulse.
 
