@@ -13,18 +13,23 @@ from __future__ import annotations
 
 import argparse
 import os
+import tomllib
 
 import numpy as np
 from scipy.optimize import curve_fit
 
-# The SBI ±ε growth rates of docs/stability.md §3 (measured by dynamic/scans/growth_td*.toml, base
-# pairs, s per pulse length, plateau rule; "period" is the SBI domain behind + ahead in L).
-SBI_TABLE = [
-    (1.20, 23.5, 0.8, "3+2 L"), (1.10, 8.0, 0.2, "3+2 L"),
-    (1.05, 0.61, 0.02, "3+2 L"), (1.05, 0.654, 0.03, "4+4 L"), (1.05, 0.685, 0.03, "6+6 L"),
-    (1.05, 0.71, 0.03, "9+9 L"), (1.03, 0.02, 0.05, "3+2 L, 3 mm"),
-    (1.03, -0.024, 0.008, "3+2 L, 2 mm"),
-]
+#: The SBI ±ε growth rates of docs/stability.md §3 (measured by dynamic/scans/growth_td*.toml, base
+#: pairs, s per pulse length, plateau rule): a data file with its provenance.
+SBI_RATES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "dynamic", "results",
+                         "sbi_growth_rates.toml")
+
+
+def sbi_table(path=SBI_RATES):
+    """Rows (τ_d/τ_min, s per L, err, domain) of the SBI ±ε rates file (``[[rates]]`` tables)."""
+    with open(path, "rb") as fh:
+        data = tomllib.load(fh)
+    return [(float(r["tau_d_ratio"]), float(r["s"]), float(r["err"]), str(r["domain"]))
+            for r in data["rates"]]
 
 
 def scan_pairs(name):
@@ -141,7 +146,7 @@ def main(argv=None):
                        [r["extrapolated"] for r in nested],
                        yerr=[max(r["uncertainty"], 1e-4) for r in nested], fmt="s", color="C0",
                        ms=5, capsize=3, label="eigenvalue ± s_err (slippulse steady stability)")
-        for t, sv, e, dom in SBI_TABLE:
+        for t, sv, e, dom in sbi_table():
             if logy and sv <= 0:
                 continue
             a.errorbar([xf(t)], [sv], yerr=[e], fmt="o", color="C3", ms=6, capsize=2, mfc="none")
