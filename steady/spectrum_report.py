@@ -18,6 +18,8 @@ import tomllib
 import numpy as np
 from scipy.optimize import curve_fit
 
+from slippulse.core.h5io import label_ratio
+
 #: The SBI ±ε growth rates of docs/stability.md §3 (measured by dynamic/scans/growth_td*.toml, base
 #: pairs, s per pulse length, plateau rule): a data file with its provenance.
 SBI_RATES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "dynamic", "results",
@@ -58,7 +60,7 @@ def scan_pairs(name):
         if not np.isfinite(g.get("s_per_L", np.nan)):
             continue
         label = plus.get("label", "")
-        out.append(dict(tau=float(label[2:]), s=g["s_per_L"], err=g["s_per_L_err"],
+        out.append(dict(tau=label_ratio(label), s=g["s_per_L"], err=g["s_per_L_err"],
                         domain=f"{plus.get('behind', 3.0):g}+{plus.get('ahead', 2.0):g} L, "
                                f"ε = {abs(plus['eps']):g}",
                         mode=g.get("mode"), mode_xi=g.get("mode_xi")))
@@ -108,7 +110,7 @@ def main(argv=None):
                   f"**{r['extrapolated']:.4f} ± {r['uncertainty']:.1e}** | "
                   f"{r['extrapolated'] * unit_r:.3g} |")
         # law near τ_min from the refined values: s L/c = A (q − 1)^p, weighted
-        qn = np.array([float(r["label"][2:]) for r in nested])
+        qn = np.array([label_ratio(r["label"]) for r in nested])
         sn = np.array([r["extrapolated"] for r in nested])
         en = np.array([max(r["uncertainty"], 1e-3 * abs(r["extrapolated"])) for r in nested])
         fit = None
@@ -142,7 +144,7 @@ def main(argv=None):
         a.plot(x, np.abs(st), ":", color="0.5", lw=1,
                label="|translation eigenvalue| (exact 0: error indicator)")
         if nested:
-            a.errorbar([xf(float(r["label"][2:])) for r in nested],
+            a.errorbar([xf(label_ratio(r["label"])) for r in nested],
                        [r["extrapolated"] for r in nested],
                        yerr=[max(r["uncertainty"], 1e-4) for r in nested], fmt="s", color="C0",
                        ms=5, capsize=3, label="eigenvalue ± s_err (slippulse steady stability)")

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator
 
+from ..core.h5io import state_order_of
 from ..core.params import ParameterError
 
 #: Largest |ε| accepted for a mode-seeded run: ε is the largest change of y = ln(v/v*+1)
@@ -418,7 +419,7 @@ def local_neighbours(pulse, params, h: float = 2e-3):
         sol = solve_pulse(params, q, n_points=pulse.xi.size,
                           guess=(pulse.xi, np.log(pulse.v), pulse.beta), passes=0,
                           adapt_guess=False,
-                          state_order=int(pulse.extra.get("state_order", 2)))
+                          state_order=state_order_of(pulse))
         if not sol.stats.converged:
             raise SpectrumError(f"neighbour of {pulse.label} at tau_d/tau_min = {q:.6g} did not "
                                 "converge on its grid")

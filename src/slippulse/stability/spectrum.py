@@ -27,8 +27,9 @@ import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
 from ..core import friction as fr
+from ..core.h5io import UNSTORED_STATE_ORDER, state_order_of
 from ..steady.equations import RADAU_A, RADAU_C, integrate_state_radau, radau_stage_values
-from ..steady.hilbert import _tail_columns, add_times_slopes, hilbert_matrix
+from ..steady.hilbert import add_times_slopes, hilbert_matrix, tail_columns
 from .spectrum_kernels import (KernelTables, assemble_w, slip_coefficients4, state_rows4,
                                times_D4)
 
@@ -63,7 +64,7 @@ class ElasticOperator:
         H = hilbert_matrix(self.xi, center=center) if H is None else H
         self.H = H
         self._HS = None
-        behind, ahead = _tail_columns(self.xi, center)
+        behind, ahead = tail_columns(self.xi, center)
         self.H0 = H.copy()
         self.H0[:, 0] -= behind
         self.H0[:, -1] -= ahead
@@ -136,7 +137,7 @@ class StabilityOperator:
         p = params
         self.params = p
         self.pulse = pulse
-        order = int(pulse.extra.get("state_order", 2))
+        order = state_order_of(pulse)
         if order != 4:
             raise ValueError(f"pulse {pulse.label}: state_order={order}; the stability operator "
                              "needs an order-4 pulse (order4_pulse re-solves it)")
@@ -428,9 +429,9 @@ def order4_pulse(pulse, params):
     before issue 11, ``state_order`` 2) re-solved at order 4 on its own grid from its own ln v
     and β. Raises UsageError if that re-solve does not converge."""
     try:
-        order = int(pulse.extra.get("state_order", 2))
+        order = state_order_of(pulse)
     except (TypeError, ValueError):
-        order = 2
+        order = UNSTORED_STATE_ORDER
     if order == 4:
         return pulse
     from ..core.errors import UsageError
