@@ -5,6 +5,7 @@ import h5py
 import numpy as np
 import pytest
 
+from slippulse.cli.analyse import cmd_analyse
 from slippulse.steady import analysis as an
 from slippulse.core import h5io
 from slippulse.steady import modeii
@@ -392,13 +393,13 @@ def test_cmd_analyse_prints_table_and_writes(tmp_path, capsys):
     path = str(tmp_path / "fam.h5")
     for r, b, w in [(1.05, 0.3, 0.2), (1.03, 0.6, 0.4)]:
         h5io.write_pulse(path, _synthetic_pulse(r, b, w), P)
-    assert an.cmd_analyse(argparse.Namespace(file=path, no_write=False)) == 0
+    assert cmd_analyse(argparse.Namespace(file=path, no_write=False)) == 0
     out = capsys.readouterr().out
     assert "td1.0500" in out and "td1.0300" in out
     with h5py.File(path, "r") as h5:
         assert "family" in h5
     with pytest.raises(h5io.SchemaError):
-        an.cmd_analyse(argparse.Namespace(file=str(tmp_path / "nope.h5")))
+        cmd_analyse(argparse.Namespace(file=str(tmp_path / "nope.h5")))
 
 
 

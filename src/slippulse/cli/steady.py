@@ -367,7 +367,7 @@ def _check_file_params(args, path) -> None:
 
 
 def cmd_analyse(args) -> int:
-    from ..steady.analysis import cmd_analyse as run
+    from .analyse import cmd_analyse as run
     if os.path.isfile(args.file):
         _check_file_params(args, args.file)
     return run(args)

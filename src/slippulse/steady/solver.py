@@ -18,6 +18,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from .grid import build_grid
+from .measures import pulse_length
 from ..core.h5io import STATE_ORDER, Pulse
 from .newton import SOLVERS, SolveStats
 from ..core.params import ParameterError, Parameters
@@ -88,8 +89,8 @@ class SteadySolution:
 
 
 def fwhm(xi, v, v_star):
-    """Pulse length L (FWHM of ln(v/v*+1)); the one definition is :func:`analysis.pulse_length`."""
-    from .analysis import pulse_length
+    """Pulse length L (FWHM of ln(v/v*+1)); the one definition is :func:`measures.pulse_length`;
+    NaN where it does not exist."""
     try:
         return float(pulse_length(xi, v, v_star)[0])
     except ValueError:

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from ..analysis import pulse_length
+from ..measures import pulse_length
 from ..equations import SteadyProblem
 from ..newton import SolveStats, newton
 from ..solver import GridSpec, SteadySolution, front_pin, fwhm, regrid_guess
