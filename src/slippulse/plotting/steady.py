@@ -210,7 +210,9 @@ def fig3(data):
     xp = np.linspace(max(PAPER_SCALING["tau_star"] + 1e-4, x.min() - 0.002), x.max(), 400)
     bp, Lp = an.scaling_law(xp, params=prm, **PAPER_SCALING)
     h4, = ax.plot(xp, bp, ":", color="0.45", lw=1.2,
-                  label=r"paper's constants ($\tilde\tau_*$=1.0087, $a_v$=1.15, $a_G$=0.69)")
+                  label=(r"paper's constants ($\tilde\tau_*$=%.4f, $a_v$=%.2f, $a_G$=%.2f)"
+                         % (PAPER_SCALING["tau_star"], PAPER_SCALING["a_v"],
+                            PAPER_SCALING["a_G"])))
     ax2.semilogy(xp, Lp, ":", color="0.45", lw=1.2)
     handles.append(h4)
     ax.set_xlabel(r"$\tau_d/\tau_{min}$")
