@@ -42,7 +42,8 @@ from slippulse.core.h5io import list_pulses, read_pulse
 from slippulse.steady.hilbert import hilbert_matrix, hilbert_matrix_fft
 from slippulse.steady.newton import SOLVERS
 from slippulse.core.params import DEFAULT
-from slippulse.steady.solver import (GridSpec, adapted_grid, count_humps, default_guess, fwhm, front_pin,
+from slippulse.steady.measures import pulse_length
+from slippulse.steady.solver import (GridSpec, adapted_grid, count_humps, default_guess, front_pin,
                               interpolate, solve_pulse)
 from slippulse.steady.equations import SteadyProblem
 
@@ -113,7 +114,8 @@ def newton_on(r, xi, y, beta, H=None, hilbert="cubic", max_iter=60, method="newt
     res = prob.residual(x)[:-1]
     mr = float(np.max(np.abs(res))) if np.all(np.isfinite(res)) else float("inf")
     return dict(prob=prob, x=x, st=st, t_h=t_h, v=v, phi=phi, beta=float(x[-1]),
-                L=fwhm(xi, v, P.v_star), maxres=mr, conv=bool(st.converged and mr <= 1e-13),
+                L=pulse_length(xi, v, P.v_star, crossings=False), maxres=mr,
+                conv=bool(st.converged and mr <= 1e-13),
                 it=st.iterations, humps=count_humps(v))
 
 

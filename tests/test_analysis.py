@@ -516,3 +516,14 @@ def test_analyse_names_the_results_a_shallow_family_cannot_support(tmp_path, cap
     assert {str(an.SUPPORT_MIN["scaling"]), "4"} <= nums[1]
     # and the printed table carries the stored reasons, not numbers
     assert all(r in out for r in reasons)
+
+
+def test_pulse_length_one_definition_with_or_without_crossings():
+    """The solvers' L (``crossings=False``) is the analysis' L; NaN where no FWHM exists."""
+    xi = graded_grid(-40, 30, 0.0, 0.02, ratio=1.03)
+    v = P.v_star * (np.exp(np.log(51.0) / (1.0 + (xi / 2.0) ** 2)) - 1.0)
+    L, xl, xr = an.pulse_length(xi, v, P.v_star)
+    assert an.pulse_length(xi, v, P.v_star, crossings=False) == L and xl < 0 < xr
+    with pytest.raises(ValueError):
+        an.pulse_length(xi, np.full_like(xi, 1.0), P.v_star)
+    assert math.isnan(an.pulse_length(xi, np.full_like(xi, 1.0), P.v_star, crossings=False))

@@ -60,8 +60,9 @@ def _cumtrapz_from_right(x, u):
 
 
 # --------------------------------------------------------------------------- per-pulse quantities
-def pulse_length(xi, v, v_star):
-    """Pulse length L: the full width at half maximum of y(ξ) = ln(v/v* + 1).
+def pulse_length(xi, v, v_star, crossings=True):
+    """Pulse length L: the full width at half maximum of y(ξ) = ln(v/v* + 1). The one definition
+    of L: the solvers, the analysis and the dynamic runs all call it.
 
     Parameters
     ----------
@@ -71,13 +72,17 @@ def pulse_length(xi, v, v_star):
         Slip rate v(ξ), m/s.
     v_star : float
         Regularisation velocity v*, m/s.
+    crossings : bool
+        True (default): return (L, ξ_L, ξ_R), and raise ValueError where y does not fall below
+        half its maximum on both sides. False: return L alone, NaN where it does not exist (what
+        the solvers store).
 
     Returns
     -------
     L : float
         ξ_R − ξ_L, m.
     xi_left, xi_right : float
-        The two half-maximum crossings, m.
+        The two half-maximum crossings, m (only with ``crossings``).
 
     Notes
     -----
@@ -90,6 +95,11 @@ def pulse_length(xi, v, v_star):
     preserved. On a smooth profile this is accurate to a tiny fraction of the cell (tests: a
     Lorentzian with 30 cells across its width gives |ΔL|/Δξ < 1e-3, linear interpolation 3e-2).
     """
+    if not crossings:
+        try:
+            return float(pulse_length(xi, v, v_star)[0])
+        except ValueError:
+            return float("nan")
     xi, v = _as_arrays(xi, v)
     _check_grid(xi)
     y = np.log1p(v / v_star)

@@ -72,7 +72,7 @@ class SteadySolution:
         p = prob.params
         v, phi, tau, _ = prob.fields(self.x)
         res = prob.residual(self.x)[:-1]
-        L = fwhm(prob.xi, v, p.v_star)
+        L = pulse_length(prob.xi, v, p.v_star, crossings=False)
         return Pulse(
             xi=prob.xi.copy(), v=v, phi=phi, tau=tau, residual=res,
             tau_d_ratio=prob.tau_d_ratio, tau_d=prob.tau_d, tau_min=p.tau_min,
@@ -86,15 +86,6 @@ class SteadySolution:
                    "state_order": int(prob.state_order),
                    "n_humps": int(count_humps(v)),
                    "y_pin": float(prob.y_pin)})
-
-
-def fwhm(xi, v, v_star):
-    """Pulse length L (FWHM of ln(v/v*+1)); the one definition is :func:`measures.pulse_length`;
-    NaN where it does not exist."""
-    try:
-        return float(pulse_length(xi, v, v_star)[0])
-    except ValueError:
-        return float("nan")
 
 
 def count_humps(v, rel=1e-2):
@@ -171,7 +162,7 @@ def default_guess(params: Parameters, tau_d_ratio: float, n_points: int = 400, L
 
 def adapted_grid(xi, y, phi, beta, params, v_stick, n_points, spec: GridSpec = GridSpec()):
     """Grid adapted to a solution: spacing ∝ min(1/|∂ξ ln v|, 1/|∂ξ ln φ|, body·L), graded far away."""
-    L = fwhm(xi, np.exp(y), params.v_star)
+    L = pulse_length(xi, np.exp(y), params.v_star, crossings=False)
     if not np.isfinite(L) or L <= 0:
         raise RuntimeError("cannot measure the pulse length on this solution")
     k, _ = front_pin(xi, y, math.log(v_stick))
