@@ -1,7 +1,7 @@
 """Where the N-dependence of a deep pulse sits: refine one region at a time.
 
     python steady/locate_error.py FAMILY.h5 LABEL        (a pulse of the family file)
-    python steady/locate_error.py runs/deep4/arc_008.npz  (a step of steady/deep_march.py)
+    python steady/locate_error.py runs/deep/arc_008.npz  (a step of steady/deep_march.py)
 
 The cells of one region (:func:`slippulse.steady.continuation.gridcheck.regions`: ahead of the
 front, the leading edge ±0.01 L about the pin, the body (−0.9 L, −0.01 L], the healing front

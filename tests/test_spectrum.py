@@ -381,25 +381,26 @@ def test_family_spectra_labels_survive_a_failed_pulse(tmp_path, pulse12, params)
 
 def test_failed_refinement_is_reported_and_stores_no_number(tmp_path, pulse12, params,
                                                             monkeypatch):
-    import slippulse.steady.solver as solver
+    import slippulse.stability.refine as refine
     import slippulse.stability.spectrum as spm
     from slippulse.core.h5io import write_pulse
     from slippulse.stability.spectrum_family import run_spectrum
-    real = solver.refine_nested
+    real = refine.mapped_pulse
 
-    def failing(params_, pulse, **kw):
-        sol = real(params_, pulse, **kw)
+    def failing(params_, pulse, gmap, n, **kw):     # level 0 solves, level 1 does not
+        sol = real(params_, pulse, gmap, n, **kw)
         sol.stats.converged = False
         sol.stats.message = "no convergence (test)"
         return sol
 
-    monkeypatch.setattr(solver, "refine_nested", failing)
+    monkeypatch.setattr(refine, "mapped_pulse", failing)
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
     rep = run_spectrum(str(f), extra=False, levels=1, min_points=0)
     assert rep.failed == ["td1.2000"]
     st = spm.read_spectrum(str(f), "td1.2000")
     assert st["status"] == "failed" and "refinement failed" in st["message"]
+    assert "level 1" in st["message"] and "no convergence (test)" in st["message"]
     assert st["sigma"].size == 0 and "s" not in st and "s_err" not in st
 
 
@@ -433,19 +434,28 @@ def test_order2_pulse_is_resolved_at_order4_and_a_coarse_grid_refused(tmp_path, 
     assert r.returncode == 2 and "too coarse to refine" in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.fixture(scope="module")
+def default_family_to_1p02(tmp_path_factory, params):
+    """A family file made with the defaults of `slippulse steady family` from 1.2 to 1.02 τ_min
+    (≈ 5 min on 2 cores)."""
+    from slippulse.steady.continuation import run_family
+    f = str(tmp_path_factory.mktemp("fam") / "fam.h5")
+    run_family(params, f, 1.2, 1.02)
+    return f
+
+
 @pytest.mark.slow
-def test_default_family_pulse_near_1p0225_has_one_real_resolved_mode(tmp_path, params):
+def test_default_family_pulse_near_1p0225_has_one_real_resolved_mode(default_family_to_1p02):
     """Issue 17, item 2: on a family made with the defaults of `slippulse steady family`, a pulse
-    between 1.025 and 1.02 τ_min gives, with the command's defaults (level 0 at N ≥ 1500, one
-    nested level), one real unstable eigenvalue (before: a spurious complex pair) whose sign is
-    resolved (s > 2 s_err). Measured by hand on td1.0225 of a step-0.01 family: s L/c_p on
-    N = 1250/2499/4997 = 0.0358, 0.0285, 0.0299 (docs/spectrum.md §5). About 20 min on 2 cores."""
+    between 1.025 and 1.02 τ_min gives, with the command's defaults (level 0 at N ≥ 2000 on the
+    smooth map, two levels above), one real unstable eigenvalue (before issue 17: a spurious
+    complex pair) whose sign is resolved (s > 2 s_err), with an observed order. Measured on
+    td1.0200 of a step-0.01 family: s L/c_p on N = 1768/2500/3536 = 0.01510, 0.01728, 0.01778
+    (docs/spectrum.md §5). About 10 min on 2 cores with the family."""
     from slippulse.core.h5io import list_pulses, read_pulse
     from slippulse.stability.spectrum import read_spectrum
     from slippulse.stability.spectrum_family import run_spectrum
-    from slippulse.steady.continuation import run_family
-    f = str(tmp_path / "fam.h5")
-    run_family(params, f, 1.2, 1.02)                    # the command's defaults otherwise
+    f = default_family_to_1p02
     inside = [lab for lab in list_pulses(f) if 1.02 < read_pulse(f, lab)[0].tau_d_ratio < 1.025]
     assert inside, list_pulses(f)
     lab = inside[len(inside) // 2]
@@ -455,9 +465,37 @@ def test_default_family_pulse_near_1p0225_has_one_real_resolved_mode(tmp_path, p
     assert res.n_unstable == 1 and abs(res.leading.imag) < 1e-8 * abs(res.leading)
     st = read_spectrum(f, lab)
     assert st["sign_resolved"] == 1 and st["s"] > 2 * st["s_err"]
+    assert st["refine_rule"] == "three-level" and 3.0 < st["refine_order"] < 6.0
 
 
-def test_min_points_refines_a_coarse_pulse_before_level_0(tmp_path, pulse12, params):
+@pytest.mark.slow
+def test_observed_order_and_translation_at_1p05(default_family_to_1p02):
+    """Issue 17, item 1: on the ladder of the smooth map (N = 1414, 2000, 2828, 4000) the leading
+    eigenvalue at 1.05 τ_min converges with observed order ≥ 3.5 (measured 3.8) and the
+    translation eigenvalue (exact 0) falls with it (measured 1.4e-3, 3.6e-4, 8.9e-5, 2.2e-5
+    c_p/L). Nested refinement of the adapted grid gave 0.7101, 0.6563, 0.6653: no order."""
+    from slippulse.core.h5io import read_pulse
+    from slippulse.stability.refine import estimate, mapped_pulse, refine_leading
+    from slippulse.stability.spectrum import pulse_spectrum
+    from slippulse.steady.grid import GridMap
+    p, params_ = read_pulse(default_family_to_1p02, "td1.0500")
+    gmap = GridMap(p.xi)
+    p0 = mapped_pulse(params_, p, gmap, 1414).to_pulse()
+    first = pulse_spectrum(p0, params_, guesses=[0.66 * p0.c_p / p0.L], extra=False)
+    ref = refine_leading(p0, params_, first, gmap, levels=3)
+    assert ref.status == "converged", ref.message
+    assert ref.n_points == [1414, 2000, 2828, 3999]
+    s = np.array(ref.s_levels) / ref.rate_unit
+    d = np.diff(s)
+    orders = np.log(np.abs(d[:-1] / d[1:])) / np.log(np.sqrt(2.0))
+    assert np.all(d[:-1] * d[1:] > 0) and np.all(orders >= 3.5), (s, orders)
+    t = np.abs(np.array(ref.translation_levels)) / ref.rate_unit
+    assert np.all(np.diff(t) < 0) and t[-1] < 5e-5, t
+    val, err, order, rule = estimate(ref.s_levels)
+    assert rule == "three-level" and abs(val / ref.rate_unit - 0.6654) < 0.002
+
+
+def test_min_points_maps_a_coarse_pulse_before_level_0(tmp_path, pulse12, params):
     from slippulse.core.h5io import write_pulse
     from slippulse.stability.spectrum import read_spectrum
     from slippulse.stability.spectrum_family import run_spectrum
@@ -466,11 +504,14 @@ def test_min_points_refines_a_coarse_pulse_before_level_0(tmp_path, pulse12, par
     rep = run_spectrum(str(f), extra=False, levels=0, min_points=1000)
     assert rep.failed == []
     st = read_spectrum(str(f), "td1.2000")
-    assert st["n_points"] == 2 * pulse12.problem.n - 1 and st["setting_min_points"] == 1000
+    assert st["n_points"] == 1000 and st["setting_min_points"] == 1000
     assert 20.0 < st["leading_s_per_L"] < 25.0
     xr = pytest.importorskip("xarray")
     tree = xr.open_datatree(str(f), engine="h5netcdf")
     ds = tree["pulses/td1.2000/spectrum"].to_dataset()
-    # the modes of the nested grid are stored at the pulse's own nodes (every other one)
-    assert ds["lnv_real"].shape == (1, pulse12.problem.n)
-    assert st["xi"].size == pulse12.problem.n and st["lnv"].shape == (1, pulse12.problem.n)
+    # the modes of the mapped grid are stored on their own coordinate
+    assert ds["lnv_real"].shape == (1, 1000) and ds["xi_mode"].size == 1000
+    assert st["xi"].size == 1000 and st["lnv"].shape == (1, 1000)
+    assert st["xi"][0] == pulse12.problem.xi[0] and st["xi"][-1] == pulse12.problem.xi[-1]
+
+

@@ -310,14 +310,19 @@ def spectrum_line(label, res) -> str:
 
 
 def cmd_stability(args) -> int:
-    from ..stability.spectrum_family import check_family_file, run_spectrum
+    from ..stability.spectrum_family import (DEFAULT_LEVELS, MIN_SPECTRUM_POINTS,
+                                             check_family_file, run_spectrum)
     labels = args.labels or None
+    if args.levels is None:
+        args.levels = DEFAULT_LEVELS
+    if args.min_points is None:
+        args.min_points = MIN_SPECTRUM_POINTS
     if not (isinstance(args.min_points, int) and 0 <= args.min_points <= 8000):
         raise ParameterError(f"min-points={args.min_points!r} is invalid: must be an integer in "
                              "[0, 8000] (smallest N of the spectrum's first level)")
-    if not (isinstance(args.levels, int) and 0 <= args.levels <= 3):
-        raise ParameterError(f"levels={args.levels!r} is invalid: must be an integer in [0, 3] "
-                             "(nested refinements for the error estimate)")
+    if not (isinstance(args.levels, int) and 0 <= args.levels <= 6):
+        raise ParameterError(f"levels={args.levels!r} is invalid: must be an integer in [0, 6] "
+                             "(levels N_0 sqrt(2)^k above level 0 for the error estimate)")
     box = None
     if args.count is not None:
         box = tuple(args.count)
@@ -359,6 +364,69 @@ def cmd_stability(args) -> int:
         plot_family_spectrum(args.file, args.figure)
         print(f"figure: {args.figure}")
     return 1 if rep.failed else 0
+
+
+def cmd_rates(args) -> int:
+    import numpy as np
+
+    from ..stability.law import family_rates, fit_power_law, fit_shifted_power_law
+    from ..stability.spectrum_family import check_family_file
+    if not (math.isfinite(args.below) and 1.0 < args.below <= 2.0):
+        raise ParameterError(f"below={args.below!r} is invalid: must be in (1, 2] "
+                             "(tau_d/tau_min)")
+    if args.tau_star is not None and not (math.isfinite(args.tau_star)
+                                          and 0.9 < args.tau_star < 1.1):
+        raise ParameterError(f"tau-star={args.tau_star!r} is invalid: must be in (0.9, 1.1)")
+    if args.figure:
+        check_figure(args.figure, "--figure")
+    check_family_file(args.file)
+    _check_file_params(args, args.file)
+    r = family_rates(args.file)
+    if r["tau_d_ratio"].size == 0:
+        raise UsageError(f"{args.file}: no growth rate with an error estimate stored; run "
+                         "`slippulse steady stability FILE` first")
+    x, y, e = r["tau_d_ratio"], r["s_per_L"], r["s_err_per_L"]
+    for k in range(x.size):
+        sign = ("unstable" if y[k] > 2 * e[k] else "stable" if y[k] < -2 * e[k]
+                else "sign not resolved")
+        print(f"{r['label'][k]}: L = {r['L'][k]:.4g} m, s L/c_p = {y[k]:.4g} ± {e[k]:.1g}, "
+              f"s = {r['s'][k]:.4g} ± {r['s_err'][k]:.1g} 1/s: {sign}")
+    res = r["sign_resolved"] == 1
+    n_un, n_st = int(np.sum(res & (y > 0))), int(np.sum(res & (y < 0)))
+    win = (x <= args.below) & res & (y > 0)
+    fits, parts = {}, []
+    tau_star = args.tau_star
+    try:
+        if tau_star is None:
+            sh = fit_shifted_power_law(x[win], y[win], e[win], lo=1.0)
+            tau_star = sh.x_star
+            fits["shift"] = sh.law
+            parts.append(f"tau_star = {sh.x_star:.5f} ± {sh.x_star_err:.1g} (fitted), "
+                         + sh.law.describe("(tau_d/tau_min - tau_star)", "s L/c_p"))
+        else:
+            fits["shift"] = fit_power_law(x[win] - tau_star, y[win], e[win])
+            parts.append(f"tau_star = {tau_star:.5f} (given), "
+                         + fits["shift"].describe("(tau_d/tau_min - tau_star)", "s L/c_p"))
+        fits["one"] = fit_power_law(x[win] - 1.0, y[win], e[win])
+        parts.append(fits["one"].describe("(tau_d/tau_min - 1)", "s L/c_p"))
+        fits["L"] = fit_power_law(r["L"][win], y[win], e[win])
+        parts.append(fits["L"].describe("L/m", "s L/c_p"))
+    except ValueError as exc:
+        parts.append(f"no fit: {exc}")
+    for line in parts:
+        print("fit: " + line)
+    if args.figure and tau_star is not None:
+        from ..plotting.rates import plot_rates
+        plot_rates(r, fits, args.figure, tau_star)
+        print(f"figure: {args.figure}")
+    cross = ("s changes sign" if n_un and n_st else
+             "s does not cross zero (unstable at every resolved pulse)" if n_un and not n_st else
+             "no resolved unstable pulse")
+    lo = x[res].min() if np.any(res) else float("nan")
+    print(f"rates {args.file}: {x.size} pulses, unstable at {n_un}, stable at {n_st}, sign not "
+          f"resolved at {x.size - n_un - n_st}; {cross} down to tau_d/tau_min = {lo:.6f} "
+          f"(L = {r['L'][x == lo][0] if np.any(res) else float('nan'):.4g} m)")
+    return 0
 
 
 def _check_file_params(args, path) -> None:
@@ -469,7 +537,9 @@ def register(sub) -> None:
                                   "solution alone (nonlinear eigenproblem on the pulse's grid, "
                                   "docs/spectrum.md; the rates of record: docs/stability.md "
                                   "section 9.0). The leading growth rate s comes with an "
-                                  "error s_err measured by nested refinement; where |s| < 2 s_err "
+                                  "error s_err measured on a ladder of grids of one smooth map of "
+                                  "the pulse's grid (N_0, sqrt(2) N_0, 2 N_0, ...; observed order "
+                                  "and Roache's grid convergence index); where |s| < 2 s_err "
                                   "its sign is reported as not resolved. Results go into each "
                                   "pulse's group ('spectrum'); rerunning resumes.")
     p.add_argument("file", metavar="FILE", help="HDF5 pulse or family file")
@@ -478,14 +548,15 @@ def register(sub) -> None:
     p.add_argument("--overwrite", action="store_true", help="recompute stored spectra")
     p.add_argument("--no-extra", action="store_true",
                    help="only the leading eigenvalue (skip the search below it)")
-    p.add_argument("--levels", type=int, default=1,
-                   help="nested refinements of each pulse's grid (N -> 2N-1) for the error of "
-                        "the leading growth rate: s is the finest level's, s_err the last change "
-                        "(default 1; 0: no estimate)")
-    p.add_argument("--min-points", type=int, default=1500,
-                   help="refine (nested, N -> 2N-1) a pulse with fewer points before its first "
-                        "level (default 1500: the family's N = 1000/1250 grids give unreliable "
-                        "eigenvalues near tau_min; 0: use the pulse's own grid)")
+    p.add_argument("--levels", type=int, default=None,
+                   help="levels above level 0 (N_0 sqrt(2)^k points, the pulse re-solved on one "
+                        "smooth map of its grid) for the error of the leading growth rate: s is "
+                        "the finest level's; s_err from the observed order with 2 levels or more "
+                        "(default 2; 0: no estimate; docs/spectrum.md section 5)")
+    p.add_argument("--min-points", type=int, default=None,
+                   help="level 0 has N_0 = max(N, MIN_POINTS) points (default 2000: coarser "
+                        "levels are not yet in the asymptotic "
+                        "range near tau_min; 0: the pulse's own N)")
     p.add_argument("--count", type=float, nargs=3, default=None, metavar=("X0", "X1", "Y1"),
                    help="also count the eigenvalues with X0 <= Re sigma L/c_p <= X1, "
                         "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "
@@ -495,6 +566,23 @@ def register(sub) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_stability)
+
+    p = ss.add_parser("rates", help="growth rates of record along a family, and their laws",
+                      description="Reads the growth rates s +- s_err stored by `slippulse steady "
+                                  "stability` in FILE, states where the sign is resolved and "
+                                  "whether s crosses zero, and fits s L/c_p = A x^n (weighted, "
+                                  "in log space; errors Birge-scaled) against x = tau_d/tau_min - "
+                                  "tau_star (tau_star fitted too unless given) and against L, on "
+                                  "the pulses with tau_d/tau_min <= --below (docs/stability.md "
+                                  "section 9.0).")
+    p.add_argument("file", metavar="FILE", help="HDF5 family file with stored spectra")
+    p.add_argument("--below", type=float, default=1.05,
+                   help="fit the pulses with tau_d/tau_min <= BELOW (default 1.05)")
+    p.add_argument("--tau-star", type=float, default=None,
+                   help="tau_star (tau_d/tau_min where L diverges) to use instead of fitting it")
+    p.add_argument("--figure", default=None, metavar="PNG", help="draw the rates and the fits")
+    add_params_args(p)
+    p.set_defaults(func=cmd_rates)
 
     p = ss.add_parser("analyse", help="analyse a pulse family file",
                       description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "

@@ -1,20 +1,27 @@
 """The leading growth rate with an error estimate it measures itself (docs/spectrum.md §5).
 
-The eigenvalue s of a pulse is computed on the pulse's own grid (level 0) and on its nested
-refinements (level k: the grid of level k − 1 with the midpoints inserted, N → 2N − 1, the steady
-equations re-solved by Newton on it, :func:`slippulse.steady.solver.refine_nested`). The discrete
-eigenvalue converges smoothly under nested refinement (unlike on re-adapted grids), but near τ_min
-not yet monotonically at the sizes this machine affords (docs/spectrum.md §5), so the estimate is
-the plain one that needs no assumed order:
+The eigenvalue s of a pulse is computed on a ladder of grids sampled from one smooth map of the
+pulse's grid (:class:`slippulse.steady.grid.GridMap`): level k has N_k = N_0 r^k points,
+r = √2, and the steady equations re-solved by Newton on it. Grids of one smooth map give
+discretisation errors that fall as a power of N (measured at 1.05 and 1.02 τ_min: order 3.8 and
+4.3, docs/spectrum.md §5); nested refinement of the adapted grid, which keeps its spacing
+jumps, did not (the sequence was not monotone).
 
-    s = s_K (the finest level),   s_err = |s_K − s_{K−1}|,
+The estimate (three levels or more; Roache's grid convergence index for three grids): with the
+last two corrections d₁ = s_{K−1} − s_{K−2}, d₂ = s_K − s_{K−1} of one sign and |d₂| < |d₁|, the
+observed order is p = ln(d₁/d₂)/ln r, and where 1 ≤ p ≤ 8
 
-i.e. the last correction is taken as the size of the remaining error. With three levels or more
-the observed order is reported as well (log₂ of the ratio of the last two corrections, where they
-have one sign); it is not used to shrink the error bar.
+    s = s_K,   s_err = F_s |d₂| / (r^p − 1),   F_s = 1.25,
+
+which covers the Richardson extrapolation s_K + d₂/(r^p − 1) with a margin. Otherwise (two
+levels, corrections of opposite sign or growing, p outside [1, 8]) the plain estimate that
+assumes no order:
+
+    s = s_K,   s_err = |d₂|   (the last correction).
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -22,11 +29,42 @@ import numpy as np
 
 from ..core.errors import UsageError
 from ..steady import solver
+from ..steady.grid import GridMap
 from .spectrum import order4_pulse, pulse_spectrum  # noqa: F401 (order4_pulse: re-exported)
 
-#: The error estimate needs a nested level of at least this many points below it (and the
-#: finest level must fit the dense solver, :data:`slippulse.steady.solver.MAX_POINTS`).
+#: The error estimate needs a pulse of at least this many points to map.
 MIN_REFINE_POINTS = 200
+#: Ratio of the point counts of consecutive levels.
+LEVEL_RATIO = math.sqrt(2.0)
+#: Factor of safety of the three-level estimate (grid convergence index, Roache 1998).
+SAFETY = 1.25
+#: Observed orders accepted by the three-level estimate.
+ORDER_BOUNDS = (1.0, 8.0)
+
+
+def level_points(n0, levels):
+    """Point counts of levels 0..levels: N_k = round(N_0 r^k), r = :data:`LEVEL_RATIO`."""
+    return [int(round(n0 * LEVEL_RATIO ** k)) for k in range(int(levels) + 1)]
+
+
+def estimate(s_levels, ratio=LEVEL_RATIO):
+    """(s, s_err, order, rule) from the eigenvalue per level (see the module's docstring).
+
+    rule is 'three-level' (order observed and used) or 'last correction'; order is nan when
+    none is observed."""
+    s = [float(x) for x in s_levels]
+    if len(s) < 2:
+        raise ValueError("an error estimate needs at least two levels")
+    d2 = s[-1] - s[-2]
+    if len(s) >= 3:
+        d1 = s[-2] - s[-3]
+        if d1 * d2 > 0 and abs(d2) < abs(d1):
+            p = math.log(abs(d1 / d2)) / math.log(ratio)
+            if ORDER_BOUNDS[0] <= p <= ORDER_BOUNDS[1]:
+                return s[-1], SAFETY * abs(d2) / (ratio ** p - 1.0), p, "three-level"
+        elif d2 == 0.0 and d1 == 0.0:
+            return s[-1], 0.0, float("nan"), "last correction"
+    return s[-1], abs(d2), float("nan"), "last correction"
 
 
 @dataclass
@@ -34,13 +72,15 @@ class RefinedRate:
     """The leading eigenvalue with its measured uncertainty (1/s), and the levels it came from."""
 
     s: float                         # Re σ of the finest level, 1/s
-    s_err: float                     # |s_K − s_{K−1}|, 1/s
+    s_err: float                     # its uncertainty (module docstring), 1/s
     rate_unit: float                 # c_p/L of the finest level, 1/s
     n_points: list = field(default_factory=list)
     s_levels: list = field(default_factory=list)        # Re σ per level, 1/s
     imag_levels: list = field(default_factory=list)     # Im σ per level, 1/s
     translation_levels: list = field(default_factory=list)   # σ_t per level, 1/s
-    order: float = float("nan")      # observed order from the last three levels (nan if < 3)
+    order: float = float("nan")      # observed order from the last three levels (nan if none)
+    rule: str = ""                   # 'three-level' or 'last correction'
+    ratio: float = LEVEL_RATIO       # N_{k+1}/N_k
     status: str = "converged"
     message: str = ""
     wall_time: float = 0.0
@@ -55,7 +95,7 @@ class RefinedRate:
         return self.s / self.rate_unit, self.s_err / self.rate_unit
 
     def describe(self) -> str:
-        """'s L/c_p = 0.656 ± 0.054' or 'sign not resolved (s L/c_p in [a, b])'."""
+        """'s L/c_p = 0.6653 ± 0.0002' or 'sign not resolved (s L/c_p in [a, b])'."""
         s, e = self.per_length()
         if self.status != "converged":
             return f"refinement failed: {self.message}"
@@ -64,29 +104,41 @@ class RefinedRate:
         return f"s L/c_p = {s:.4g} ± {e:.1g}"
 
 
-def check_refinable(pulse, levels):
-    """Refuse a pulse whose grid cannot carry the nested levels (too coarse, or too large)."""
+def check_refinable(pulse, levels, min_points=0):
+    """Refuse a pulse whose grid cannot carry the levels (too coarse to map, or too large)."""
     n = int(pulse.n_points)
     if n < MIN_REFINE_POINTS:
         raise UsageError(f"pulse {pulse.label}: N = {n} is too coarse to refine; the error "
                          f"estimate needs N >= {MIN_REFINE_POINTS} (re-solve with more --points)")
-    finest = n
-    for _ in range(levels):
-        finest = 2 * finest - 1
+    finest = level_points(max(n, int(min_points)), levels)[-1]
     if finest > solver.MAX_POINTS:
-        raise UsageError(f"pulse {pulse.label}: N = {n} refined {levels} time(s) is {finest} > "
-                         f"{solver.MAX_POINTS} points (dense solver); use --levels "
-                         f"{max(levels - 1, 1)} or a coarser pulse")
+        raise UsageError(f"pulse {pulse.label}: N = {max(n, int(min_points))} refined {levels} "
+                         f"time(s) is {finest} > {solver.MAX_POINTS} points (dense solver); use "
+                         f"fewer --levels or a smaller --min-points")
 
 
-def refine_leading(pulse, params, first, levels=1, tol=1e-7, progress=None):
-    """The leading eigenvalue on `levels` nested refinements of the pulse's grid.
+def mapped_pulse(params, pulse, gmap, n, tol=1e-13):
+    """The pulse re-solved (steady Newton, state order 4) on the grid ``gmap(n)``, started from
+    its ln v interpolated there. Returns a :class:`slippulse.steady.solver.SteadySolution`."""
+    t0 = time.perf_counter()
+    xi = gmap(n)
+    v_st = params.v_stick(pulse.tau_d_ratio * params.tau_min)
+    y = solver.interpolate(np.asarray(pulse.xi, float), np.log(np.asarray(pulse.v, float)), xi,
+                           v_st)
+    prob, x, stats = solver.solve_on_grid(params, pulse.tau_d_ratio, xi, y, pulse.beta, tol=tol,
+                                          state_order=4)
+    return solver.SteadySolution(prob, x, stats, time.perf_counter() - t0, 0)
+
+
+def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None):
+    """The leading eigenvalue on `levels` further levels of the map `gmap`.
 
     Parameters
     ----------
-    pulse : Pulse (order 4)
-    first : PulseSpectrum of the pulse on its own grid (level 0), with its leading mode.
-    levels : number of nested refinements (≥ 1).
+    pulse : Pulse (order 4) of level 0, solved on ``gmap(pulse.n_points)``.
+    first : PulseSpectrum of `pulse` (level 0), with its leading mode.
+    gmap : :class:`slippulse.steady.grid.GridMap` shared by all levels.
+    levels : number of levels above level 0 (≥ 1; 2 or more for an observed order).
     progress : callable(str) or None, told about each level.
 
     Returns
@@ -99,22 +151,28 @@ def refine_leading(pulse, params, first, levels=1, tol=1e-7, progress=None):
                       [lead.real], [lead.imag], [float(first.neutral[1].real)])
     p = pulse
     mode = first.modes[0]["V"] if first.modes else None
-    for lev in range(1, levels + 1):
-        sol = solver.refine_nested(params, p)
+    for lev, n in enumerate(level_points(pulse.n_points, levels)[1:], start=1):
+        sol = mapped_pulse(params, p, gmap, n)
         if not sol.stats.converged:
             out.status = "failed"
-            out.message = (f"steady Newton on nested level {lev} (N = {sol.problem.n}) did not "
+            out.message = (f"steady Newton on level {lev} (N = {sol.problem.n}) did not "
                            f"converge: {sol.stats.message}")
             break
         q = sol.to_pulse()
         guess = lead * (q.c_p / q.L) / (p.c_p / p.L)
         gmode = None
-        if mode is not None:               # the coarse mode, interpolated to the refined grid
+        if mode is not None:               # the coarser level's mode, interpolated
             gmode = [np.interp(q.xi, p.xi, mode.real) + 1j * np.interp(q.xi, p.xi, mode.imag)]
         res = pulse_spectrum(q, params, guesses=[guess], extra=False, tol=tol, guess_modes=gmode)
         if res.status != "converged" or res.sigmas.size == 0:
             out.status = "failed"
-            out.message = f"eigen-solve on nested level {lev} (N = {q.n_points}): {res.message}"
+            out.message = f"eigen-solve on level {lev} (N = {q.n_points}): {res.message}"
+            break
+        if abs(res.leading - guess) > 0.5 * max(abs(guess), 1e-3 * res.rate_unit):
+            out.status = "failed"
+            out.message = (f"level {lev} (N = {q.n_points}) gave sigma L/c = "
+                           f"{res.leading / res.rate_unit:.4g}, not the continuation of level "
+                           f"{lev - 1}'s {guess / res.rate_unit:.4g}")
             break
         lead = res.leading
         mode = res.modes[0]["V"]
@@ -125,15 +183,11 @@ def refine_leading(pulse, params, first, levels=1, tol=1e-7, progress=None):
         out.translation_levels.append(float(res.neutral[1].real))
         out.rate_unit = res.rate_unit
         if progress:
-            progress(f"level {lev}: N={q.n_points} s L/c={lead.real / res.rate_unit:.5g}")
+            progress(f"level {lev}: N={q.n_points} s L/c={lead.real / res.rate_unit:.6g}")
     if out.status == "converged":
-        s = out.s_levels
-        out.s = s[-1]
-        out.s_err = abs(s[-1] - s[-2])
-        if len(s) >= 3:
-            d1, d2 = s[-2] - s[-3], s[-1] - s[-2]
-            if d1 * d2 > 0 and d2 != 0:
-                out.order = float(np.log2(abs(d1 / d2)))
-        out.message = (f"{len(s)} levels, N = {'/'.join(str(n) for n in out.n_points)}")
+        out.s, out.s_err, out.order, out.rule = estimate(out.s_levels)
+        out.message = (f"{len(out.s_levels)} levels, N = "
+                       f"{'/'.join(str(n) for n in out.n_points)}, {out.rule}"
+                       + (f" (order {out.order:.2f})" if out.rule == "three-level" else ""))
     out.wall_time = time.perf_counter() - t0
     return out

@@ -33,14 +33,15 @@ from .eigensolve import Eigen, linearised_candidates, neutral_modes, newton_eige
 from .operators import ElasticOperator, StabilityOperator, slope_matrix, symbol
 from .spectrum_store import MODE_FIELDS, SPECTRUM_GROUP, read_spectrum, write_spectrum
 
-__all__ = ["DEFAULT_SHIFTS", "MIN_RE", "MODE_FIELDS", "SPECTRUM_GROUP", "Eigen", "ElasticOperator",
-           "PulseSpectrum", "StabilityOperator", "linearised_candidates", "neutral_modes",
+__all__ = ["DEFAULT_SHIFTS", "MIN_RE", "MODE_FIELDS", "SPECTRUM_GROUP", "TRACK_FLOOR", "Eigen",
+           "ElasticOperator", "PulseSpectrum", "StabilityOperator", "linearised_candidates", "neutral_modes",
            "newton_eigen", "order4_pulse", "pulse_spectrum", "read_spectrum", "slope_matrix",
            "symbol", "write_spectrum"]
 
 
 DEFAULT_SHIFTS = (25.0, 8.0, 2.0, 0.5, 0.15, 0.05)   # first search shifts, in units of c_p/L
 MIN_RE = 1e-3                              # eigenvalues with Re σ < MIN_RE c/L are not sought
+TRACK_FLOOR = 0.1                          # ... except a tracked one, down to this × its guess
 
 
 @dataclass
@@ -138,27 +139,30 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
     unit = op.rate_unit
     found, failures, iters = [], [], 0
 
-    def add(cand_sig, cand_vec, max_iter=12):
+    def add(cand_sig, cand_vec, max_iter=12, floor=MIN_RE):
         nonlocal iters
-        if not cand_sig.real > MIN_RE * unit:
+        if not cand_sig.real > floor * unit:
             return
         if any(abs(cand_sig - f.sigma) < 1e-3 * max(abs(f.sigma), unit) for f in found):
             return
-        eig = newton_eigen(op, cand_sig, cand_vec, tol=tol, min_re=MIN_RE * unit,
+        eig = newton_eigen(op, cand_sig, cand_vec, tol=tol, min_re=floor * unit,
                            max_iter=max_iter)
         iters += eig.iterations
         if not eig.converged:
             failures.append(f"from {cand_sig / unit:.4g} c/L: {eig.message}")
             return
-        if eig.sigma.real > MIN_RE * unit and not any(
+        if eig.sigma.real > floor * unit and not any(
                 abs(eig.sigma - f.sigma) < 1e-6 * max(abs(f.sigma), unit) for f in found):
             found.append(eig)
 
     tracked = [complex(g) for g in guesses]
     if guess_modes is not None:
+        # a tracked eigenvalue is followed below MIN_RE c/L (deep pulses: s L/c_p ≪ 1e-3), down
+        # to a tenth of its guess, which keeps Newton off the translation mode at σ = 0
         for g, v in zip(tracked, guess_modes):
-            if v is not None and g.real > MIN_RE * unit:
-                add(g, np.asarray(v, complex))
+            floor = min(MIN_RE, TRACK_FLOOR * g.real / unit)
+            if v is not None and floor > 0:
+                add(g, np.asarray(v, complex), floor=floor)
     # Arnoldi at the tracked shifts, then (if they gave nothing) at the default shifts
     for sa in tracked + [complex(q * unit) for q in DEFAULT_SHIFTS]:
         if found:

@@ -2,7 +2,7 @@
 count (``slippulse steady stability``; method: docs/spectrum.md).
 
 Per pulse: :func:`slippulse.stability.spectrum.pulse_spectrum` on the pulse's grid (tracked from
-its neighbour), :func:`slippulse.stability.refine.refine_leading` on nested refinements (s ± s_err),
+its neighbour), :func:`slippulse.stability.refine.refine_leading` on a ladder of mapped grids (s ± s_err),
 :func:`slippulse.stability.count.count_unstable` if asked; stored by
 :func:`slippulse.stability.spectrum.write_spectrum` in the pulse's group, resumable.
 """
@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.h5io import label_ratio
-from ..steady import solver
+from ..steady.grid import GridMap
 from .count import count_unstable
-from .refine import check_refinable, refine_leading
+from .refine import check_refinable, mapped_pulse, refine_leading
 from .spectrum import (MIN_RE, PulseSpectrum, order4_pulse, pulse_spectrum, read_spectrum,
                        write_spectrum)
 
@@ -78,22 +78,22 @@ def check_family_file(path, labels=None):
     return good, params
 
 
-#: Default smallest N of the spectrum's level 0: coarser pulse grids are refined (nested) first.
-#: Measured on the default family (N = 1000/1250): level 0 on the pulse's own grid gives
-#: s L/c_p = 0.219 at 1.03 τ_min (0.10 refined) and fails at 1.025 (docs/spectrum.md §5).
-MIN_SPECTRUM_POINTS = 1500
+#: Default smallest N of the spectrum's level 0 (a pulse with fewer points is mapped onto this
+#: many). Measured at 1.02 τ_min on the smooth map of the default family's N = 1250 grid:
+#: s L/c_p = 0.0923, 0.0151, 0.01728, 0.01778 at N = 1250, 1768, 2500, 3536; the corrections fall
+#: as N^−4.3 from N ≈ 1800 on (docs/spectrum.md §5).
+MIN_SPECTRUM_POINTS = 2000
+#: Default number of levels above level 0 (three levels: the observed order enters s_err).
+DEFAULT_LEVELS = 2
 
 
-def _at_least(pulse, params, min_points):
-    """The pulse on nested refinements of its grid until N ≥ min_points; (pulse, '') or
-    (pulse, why) when a steady re-solve fails."""
-    while pulse.n_points < min_points:
-        sol = solver.refine_nested(params, pulse)
-        if not sol.stats.converged:
-            return pulse, (f"steady re-solve on the nested grid (N = {sol.problem.n}, "
-                           f"--min-points {min_points}) did not converge: {sol.stats.message}")
-        pulse = sol.to_pulse()
-    return pulse, ""
+def _level0(pulse, params, gmap, n0):
+    """Level 0: the pulse re-solved on ``gmap(n0)``; (pulse, '') or (pulse, why) on failure."""
+    sol = mapped_pulse(params, pulse, gmap, n0)
+    if not sol.stats.converged:
+        return pulse, (f"steady re-solve on the mapped grid (N = {n0}) did not converge: "
+                       f"{sol.stats.message}")
+    return sol.to_pulse(), ""
 
 
 def _failed(label, pulse, message):
@@ -103,7 +103,8 @@ def _failed(label, pulse, message):
 
 
 def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progress=None,
-                 levels=1, count_box=None, level_progress=None, min_points=MIN_SPECTRUM_POINTS):
+                 levels=DEFAULT_LEVELS, count_box=None, level_progress=None,
+                 min_points=MIN_SPECTRUM_POINTS):
     """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
 
     Pulses are taken by decreasing τ_d; each starts from its neighbour's eigenvalues at equal
@@ -111,23 +112,25 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
     settings is kept (resume) unless `overwrite`. A failed eigen-solve stores its status and
     message and no eigenvalues. progress(label, result or None, stored dict or None).
 
-    levels : nested refinements of each pulse's grid for the leading eigenvalue's error estimate
-        (:func:`slippulse.stability.refine.refine_leading`); a refinement that fails marks the
-        pulse failed and stores no eigenvalue. 0 skips the estimate (no s, s_err stored).
+    levels : levels above level 0 for the leading eigenvalue's error estimate
+        (:func:`slippulse.stability.refine.refine_leading`: grids of N_0 √2^k points sampled from
+        one smooth map of the pulse's grid, :class:`slippulse.steady.grid.GridMap`); a level
+        that fails marks the pulse failed and stores no eigenvalue. 0 skips the estimate (no s,
+        s_err stored).
     count_box : (x0, x1, y1) in c_p/L, or None: also count the eigenvalues in that box by the
         argument principle (:func:`slippulse.stability.count.count_unstable`), on the pulse's grid.
         x1 and y1 are raised to 1.5 times the leading s L/c_p where that is larger.
     level_progress : callable(str) or None, told about each refinement level / count evaluation.
-    min_points : a pulse with fewer points is refined (nested, N → 2N − 1, the steady equations
-        re-solved) until it has at least this many before level 0; a re-solve that fails marks
-        the pulse failed.
+    min_points : level 0 has N_0 = max(N, min_points) points (the steady equations re-solved on
+        the map; with levels = 0 and N ≥ min_points, the pulse's own grid); a re-solve that
+        fails marks the pulse failed.
     """
     from ..core.h5io import read_pulse
     t0 = time.perf_counter()
     chosen, params = check_family_file(path, labels)
     settings = {"tol": tol, "extra": int(bool(extra)), "min_re_c_over_L": MIN_RE,
                 "levels": int(levels), "count": int(count_box is not None),
-                "min_points": int(min_points)}
+                "min_points": int(min_points), "ladder": "smooth map, ratio sqrt(2)"}
     prev_mode = None                                     # (ξ/L, V₁) of the last pulse's leading mode
     rep = SpectrumReport()
     prev = None                                          # (σ array, c/L) of the last pulse
@@ -142,9 +145,13 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
             continue
         pulse, _ = read_pulse(path, lab)
         if levels:
-            check_refinable(pulse, levels)
+            check_refinable(pulse, levels, min_points)
         pulse = order4_pulse(pulse, params)
-        pulse, why = _at_least(pulse, params, min_points)
+        n0 = max(int(pulse.n_points), int(min_points))
+        gmap = why = None
+        if levels or n0 != pulse.n_points:
+            gmap = GridMap(pulse.xi)
+            pulse, why = _level0(pulse, params, gmap, n0)
         if why:
             res = _failed(lab, pulse, why)
             write_spectrum(path, res, settings)
@@ -165,7 +172,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         res = pulse_spectrum(pulse, params, guesses=guesses, extra=extra, tol=tol, label=lab,
                              guess_modes=modes)
         if res.status == "converged" and res.sigmas.size and levels:
-            res.refined = refine_leading(pulse, params, res, levels, tol=tol,
+            res.refined = refine_leading(pulse, params, res, gmap, levels, tol=tol,
                                          progress=level_progress)
             if res.refined.status != "converged":
                 res.status = "failed"

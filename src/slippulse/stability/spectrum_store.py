@@ -55,6 +55,8 @@ def write_spectrum(path, res, settings: dict):
             g.attrs["refine_imag_levels"] = np.asarray(ref.imag_levels, dtype=float)
             g.attrs["refine_translation_levels"] = np.asarray(ref.translation_levels, float)
             g.attrs["refine_order"] = ref.order
+            g.attrs["refine_rule"] = ref.rule
+            g.attrs["refine_level_ratio"] = float(ref.ratio)
             if ref.status == "converged":
                 g.attrs["s"] = ref.s
                 g.attrs["s_err"] = ref.s_err

@@ -1,0 +1,55 @@
+"""The growth rates of record along a family, on log axes, with their power-law fits
+(``slippulse steady rates``; docs/stability.md §9.0)."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def plot_rates(rates, fits, out, tau_star, dpi=130):
+    """Three panels: s L/c_p against τ_d/τ_min − τ̃* and against L (log–log, error bars, fits),
+    and s L/c_p against τ_d/τ_min (linear, the sign). `rates`: :func:`stability.law.family_rates`;
+    `fits`: dict name → PowerLaw (keys 'shift', 'L') or None."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    x = rates["tau_d_ratio"]
+    y, e = rates["s_per_L"], rates["s_err_per_L"]
+    pos = y > 0
+    fig, ax = plt.subplots(1, 3, figsize=(14, 4.3))
+    for a, xv, name, xl in ((ax[0], x - tau_star, "shift",
+                             f"τ_d/τ_min − τ̃*  (τ̃* = {tau_star:.5f})"),
+                            (ax[1], rates["L"], "L", "pulse length L (m)")):
+        m = pos & (xv > 0)
+        a.errorbar(xv[m], y[m], yerr=np.minimum(e[m], 0.999 * y[m]), fmt="o", ms=4, color="C0",
+                   ecolor="C0", capsize=2, label="s L/c_p ± s_err (spectrum)")
+        f = fits.get(name)
+        if f is not None:
+            xx = np.geomspace(f.x_range[0], f.x_range[1], 100)
+            a.plot(xx, f(xx), "-", color="C3",
+                   label=f"fit: ∝ x^({f.n:.2f} ± {f.n_err:.2f})")
+        a.set_xscale("log")
+        a.set_yscale("log")
+        a.set_xlabel(xl)
+        a.set_ylabel("growth per pulse length  s L/c_p")
+        a.grid(True, which="both", alpha=0.3)
+        a.legend(fontsize=8, loc="best")
+    ax[0].set_title("(a) growth rate against the distance to τ̃*")
+    ax[1].set_title("(b) against the pulse length")
+    a = ax[2]
+    a.axhline(0.0, color="0.4", lw=1)
+    a.errorbar(x, y, yerr=e, fmt="o", ms=4, color="C0", capsize=2)
+    bad = rates["sign_resolved"] == 0
+    if np.any(bad):
+        a.errorbar(x[bad], y[bad], yerr=e[bad], fmt="x", ms=6, color="C1", capsize=2,
+                   label="sign not resolved")
+        a.legend(fontsize=8)
+    a.axvline(tau_star, color="C3", ls="--", lw=1)
+    a.text(tau_star, a.get_ylim()[1] * 0.9, " τ̃*", color="C3", fontsize=9)
+    a.set_xlabel("τ_d/τ_min")
+    a.set_ylabel("s L/c_p")
+    a.set_title("(c) the sign along the family (s > 0: unstable)")
+    a.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out, dpi=dpi)
+    plt.close(fig)
+    return out

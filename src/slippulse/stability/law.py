@@ -1,0 +1,148 @@
+"""Power laws of the leading growth rate along a family (issue 17, item 3; docs/stability.md §9.0).
+
+Near τ_min the growth rates of record (``s ± s_err`` of each pulse's spectrum group) are fitted
+by y = A x^n against x = τ_d/τ_min − 1, τ_d/τ_min − τ̃* or L, for y = s L/c_p or s, by weighted
+least squares in log space (ln y = ln A + n ln x, standard deviation of ln y = s_err/s). The
+parameter errors are those of the covariance, scaled by the Birge ratio √χ²_red where that is
+above 1 (a law that does not fit within the error bars widens its own uncertainty). Local
+exponents d ln y/d ln x between neighbouring pulses show whether one law holds over the range.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class PowerLaw:
+    """y = A x^n fitted on m points; errors 1σ (Birge-scaled), χ²_red of the weighted fit."""
+
+    n: float
+    n_err: float
+    A: float
+    A_err: float
+    chi2_red: float
+    m: int
+    x_range: tuple
+
+    def __call__(self, x):
+        return self.A * np.asarray(x, float) ** self.n
+
+    def describe(self, xname="x", yname="y") -> str:
+        return (f"{yname} = ({self.A:.3g} ± {self.A_err:.1g}) {xname}^({self.n:.3f} ± "
+                f"{self.n_err:.3f}) on {self.m} pulses, {xname} in [{self.x_range[0]:.3g}, "
+                f"{self.x_range[1]:.3g}], chi2_red = {self.chi2_red:.2g}")
+
+
+def fit_power_law(x, y, y_err):
+    """Weighted fit of y = A x^n (x, y > 0; y_err > 0 the 1σ error of y). Returns PowerLaw.
+
+    Raises ValueError with fewer than 3 usable points (x > 0, y > 0, finite, y_err > 0)."""
+    x, y, e = (np.asarray(a, float) for a in (x, y, y_err))
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(e) & (x > 0) & (y > 0) & (e > 0)
+    x, y, e = x[ok], y[ok], e[ok]
+    if x.size < 3:
+        raise ValueError(f"a power-law fit needs at least 3 points with x > 0, y > 0 and an "
+                         f"error; got {x.size}")
+    sl = e / y                                         # σ of ln y
+    w = 1.0 / sl ** 2
+    X = np.column_stack([np.ones_like(x), np.log(x)])
+    Y = np.log(y)
+    cov = np.linalg.inv(X.T @ (w[:, None] * X))
+    p = cov @ (X.T @ (w * Y))
+    r = Y - X @ p
+    dof = max(x.size - 2, 1)
+    chi2_red = float(np.sum(w * r ** 2) / dof)
+    cov = cov * max(1.0, chi2_red)
+    lnA, n = p
+    A = float(np.exp(lnA))
+    return PowerLaw(float(n), float(np.sqrt(cov[1, 1])), A, float(A * np.sqrt(cov[0, 0])),
+                    chi2_red, int(x.size), (float(x.min()), float(x.max())))
+
+
+def local_exponents(x, y):
+    """d ln y / d ln x between neighbours (sorted by x): (x at the geometric midpoints, slopes)."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    k = np.argsort(x)
+    x, y = x[k], y[k]
+    lx, ly = np.log(x), np.log(y)
+    return np.exp(0.5 * (lx[1:] + lx[:-1])), np.diff(ly) / np.diff(lx)
+
+
+def family_rates(path):
+    """The growth rates of record of a family file: dict of arrays (τ_d/τ_min, L, c_p, s, s_err,
+    s_per_L, s_err_per_L, sign_resolved) over the pulses whose spectrum has ``s`` stored,
+    by decreasing τ_d."""
+    import h5py
+    rows = []
+    with h5py.File(path, "r") as h5:
+        for lab, grp in h5["pulses"].items():
+            g = grp.get("spectrum")
+            if g is None or "s" not in g.attrs or g.attrs.get("status") != "converged":
+                continue
+            a = grp.attrs
+            rows.append((float(a["tau_d_ratio"]), float(a["L"]), float(a["c_p"]),
+                         float(g.attrs["s"]), float(g.attrs["s_err"]),
+                         float(g.attrs["s_per_L"]), float(g.attrs["s_err_per_L"]),
+                         int(g.attrs["sign_resolved"]), lab))
+    rows.sort(key=lambda r: -r[0])
+    names = ("tau_d_ratio", "L", "c_p", "s", "s_err", "s_per_L", "s_err_per_L", "sign_resolved")
+    out = {k: np.array([r[i] for r in rows]) for i, k in enumerate(names)}
+    out["label"] = [r[-1] for r in rows]
+    return out
+
+
+@dataclass
+class ShiftedLaw:
+    """y = A (x − x*)^n with x* fitted too (profile of χ² over x*); x*_err from Δχ² = 1 of the
+    Birge-scaled profile."""
+
+    x_star: float
+    x_star_err: float
+    law: PowerLaw                    # the fit at x* (n, A and their errors at fixed x*)
+
+    def __call__(self, x):
+        return self.law(np.asarray(x, float) - self.x_star)
+
+
+def fit_shifted_power_law(x, y, y_err, lo=None):
+    """Fit y = A (x − x*)^n for x*, A, n (x* < min x, and ≥ lo if given).
+
+    The profile χ²(x*) of the linear fit in logs is minimised over a fine grid of x* and refined
+    by a bounded scalar minimisation; the error of x* is where the profile, scaled by χ²_red at its minimum, rises
+    by 1. Raises ValueError with fewer than 4 usable points."""
+    x, y, e = (np.asarray(a, float) for a in (x, y, y_err))
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(e) & (y > 0) & (e > 0)
+    x, y, e = x[ok], y[ok], e[ok]
+    if x.size < 4:
+        raise ValueError(f"a shifted power-law fit needs at least 4 points; got {x.size}")
+    xmin, span = float(x.min()), float(np.ptp(x))
+    lo = xmin - 2.0 * span if lo is None else float(lo)
+    # x* close to min x: a geometric grid of the gap min x − x*
+    gaps = np.geomspace(1e-4 * span, xmin - lo, 400)
+
+    def chi2(gap):
+        f = fit_power_law(x - (xmin - gap), y, e)
+        return f.chi2_red * max(x.size - 2, 1), f
+
+    prof = np.array([chi2(g)[0] for g in gaps])
+    k = int(np.argmin(prof))
+    from scipy.optimize import minimize_scalar
+    a, b = np.log(gaps[max(k - 1, 0)]), np.log(gaps[min(k + 1, gaps.size - 1)])
+    opt = minimize_scalar(lambda lg: chi2(np.exp(lg))[0], bounds=(a, b), method="bounded",
+                          options={"xatol": 1e-10})
+    best_gap = float(np.exp(opt.x)) if opt.fun <= prof[k] else gaps[k]
+    c2, law = chi2(best_gap)
+    scale = max(1.0, c2 / max(x.size - 3, 1))
+    target = c2 + scale
+    # Δχ² = scale on each side of the minimum, by interpolation on the profile
+    def crossing(idx):
+        for j in idx:
+            if prof[j] > target:
+                return gaps[j]
+        return float("nan")
+    hi_gap = crossing(range(k, gaps.size))
+    lo_gap = crossing(range(k, -1, -1))
+    err = 0.5 * (hi_gap - lo_gap) if np.isfinite(hi_gap) and np.isfinite(lo_gap) else float("nan")
+    return ShiftedLaw(xmin - best_gap, float(err), law)
