@@ -1,7 +1,7 @@
 """Numbers quoted in README.md and the docs agree with the results file of record.
 
 Convention (docs/results/records.toml, header): a number of record is written in Markdown as
-``22.654 ± 2e−5<!-- rec spectrum/td1.2000/s_per_L -->`` — the number, optionally ``± err`` and
+``22.654 ± 2e−5<!-- rec spectrum_nested/td1.2000/s_per_L -->`` — the number, optionally ``± err`` and
 bold markers, then an HTML comment naming its key in the results file ("/" between the parts).
 The quote must be the recorded value rounded to the digits quoted (and so must its ``± err``).
 """
@@ -109,13 +109,13 @@ def test_every_record_names_its_provenance(records):
 
 
 def test_the_check_fails_on_a_changed_number(records):
-    good = "s = **22.654 ± 2e−5**<!-- rec spectrum/td1.2000/s_per_L --> per L"
+    good = "s = **22.654 ± 2e−5**<!-- rec spectrum_nested/td1.2000/s_per_L --> per L"
     assert check_text(good, records) == ([], 1)
-    for bad in ("s = 22.655 ± 2e−5<!-- rec spectrum/td1.2000/s_per_L -->",     # value off by 1 ulp
-                "s = 22.654 ± 3e−5<!-- rec spectrum/td1.2000/s_per_L -->",     # error off
-                "s = 22.65<!-- rec spectrum/td1.2000/no_such_key -->",          # unknown key
-                "s = 22.6<!-- rec spectrum/td1.2000/s_per_L -->",               # rounded wrongly
-                "s = about<!-- rec spectrum/td1.2000/s_per_L -->"):             # no number
+    for bad in ("s = 22.655 ± 2e−5<!-- rec spectrum_nested/td1.2000/s_per_L -->",     # value off by 1 ulp
+                "s = 22.654 ± 3e−5<!-- rec spectrum_nested/td1.2000/s_per_L -->",     # error off
+                "s = 22.65<!-- rec spectrum_nested/td1.2000/no_such_key -->",          # unknown key
+                "s = 22.6<!-- rec spectrum_nested/td1.2000/s_per_L -->",               # rounded wrongly
+                "s = about<!-- rec spectrum_nested/td1.2000/s_per_L -->"):             # no number
         problems, _ = check_text(bad, records)
         assert problems, bad
 

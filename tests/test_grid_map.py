@@ -87,3 +87,76 @@ def test_estimate_falls_back_to_the_last_correction_without_an_observed_order():
     assert estimate([1.0, 1.1, 1.1 + 0.1 / 2 ** 5])[3] == "last correction"
     with pytest.raises(ValueError):
         estimate([1.0])
+
+
+def _fake_ladder(monkeypatch, s_inf, c, p):
+    """refine_leading on stubs: level k of N points gives s = s_inf + c (N/1000)^−p (c/L = 1)."""
+    from types import SimpleNamespace as NS
+
+    import slippulse.stability.refine as refine
+
+    def pulse(n):
+        return NS(n_points=n, c_p=1.0, L=1.0, xi=np.linspace(0, 1, n))
+
+    def mapped(params, p_, gmap, n, **kw):
+        return NS(stats=NS(converged=True, message="ok"), problem=NS(n=n),
+                  to_pulse=lambda: pulse(n))
+
+    def spectrum(q, params, guesses=(), **kw):
+        s = s_inf + c * (q.n_points / 1000.0) ** (-p)
+        return NS(status="converged", sigmas=np.array([s + 0j]), leading=complex(s),
+                  rate_unit=1.0, modes=[{"V": np.ones(q.n_points, complex)}],
+                  neutral=np.zeros(2), message="")
+
+    monkeypatch.setattr(refine, "mapped_pulse", mapped)
+    monkeypatch.setattr(refine, "pulse_spectrum", spectrum)
+    s0 = s_inf + c
+    first = NS(leading=complex(s0), rate_unit=1.0, n_points=1000, neutral=np.zeros(2),
+               modes=[{"V": np.ones(1000, complex)}])
+    return refine, pulse(1000), first
+
+
+def test_ladder_climbs_until_the_target_is_met(monkeypatch):
+    refine, p0, first = _fake_ladder(monkeypatch, 0.0179, 0.08, 4.0)
+    r = refine.refine_leading(p0, None, first, None, levels=2, target=1e-4)
+    assert r.status == "converged" and r.target_met and r.rule == "three-level"
+    assert r.s_err <= 1e-4 and len(r.n_points) > 3
+    # one level fewer would not have met it: the ladder stopped at the first level that did
+    s_prev, e_prev, _, _ = estimate(r.s_levels[:-1])
+    assert e_prev > 1e-4
+    assert abs(r.s - 0.0179) < r.s_err
+
+
+def test_ladder_says_when_the_target_is_out_of_reach(monkeypatch):
+    refine, p0, first = _fake_ladder(monkeypatch, 0.0179, 0.08, 4.0)
+    r = refine.refine_leading(p0, None, first, None, levels=2, target=1e-12, max_points=3000)
+    assert r.status == "converged" and not r.target_met
+    assert r.n_points == [1000, 1414, 2000, 2828] and "not reached" in r.message
+    r = refine.refine_leading(p0, None, first, None, levels=2)       # no target: fixed levels
+    assert r.n_points == [1000, 1414, 2000] and r.target_met
+
+
+def test_tracking_is_seeded_from_the_nearest_stored_spectrum_above(tmp_path):
+    """A run on deep pulses only (whose rates are below the default search's MIN_RE) starts
+    from the stored eigenvalue and mode of the nearest pulse above them."""
+    import os
+    import sys
+
+    from slippulse.core import h5io
+    from slippulse.core.params import DEFAULT as P
+    from slippulse.stability.spectrum import PulseSpectrum, write_spectrum
+    from slippulse.stability.spectrum_family import _seed
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from test_analysis import _synthetic_pulse
+    f = str(tmp_path / "fam.h5")
+    for r in (1.2, 1.1, 1.05):
+        h5io.write_pulse(f, _synthetic_pulse(r, 0.3, 0.2), P)
+    assert _seed(f, ["td1.1000"]) == (None, None)          # nothing stored above
+    p = h5io.read_pulse(f, "td1.2000")[0]
+    V = np.exp(-((p.xi / p.L) ** 2)) + 0j
+    modes = [{k: V for k in ("delta", "V", "phi", "lnv")}]
+    write_spectrum(f, PulseSpectrum("td1.2000", np.array([7.0 + 0j]), modes, np.zeros(2), 0.0,
+                                    2.0, p.n_points, "converged", "", 0.0), {})
+    prev, mode = _seed(f, ["td1.0500"])                   # the nearest stored one above
+    assert prev[0][0] == 7.0 and prev[1] == 2.0
+    assert np.allclose(mode[0], p.xi / p.L) and np.allclose(mode[1], V)

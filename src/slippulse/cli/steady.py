@@ -295,6 +295,8 @@ def spectrum_line(label, res) -> str:
         levels = f"N={res.n_points}"
     else:
         rate = ref.describe()
+        if not ref.target_met:
+            rate += f" (target s_err L/c_p <= {ref.target:g} not reached)"
         if ref.sign_resolved:
             rate += f" (s = {ref.s:.4g} ± {ref.s_err:.1g} 1/s)"
         trans = "/".join(f"{t / u:.1e}" for t, u in zip(ref.translation_levels,
@@ -323,6 +325,9 @@ def cmd_stability(args) -> int:
     if not (isinstance(args.levels, int) and 0 <= args.levels <= 6):
         raise ParameterError(f"levels={args.levels!r} is invalid: must be an integer in [0, 6] "
                              "(levels N_0 sqrt(2)^k above level 0 for the error estimate)")
+    if args.target is not None and not (math.isfinite(args.target) and args.target > 0):
+        raise ParameterError(f"target={args.target!r} is invalid: must be a number > 0 "
+                             "(s_err in units of c_p/L)")
     box = None
     if args.count is not None:
         box = tuple(args.count)
@@ -355,7 +360,8 @@ def cmd_stability(args) -> int:
 
     rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
                        progress=progress, levels=args.levels, count_box=box,
-                       level_progress=level_progress, min_points=args.min_points)
+                       level_progress=level_progress, min_points=args.min_points,
+                       target=args.target)
     bar.close()
     done = [r for r in rep.results if r.status == "converged"]
     print(family_summary(args.file, done, rep))
@@ -465,6 +471,10 @@ def family_summary(path, done, rep) -> str:
                      f"{len(stable)}, sign not resolved at {len(unresolved)}"
                      + (f" ({', '.join(unresolved[:4])}{' ...' if len(unresolved) > 4 else ''})"
                         if unresolved else ""))
+    missed = [r.label for r in refined if not r.refined.target_met]
+    if missed:
+        parts.append(f"target s_err not reached at {len(missed)} ({', '.join(missed[:4])}"
+                     f"{' ...' if len(missed) > 4 else ''})")
     counted = [r.count.count for r in done if r.count is not None and r.count.count is not None]
     if counted:
         parts.append(f"contour counts {sorted(set(counted))} at {len(counted)} pulses")
@@ -557,6 +567,9 @@ def register(sub) -> None:
                    help="level 0 has N_0 = max(N, MIN_POINTS) points (default 2000: coarser "
                         "levels are not yet in the asymptotic "
                         "range near tau_min; 0: the pulse's own N)")
+    p.add_argument("--target", type=float, default=None, metavar="S_ERR",
+                   help="add levels beyond --levels (up to N = 8000) until s_err L/c_p <= S_ERR, "
+                        "e.g. --target 1e-4 (default: the fixed --levels)")
     p.add_argument("--count", type=float, nargs=3, default=None, metavar=("X0", "X1", "Y1"),
                    help="also count the eigenvalues with X0 <= Re sigma L/c_p <= X1, "
                         "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "

@@ -96,6 +96,30 @@ def _level0(pulse, params, gmap, n0):
     return sol.to_pulse(), ""
 
 
+def _track(stored):
+    """(σ array, c/L) and (ξ/L, V₁ of the leading mode) of a stored spectrum, for tracking."""
+    prev = (stored["sigma"], float(stored["rate_unit_c_over_L"]))
+    mode = None
+    if stored["sigma"].size and stored["V"].shape[0]:
+        mode = (np.asarray(stored["xi"], float) / float(stored["L"]), stored["V"][0])
+    return prev, mode
+
+
+def _seed(path, chosen):
+    """Tracking state from the nearest pulse above chosen[0] with a stored converged spectrum
+    that has an eigenvalue; (None, None) if there is none."""
+    if not chosen:
+        return None, None
+    every, _ = check_family_file(path)
+    if chosen[0] not in every:
+        return None, None
+    for lab in reversed(every[:every.index(chosen[0])]):
+        stored = read_spectrum(path, lab)
+        if stored is not None and stored.get("status") == "converged" and stored["sigma"].size:
+            return _track(stored)
+    return None, None
+
+
 def _failed(label, pulse, message):
     """A PulseSpectrum that stores the failure and no eigenvalue."""
     return PulseSpectrum(label, np.zeros(0, complex), [], np.zeros(2), float("nan"),
@@ -104,7 +128,7 @@ def _failed(label, pulse, message):
 
 def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progress=None,
                  levels=DEFAULT_LEVELS, count_box=None, level_progress=None,
-                 min_points=MIN_SPECTRUM_POINTS):
+                 min_points=MIN_SPECTRUM_POINTS, target=None):
     """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
 
     Pulses are taken by decreasing τ_d; each starts from its neighbour's eigenvalues at equal
@@ -121,6 +145,9 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         argument principle (:func:`slippulse.stability.count.count_unstable`), on the pulse's grid.
         x1 and y1 are raised to 1.5 times the leading s L/c_p where that is larger.
     level_progress : callable(str) or None, told about each refinement level / count evaluation.
+    target : optional s_err L/c_p to reach; levels are added beyond `levels` until it is (or
+        the next level would exceed :data:`slippulse.stability.refine.MAX_LADDER_POINTS`; then
+        the pulse keeps its estimate and ``refine_target_met`` = 0).
     min_points : level 0 has N_0 = max(N, min_points) points (the steady equations re-solved on
         the map; with levels = 0 and N ≥ min_points, the pulse's own grid); a re-solve that
         fails marks the pulse failed.
@@ -130,16 +157,18 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
     chosen, params = check_family_file(path, labels)
     settings = {"tol": tol, "extra": int(bool(extra)), "min_re_c_over_L": MIN_RE,
                 "levels": int(levels), "count": int(count_box is not None),
-                "min_points": int(min_points), "ladder": "smooth map, ratio sqrt(2)"}
-    prev_mode = None                                     # (ξ/L, V₁) of the last pulse's leading mode
+                "min_points": int(min_points), "ladder": "smooth map, ratio sqrt(2)",
+                "target": -1.0 if target is None else float(target)}   # -1: none
     rep = SpectrumReport()
-    prev = None                                          # (σ array, c/L) of the last pulse
+    # tracking starts from the nearest pulse above the first one that has a stored spectrum
+    # (any settings): the deep pulses' rates are below the default search's MIN_RE
+    prev, prev_mode = _seed(path, chosen)
     for lab in chosen:
         stored = None if overwrite else read_spectrum(path, lab)
         if stored is not None and stored.get("status") == "converged" and all(
                 stored.get(f"setting_{k}") == v for k, v in settings.items()):
             rep.skipped.append(lab)
-            prev = (stored["sigma"], float(stored["rate_unit_c_over_L"]))
+            prev, prev_mode = _track(stored)
             if progress:
                 progress(lab, None, stored)
             continue
@@ -173,7 +202,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
                              guess_modes=modes)
         if res.status == "converged" and res.sigmas.size and levels:
             res.refined = refine_leading(pulse, params, res, gmap, levels, tol=tol,
-                                         progress=level_progress)
+                                         progress=level_progress, target=target)
             if res.refined.status != "converged":
                 res.status = "failed"
                 res.message = f"refinement failed: {res.refined.message}"

@@ -57,6 +57,8 @@ def write_spectrum(path, res, settings: dict):
             g.attrs["refine_order"] = ref.order
             g.attrs["refine_rule"] = ref.rule
             g.attrs["refine_level_ratio"] = float(ref.ratio)
+            g.attrs["refine_target_s_err_per_L"] = float(ref.target)
+            g.attrs["refine_target_met"] = int(ref.target_met)
             if ref.status == "converged":
                 g.attrs["s"] = ref.s
                 g.attrs["s_err"] = ref.s_err
