@@ -42,7 +42,8 @@ from slippulse.core.h5io import list_pulses, read_pulse
 from slippulse.steady.hilbert import hilbert_matrix, hilbert_matrix_fft
 from slippulse.steady.newton import SOLVERS
 from slippulse.core.params import DEFAULT
-from slippulse.steady.solver import (GridSpec, adapted_grid, count_humps, default_guess, fwhm, front_pin,
+from slippulse.steady.measures import pulse_length
+from slippulse.steady.solver import (GridSpec, adapted_grid, count_humps, default_guess, front_pin,
                               interpolate, solve_pulse)
 from slippulse.steady.equations import SteadyProblem
 
@@ -82,6 +83,12 @@ def family_beta_L(path):
     return np.array(rs)[o], np.array(bs)[o], np.array(Ls)[o]
 
 
+def family_points(path):
+    """'2000' or '1000–1250': the grid sizes N of the pulses of a family file (for legends)."""
+    ns = sorted({read_pulse(path, lab)[0].n_points for lab in list_pulses(path)})
+    return f"{ns[0]}" if ns[0] == ns[-1] else f"{ns[0]}–{ns[-1]}"
+
+
 def v_stick(r):
     return P.v_stick(r * P.tau_min)
 
@@ -107,7 +114,8 @@ def newton_on(r, xi, y, beta, H=None, hilbert="cubic", max_iter=60, method="newt
     res = prob.residual(x)[:-1]
     mr = float(np.max(np.abs(res))) if np.all(np.isfinite(res)) else float("inf")
     return dict(prob=prob, x=x, st=st, t_h=t_h, v=v, phi=phi, beta=float(x[-1]),
-                L=fwhm(xi, v, P.v_star), maxres=mr, conv=bool(st.converged and mr <= 1e-13),
+                L=pulse_length(xi, v, P.v_star, crossings=False), maxres=mr,
+                conv=bool(st.converged and mr <= 1e-13),
                 it=st.iterations, humps=count_humps(v))
 
 
@@ -352,7 +360,8 @@ def part_failure(args):
          f"N = {n}\n")
     emit("Cells: Newton iterations of the final solve, wall time of both solves, δβ = relative "
          "deviation from the family β (✓ converged to the pulse, ✗ not converged, "
-         "≠ converged elsewhere: β off the family curve (cubic spline of ln β through the N = 2000 family) "
+         f"≠ converged elsewhere: β off the family curve (cubic spline of ln β through the "
+         f"N = {family_points(args.family)} family) "
          "by > 5e-3, or more than one hump); wall time "
          "in s.\n")
     emit("| τ_d/τ_min | " + " | ".join(f"Δ={d}" for d in deltas) + " | largest Δ converging |")
@@ -394,7 +403,7 @@ def part_failure(args):
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
     ax = axes[0]
     col = {"pulse": "C2", "OTHER solution": "C1", "FAILED": "C3"}
-    ax.semilogy(fr, fb, "k-", lw=1, label="family (continuation, N=2000)")
+    ax.semilogy(fr, fb, "k-", lw=1, label=f"family (continuation, N = {family_points(args.family)})")
     for r, res, b in drow:
         ax.scatter([r], [b], s=90, color=col[res], marker="o" if res == "pulse" else "X", zorder=3)
     for k, c in col.items():

@@ -23,16 +23,16 @@ import time
 
 import numpy as np
 
-from slippulse.core.h5io import read_pulse
+from slippulse.core.h5io import STATE_ORDER, UNSTORED_STATE_ORDER, read_pulse
 from slippulse.core.params import DEFAULT
 from slippulse.steady.continuation import GRID_TOLERANCE, DeepMarch, DeepSettings
 from slippulse.steady.continuation.gridcheck import as_both, check_pulse
 from slippulse.steady.equations import SteadyProblem
 from slippulse.steady.newton import SolveStats
-from slippulse.steady.solver import SteadySolution, front_pin, solve_pulse
+from slippulse.steady.solver import MAX_POINTS, SteadySolution, front_pin, solve_pulse
 
 
-def rebuild(params, xi, x, pin_index, y_pin, state_order=4):
+def rebuild(params, xi, x, pin_index, y_pin, state_order=STATE_ORDER):
     """A SteadySolution of ``free="both"`` from stored grid and unknowns."""
     prob = SteadyProblem(params, float(x[-1]), xi, pin_index, y_pin, free="both",
                          state_order=state_order)
@@ -47,12 +47,14 @@ def load_pulse(source, label=None):
     if source.endswith(".npz"):
         z = np.load(source)
         return DEFAULT, rebuild(DEFAULT, z["xi"], z["x"], int(z["pin_index"]), float(z["y_pin"]),
-                                int(z["state_order"]) if "state_order" in z else 2)
+                                int(z["state_order"]) if "state_order" in z else UNSTORED_STATE_ORDER)
     pu, P = read_pulse(source, label)
     y = np.log(pu.v)
     k, _ = front_pin(pu.xi, y, math.log(P.v_stick(pu.tau_d_ratio * P.tau_min)))
     return P, rebuild(P, pu.xi, np.concatenate([y, [pu.beta, pu.tau_d_ratio]]), k, float(y[k]),
-                      int(pu.extra.get("state_order", 4)))
+                      # (a family file without the attribute predates issue 11; read as order
+                      # STATE_ORDER here, as before: the march re-solves at that order)
+                      int(pu.extra.get("state_order", STATE_ORDER)))
 
 
 def main(argv=None):
@@ -63,7 +65,8 @@ def main(argv=None):
     ap.add_argument("--ds-max", type=float, default=0.4)
     ap.add_argument("--stretch", action="store_true")
     ap.add_argument("--check", action="store_true")
-    ap.add_argument("--max-points", type=int, default=16000)
+    ap.add_argument("--max-points", type=int, default=MAX_POINTS,
+                    help="largest grid of the N vs 2N check (default: the solver's MAX_POINTS, %(default)s)")
     ap.add_argument("--max-length", type=float, default=math.inf)
     ap.add_argument("--max-iter", type=int, default=25)
     ap.add_argument("--resolve", type=int, default=0, metavar="N",

@@ -96,6 +96,19 @@ def load_march(d):
     return np.array(rows).T
 
 
+def march_points(d):
+    """Grid sizes N of the steps of one deep march (sorted, unique)."""
+    return sorted({int(np.load(fn)["xi"].size) for fn in glob.glob(os.path.join(d, "arc_*.npz"))})
+
+
+def _n_text(ns):
+    """'2000' or '2000–3999' for a collection of grid sizes."""
+    ns = sorted({int(n) for n in ns})
+    if not ns:
+        return "?"
+    return f"{ns[0]}" if ns[0] == ns[-1] else f"{ns[0]}–{ns[-1]}"
+
+
 def compare_marches(dir_a, dir_b):
     """Print the N vs 2N − 1 comparison of two marches; return the extrapolated branch."""
     qa, ba, La = load_march(dir_a)
@@ -113,7 +126,8 @@ def compare_marches(dir_a, dir_b):
     dlLdb = np.gradient(np.log(Lb), bb)
     dbeta_q = -dq / dqdb
     dlnL_q = dlnL + dlLdb * dbeta_q
-    print("\n## N = 2000 against N = 3999 (nested start) along the branch\n")
+    print(f"\n## N = {_n_text(march_points(dir_a))} against N = {_n_text(march_points(dir_b))} "
+          "(nested start) along the branch\n")
     print("| step | β | τ_d/τ_min (2N−1) | L (m, 2N−1) | Δq at fixed β | ΔL/L at fixed β "
           "| Δβ at fixed τ_d | ΔL/L at fixed τ_d | q extrapolated | L extrapolated (m) |")
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -291,7 +305,7 @@ def main(argv=None):
         ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
         arc = np.array(["source" in p.extra for p in pulses])
         n_arc = int(N[arc].max()) if arc.any() else 0
-        for sel, mk, lab in ((~arc, "o", "family (τ_d- and β-steps), N = 2000"),
+        for sel, mk, lab in ((~arc, "o", f"family (τ_d- and β-steps), N = {_n_text(N[~arc])}"),
                              (arc, "s", f"arclength march (deformed grid), N = {n_arc}")):
             s_ = sel & (q - f["tau_star"] > 0) & (q < 1.05)
             d = q[s_] - f["tau_star"]
@@ -301,7 +315,9 @@ def main(argv=None):
             qr, br, Lr = branches["extrapolated"]
             s_ = qr - f["tau_star"] > 0
             ax1.loglog(qr[s_] - f["tau_star"], Lr[s_], "k+", ms=5,
-                       label="extrapolated N → ∞ (Richardson, N = 2000 and 3999)")
+                       label=f"extrapolated N → ∞ (Richardson, N = "
+                             f"{_n_text(march_points(a.compare[0]))} and "
+                             f"{_n_text(march_points(a.compare[1]))})")
             ax2.loglog(qr[s_] - f["tau_star"], 1 - br[s_], "k+", ms=5, label="extrapolated")
         dd = np.geomspace(0.5 * (q.min() - f["tau_star"]), 0.04, 100)
         ax1.loglog(dd, np.exp(f["ln_A"]) * dd ** (-f["m_L"]), "k-",

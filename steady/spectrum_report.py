@@ -13,18 +13,25 @@ from __future__ import annotations
 
 import argparse
 import os
+import tomllib
 
 import numpy as np
 from scipy.optimize import curve_fit
 
-# The SBI ±ε growth rates of docs/stability.md §3 (measured by dynamic/scans/growth_td*.toml, base
-# pairs, s per pulse length, plateau rule; "period" is the SBI domain behind + ahead in L).
-SBI_TABLE = [
-    (1.20, 23.5, 0.8, "3+2 L"), (1.10, 8.0, 0.2, "3+2 L"),
-    (1.05, 0.61, 0.02, "3+2 L"), (1.05, 0.654, 0.03, "4+4 L"), (1.05, 0.685, 0.03, "6+6 L"),
-    (1.05, 0.71, 0.03, "9+9 L"), (1.03, 0.02, 0.05, "3+2 L, 3 mm"),
-    (1.03, -0.024, 0.008, "3+2 L, 2 mm"),
-]
+from slippulse.core.h5io import label_ratio
+
+#: The SBI ±ε growth rates of docs/stability.md §3 (measured by dynamic/scans/growth_td*.toml, base
+#: pairs, s per pulse length, plateau rule): a data file with its provenance.
+SBI_RATES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "dynamic", "results",
+                         "sbi_growth_rates.toml")
+
+
+def sbi_table(path=SBI_RATES):
+    """Rows (τ_d/τ_min, s per L, err, domain) of the SBI ±ε rates file (``[[rates]]`` tables)."""
+    with open(path, "rb") as fh:
+        data = tomllib.load(fh)
+    return [(float(r["tau_d_ratio"]), float(r["s"]), float(r["err"]), str(r["domain"]))
+            for r in data["rates"]]
 
 
 def scan_pairs(name):
@@ -53,7 +60,7 @@ def scan_pairs(name):
         if not np.isfinite(g.get("s_per_L", np.nan)):
             continue
         label = plus.get("label", "")
-        out.append(dict(tau=float(label[2:]), s=g["s_per_L"], err=g["s_per_L_err"],
+        out.append(dict(tau=label_ratio(label), s=g["s_per_L"], err=g["s_per_L_err"],
                         domain=f"{plus.get('behind', 3.0):g}+{plus.get('ahead', 2.0):g} L, "
                                f"ε = {abs(plus['eps']):g}",
                         mode=g.get("mode"), mode_xi=g.get("mode_xi")))
@@ -103,7 +110,7 @@ def main(argv=None):
                   f"**{r['extrapolated']:.4f} ± {r['uncertainty']:.1e}** | "
                   f"{r['extrapolated'] * unit_r:.3g} |")
         # law near τ_min from the refined values: s L/c = A (q − 1)^p, weighted
-        qn = np.array([float(r["label"][2:]) for r in nested])
+        qn = np.array([label_ratio(r["label"]) for r in nested])
         sn = np.array([r["extrapolated"] for r in nested])
         en = np.array([max(r["uncertainty"], 1e-3 * abs(r["extrapolated"])) for r in nested])
         fit = None
@@ -137,11 +144,11 @@ def main(argv=None):
         a.plot(x, np.abs(st), ":", color="0.5", lw=1,
                label="|translation eigenvalue| (exact 0: error indicator)")
         if nested:
-            a.errorbar([xf(float(r["label"][2:])) for r in nested],
+            a.errorbar([xf(label_ratio(r["label"])) for r in nested],
                        [r["extrapolated"] for r in nested],
                        yerr=[max(r["uncertainty"], 1e-4) for r in nested], fmt="s", color="C0",
                        ms=5, capsize=3, label="eigenvalue ± s_err (slippulse steady stability)")
-        for t, sv, e, dom in SBI_TABLE:
+        for t, sv, e, dom in sbi_table():
             if logy and sv <= 0:
                 continue
             a.errorbar([xf(t)], [sv], yerr=[e], fmt="o", color="C3", ms=6, capsize=2, mfc="none")

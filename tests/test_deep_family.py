@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from slippulse.core.h5io import list_pulses, pulse_label, read_pulse, write_pulse
+from slippulse.core.h5io import label_ratio, list_pulses, pulse_label, read_pulse, write_pulse
 from slippulse.steady.continuation import (GRID_TOLERANCE, DeepMarch, DeepSettings, GridTolerance,
                                            run_family)
 
@@ -26,12 +26,14 @@ def test_labels_readable_and_unique_off_round_tau_d():
     assert pulse_label(1.2000000701) == "td1.2000"          # a refined pulse 1e-7 off its target
     assert pulse_label(1.0090741) == "td1.009074"
     assert pulse_label(1.0104033) == "td1.010403" != pulse_label(1.0104012)
+    assert label_ratio("td1.2000") == 1.2 and label_ratio("td1.009074") == 1.009074
+    assert all(math.isnan(label_ratio(x)) for x in ("td", "x1.2", "tdnan", "td1.2.3", None))
     # the deep steps of docs/analysis.md, 4 decimals collided (1.0092921, 1.0092098 → td1.0092 ...)
     qs = [1.0122681, 1.0119271, 1.0114321, 1.0109587, 1.0105093, 1.0102100, 1.0100086, 1.0098140,
           1.0096264, 1.0094995, 1.0093762, 1.0092921, 1.0092098, 1.0091293, 1.0090741]
     labels = [pulse_label(q) for q in qs]
     assert len(set(labels)) == len(qs)
-    assert all(abs(float(lab[2:]) - q) <= 5.0001e-7 for lab, q in zip(labels, qs))
+    assert all(abs(label_ratio(lab) - q) <= 5.0001e-7 for lab, q in zip(labels, qs))
 
 
 def test_grid_tolerance_is_the_one_place():

@@ -13,8 +13,9 @@ from slippulse.core import h5io
 from slippulse.plotting import steady as plotting
 from slippulse.core import friction as fr
 from slippulse.core.params import DEFAULT
+from slippulse.core.reference import paper_scaling
 
-PAPER = dict(tau_star=1.0087, a_v=1.15, a_G=0.69)
+PAPER = paper_scaling()
 
 
 def synthetic_pulse(ratio, params=DEFAULT, domain=20.0, seed=0):
@@ -97,3 +98,43 @@ def test_figures_with_comparison_file_and_bad_input(tmp_path, capsys):
     assert cli.main(["figures", str(tmp_path / "missing.h5")]) == 2
     assert cli.main(["figures", fam, "--formats", "gif"]) == 2
     assert "error" in capsys.readouterr().err
+
+
+def _pixels_near(img, x, y, color, r=3, tol=0.08):
+    """Does the image (rows top-down, RGB(A) in [0, 1]) hold a pixel of ``color`` within r pixels
+    of the display point (x, y) (origin bottom-left)?"""
+    h = img.shape[0]
+    row, col = int(round(h - y)), int(round(x))
+    patch = img[max(row - r, 0):row + r + 1, max(col - r, 0):col + r + 1, :3]
+    return bool(np.any(np.all(np.abs(patch - np.asarray(color)) < tol, axis=-1)))
+
+
+def test_fig3_png_draws_the_pulses_where_the_data_says(tmp_path):
+    """Content, not size: the figure's lines hold the family's β and L-tilde, and in the written
+    PNG the β markers (colour C0) sit at the pixels the data maps to, and nowhere else in the plot
+    area (moving the data by 0.15 in β finds none)."""
+    from matplotlib.colors import to_rgb
+    from matplotlib.image import imread
+    fam = make_synthetic_family(str(tmp_path / "fam.h5"))
+    data = plotting.load_family(fam)
+    fig = plotting.fig3(data)
+    ax, ax2 = fig.axes[0], fig.axes[1]
+    x = np.array([r["tau_d_ratio"] for r in data.rows])
+    beta = np.array([r["beta"] for r in data.rows])
+    Lt = np.array([r["L_tilde"] for r in data.rows])
+    pulses = [ln for ln in ax.get_lines() if ln.get_label() == r"$\beta$ (pulses)"][0]
+    assert np.array_equal(pulses.get_xdata(), x) and np.array_equal(pulses.get_ydata(), beta)
+    assert np.array_equal(ax2.get_lines()[0].get_ydata(), Lt)
+    paper = [ln for ln in ax.get_lines() if ln.get_label().startswith("paper's constants")][0]
+    xp = np.asarray(paper.get_xdata())
+    assert np.allclose(paper.get_ydata(), an.scaling_law(xp, params=data.params, **PAPER)[0],
+                       rtol=1e-12)
+    png = tmp_path / "fig3.png"
+    fig.savefig(png, dpi=100)
+    img = imread(png)
+    c0 = to_rgb("C0")
+    pts = ax.transData.transform(np.column_stack([x, beta]))
+    assert all(_pixels_near(img, px, py, c0) for px, py in pts)
+    off = ax.transData.transform(np.column_stack([x, np.clip(beta + 0.15, 0, 0.95)]))
+    inside = [(px, py) for (px, py), b in zip(off, beta) if b + 0.15 < 0.6]   # below the legend
+    assert inside and not any(_pixels_near(img, px, py, c0) for px, py in inside)

@@ -1,6 +1,8 @@
-"""Atomic checkpoints of ``slippulse dynamic run`` under SIGKILL at random moments (issue 12, item 2).
+"""Atomic checkpoints of ``slippulse dynamic run`` under SIGKILL (issue 12, item 2; issue 22).
 
-A run is started, killed with SIGKILL after a random delay, checked (FILE opens with h5py and
+Default test: the run kills itself at each defined point of the checkpoint code in turn (test hook
+``SLIPPULSE_KILL_AT``, dynamics/runfile.py), so the outcome does not depend on timing. Slow tests:
+a run is started, killed with SIGKILL after a random delay, checked (FILE opens with h5py and
 xarray, holds a complete checkpoint and exactly the scalars up to it), resumed and killed again,
 several times; the last resume runs to the end, and every dataset must equal an uninterrupted
 run's to the last bit. Checkpoints every 10 steps put many kills inside the checkpoint code (close,
@@ -101,9 +103,67 @@ def _kill_and_resume(tmp_path, seed, n_kills):
     return kills
 
 
-def test_random_kills_leave_readable_resumable_file(tmp_path):
-    kills = _kill_and_resume(tmp_path, seed=12, n_kills=4)
-    assert any(rc == -signal.SIGKILL for _, _, rc in kills)
+#: (kill point, its n-th pass in this process, step of the checkpoint FILE must hold after the
+#: kill). A fresh run checkpoints at steps 0, 10, 20, ...; a resumed one at s0 + 10, s0 + 20, ...
+#: Before the rename (state_written, closed, linked) FILE keeps the previous checkpoint; after it
+#: (published, and during the catch-up of the next work file) FILE holds the new one.
+KILLS = [("linked", 3, 10), ("published", 4, 50), ("rows_caught_up", 1, 60),
+         ("state_written", 2, 70)]
+KILLS_ALL = [("linked", 3, 10), ("state_written", 2, 20), ("published", 4, 60),
+             ("rows_caught_up", 1, 70), ("closed", 2, 80), ("reopened", 3, 110)]
+
+
+def _kill_at_points(tmp_path, kills):
+    """Run, kill (SIGKILL, test hook SLIPPULSE_KILL_AT) at each (point, n-th pass) in turn with a
+    resume in between; after each kill FILE is complete as of the expected checkpoint; the last
+    resume runs to the end and every dataset equals an uninterrupted run's."""
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(CONFIG)
+    ref, out = str(tmp_path / "ref.h5"), str(tmp_path / "killed.h5")
+    assert main(["dynamic", "run", str(cfg), "--out", ref, "--no-progress"]) == 0
+    cmd = [sys.executable, "-m", "slippulse.cli", "dynamic", "run", str(cfg), "--out", out,
+           "--no-progress"]
+    for k, (point, nth, expect) in enumerate(kills):
+        env = dict(os.environ, SLIPPULSE_KILL_AT=f"{point}:{nth}")
+        rc = subprocess.run(cmd + (["--resume"] if k else []), env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, timeout=300).returncode
+        assert rc == -signal.SIGKILL, (point, rc)
+        assert _check_consistent(out) == expect, point
+    assert main(cmd[3:] + ["--resume"]) == 0
+    a, b = _datasets(ref), _datasets(out)
+    assert set(a) == set(b)
+    for key in a:
+        assert np.array_equal(a[key], b[key]), key
+    assert not os.path.exists(out + ".partial")
+
+
+def test_kills_inside_the_checkpoint_leave_readable_resumable_file(tmp_path):
+    """Deterministic: before the commit rename, after it, during the catch-up, while writing."""
+    _kill_at_points(tmp_path, KILLS)
+
+
+@pytest.mark.slow
+def test_kills_at_every_point_of_the_checkpoint(tmp_path):
+    from slippulse.dynamics.runfile import KILL_POINTS
+    assert {k[0] for k in KILLS_ALL} == set(KILL_POINTS)
+    _kill_at_points(tmp_path, KILLS_ALL)
+
+
+def test_kill_hook_is_off_without_the_variable(tmp_path, monkeypatch):
+    """The hook kills only the named point's n-th pass (checked in-process with os.kill
+    stubbed)."""
+    import slippulse.dynamics.runfile as rf
+    calls = []
+    monkeypatch.setattr(rf.os, "kill", lambda pid, sig: calls.append(sig))
+    monkeypatch.setattr(rf, "_kill_counts", {})
+    monkeypatch.delenv("SLIPPULSE_KILL_AT", raising=False)
+    rf._kill_point("published")
+    monkeypatch.setenv("SLIPPULSE_KILL_AT", "published:2")
+    rf._kill_point("linked")
+    rf._kill_point("published")
+    assert calls == []
+    rf._kill_point("published")
+    assert calls == [signal.SIGKILL]
 
 
 @pytest.mark.slow

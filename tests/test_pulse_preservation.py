@@ -61,8 +61,11 @@ def test_history_started_at_rest_breaks_the_pulse(pulse105, params):
     pulse is off by far more than the tolerance within 0.05 L (measured: 0.59 in v_max)."""
     res = verify_pulse(pulse105, params, 0.05, DomainSpec(dx=4e-3, ahead=2.0, behind=2.0),
                        n_samples=5, progress=False, history_start="rest")
+    # the run itself must succeed (a crash or a lost pulse is not the failure this test expects):
+    # measured status 'finished', v_max error 0.59 at the first sample
+    assert res.info["status"] == "finished"
     worst = max(np.nanmax(np.abs(res.series[k])) for k in ("v_max_error", "lnv_error"))
-    assert res.info["status"] != "finished" or worst > 10 * TOL
+    assert worst > 10 * TOL
 
 
 @pytest.mark.slow

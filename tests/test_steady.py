@@ -225,3 +225,14 @@ def test_cli_nonconvergence_exits_nonzero_and_marks_file(tmp_path):
     assert r.returncode == 1 and "did not converge" in r.stderr
     pu, _ = read_pulse(str(out))
     assert pu.converged is False
+
+
+def test_guess_state_is_the_order2_state_of_the_problem():
+    """solver.guess_state (which lays out grids) is the order-2 state of a real SteadyProblem."""
+    from slippulse.core.params import DEFAULT
+    from slippulse.steady.equations import SteadyProblem
+    from slippulse.steady.solver import default_guess, guess_state
+    xi, y, beta = default_guess(DEFAULT, 1.1, 300)[:3]
+    prob = SteadyProblem(DEFAULT, 1.1, xi, 0, 0.0, state_order=2)
+    assert np.array_equal(guess_state(DEFAULT, 1.1, xi, np.exp(y), beta),
+                          prob.state(np.exp(y), beta, False)[0])

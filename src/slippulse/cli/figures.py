@@ -29,6 +29,7 @@ def register(subparsers):
 
 def run(args):
     from ..steady import analysis
+    from .analyse import check_cd_over_cs
     from ..plotting import steady as plotting
 
     for f in [args.file] + ([args.compare] if args.compare else []):
@@ -40,7 +41,7 @@ def run(args):
         raise UsageError(f"--formats={args.formats!r}: choose from png, pdf, svg")
     skip = _unconverged(args)
     check_files(args, [args.file] + ([args.compare] if args.compare else []))
-    cd = analysis.check_cd_over_cs(args.cd_cs)
+    cd = check_cd_over_cs(args.cd_cs)
     from .checks import check_outdir
     check_outdir(args.outdir, "--outdir")
     data = plotting.load_family(args.file, compare_path=args.compare, cd_over_cs=cd, skip=skip)

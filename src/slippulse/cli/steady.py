@@ -13,7 +13,7 @@ from .checks import check_figure, check_outdir, finite  # noqa: F401
 from ..steady.newton import SOLVERS
 from ..core.params import DEFAULT, ParameterError
 from .paramargs import add_params_args, check_files, params_for_output
-from ..steady.solver import check_points, solve_pulse
+from ..steady.solver import MAX_POINTS, check_points, solve_pulse
 
 
 def summary_line(pulse, params) -> str:
@@ -445,7 +445,7 @@ def _check_file_params(args, path) -> None:
 
 
 def cmd_analyse(args) -> int:
-    from ..steady.analysis import cmd_analyse as run
+    from .analyse import cmd_analyse as run
     if os.path.isfile(args.file):
         _check_file_params(args, args.file)
     return run(args)
@@ -532,9 +532,9 @@ def register(sub) -> None:
                         "0.99 the pseudo-arclength march on a grid deformed with the pulse; "
                         "beta: steps in beta (no grid check); arclength: pseudo-arclength on "
                         "re-laid grids, checked at N vs 2N")
-    p.add_argument("--max-points", type=int, default=16000,
-                   help="largest grid a per-pulse grid check may use (default 16000; auto needs "
-                        ">= 3999)")
+    p.add_argument("--max-points", type=int, default=MAX_POINTS,
+                   help=f"largest grid a per-pulse grid check may use (default {MAX_POINTS}; "
+                        "auto needs >= 3999)")
     p.add_argument("--ds-min", type=float, default=0.004,
                    help="arclength: smallest step before giving up (default 0.004)")
     p.add_argument("--max-length", type=float, default=math.inf,
@@ -549,7 +549,8 @@ def register(sub) -> None:
                       description="Eigenvalues sigma (perturbations ~ exp(sigma t) in the co-moving "
                                   "frame) and modes of each converged pulse, from the steady "
                                   "solution alone (nonlinear eigenproblem on the pulse's grid, "
-                                  "docs/spectrum.md). The leading growth rate s comes with an "
+                                  "docs/spectrum.md; the rates of record: docs/stability.md "
+                                  "section 9.0). The leading growth rate s comes with an "
                                   "error s_err measured on a ladder of grids of one smooth map of "
                                   "the pulse's grid (N_0, sqrt(2) N_0, 2 N_0, ...; observed order "
                                   "and Roache's grid convergence index); where |s| < 2 s_err "

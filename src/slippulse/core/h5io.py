@@ -18,7 +18,7 @@ them; files of a newer version are refused with a message naming it. Groups and 
 schema does not name (e.g. a ``spectrum`` subgroup of a pulse group) are left alone.
 
 The helpers :func:`coordinate`, :func:`dimension` and :func:`describe` give the other writers
-(dynio, pulse_verify, scan, analysis) the same conventions.
+(dynamics.runfile, stability.verify, stability.scan, steady analysis) the same conventions.
 
 Every write goes to a temporary file in the same directory that replaces the target with
 ``os.replace`` only once complete, so an interrupted write never leaves a corrupt file.
@@ -154,6 +154,20 @@ def upgrade_steady(h5) -> None:
     stamp_format(h5, "steady")
 
 
+#: Order of the steady state integrator: the steady solver's default, and the order of every pulse
+#: written since issue 11 (stored as the pulse attribute ``state_order``).
+STATE_ORDER = 4
+#: Order of a stored pulse whose file has no ``state_order`` attribute (written before issue 11).
+UNSTORED_STATE_ORDER = 2
+
+
+def state_order_of(pulse) -> int:
+    """State-integrator order a pulse was solved with: its ``state_order`` attribute, or
+    :data:`UNSTORED_STATE_ORDER` when its file predates that attribute. Raises ValueError or
+    TypeError for an attribute that is not an integer."""
+    return int(pulse.extra.get("state_order", UNSTORED_STATE_ORDER))
+
+
 def pulse_label(tau_d_ratio: float) -> str:
     """Group name of a pulse: 'td' + τ_d/τ_min with 4 decimals when it is round to them within
     5e-7 (e.g. td1.2000; a grid check's refined pulse may lie 1e-7 off its target), else with 6
@@ -161,6 +175,18 @@ def pulse_label(tau_d_ratio: float) -> str:
     if abs(tau_d_ratio - round(tau_d_ratio, 4)) <= 5e-7:
         return f"td{tau_d_ratio:.4f}"
     return f"td{tau_d_ratio:.6f}"
+
+
+def label_ratio(label) -> float:
+    """τ_d/τ_min of a pulse label, the inverse of :func:`pulse_label` ('td1.2000' → 1.2,
+    'td1.009074' → 1.009074); NaN for a name that is not 'td' followed by a number. The one
+    parser of pulse labels: every reader calls it."""
+    if not isinstance(label, str) or not label.startswith("td"):
+        return float("nan")
+    try:
+        return float(label[2:])
+    except ValueError:
+        return float("nan")
 
 
 @dataclass
@@ -383,10 +409,7 @@ def _labels(h5, path: str) -> list[str]:
     labels = list(h5["pulses"].keys())
     ratios = []
     for lab in labels:
-        try:
-            ratios.append(float(lab[2:]) if lab.startswith("td") else float("nan"))
-        except ValueError:
-            ratios.append(float("nan"))
+        ratios.append(label_ratio(lab))
         if not (np.isfinite(ratios[-1]) and isinstance(h5["pulses"][lab], h5py.Group)):
             raise SchemaError(f"{path}: pulses/{lab} is not a pulse group (expected tdX.XXXX)")
     return [lab for _, lab in sorted(zip(ratios, labels), key=lambda p: -p[0])]

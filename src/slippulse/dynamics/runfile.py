@@ -35,6 +35,7 @@ import datetime as _dt
 import json
 import os
 import shutil
+import signal
 
 import h5py
 import numpy as np
@@ -53,6 +54,27 @@ LONG_NAMES = {"x": "position along the interface", "t": "time",
 #: Units of the checkpoint arrays (the rest are 1).
 _STATE_UNITS = {"t": "s", "dt_prev": "s", "delta": "m", "V": "m/s", "phi": "s", "tau": "Pa",
                 "delta_k": "m", "V_k": "m/s"}
+
+
+#: Points of :meth:`RunFile.checkpoint` (and of the catch-up it calls) where the test hook
+#: ``SLIPPULSE_KILL_AT=POINT:N`` kills the process with SIGKILL the N-th time it gets there
+#: (tests/test_kill_safety.py: kills at defined moments instead of after random delays).
+KILL_POINTS = ("state_written", "closed", "linked", "published", "rows_caught_up", "reopened")
+_kill_counts: dict = {}
+
+
+def _kill_point(name: str) -> None:
+    """The test hook (see :data:`KILL_POINTS`); does nothing unless SLIPPULSE_KILL_AT names
+    ``name``."""
+    spec = os.environ.get("SLIPPULSE_KILL_AT")
+    if not spec:
+        return
+    point, _, n = spec.partition(":")
+    if point != name:
+        return
+    _kill_counts[name] = _kill_counts.get(name, 0) + 1
+    if _kill_counts[name] == int(n or 1):
+        os.kill(os.getpid(), signal.SIGKILL)
 
 
 def _create_series(h5, n: int) -> None:
@@ -260,7 +282,9 @@ class RunFile:
         _write_checkpoint(self.h5, state, stepper.history_name)
         self.h5.attrs["status"] = status
         self.h5.attrs["message"] = message
+        _kill_point("state_written")
         self.h5.close()
+        _kill_point("closed")
         prev = self.path + ".prev"
         if os.path.exists(prev):
             os.remove(prev)
@@ -271,11 +295,14 @@ class RunFile:
                 have_prev = True
             except OSError:                      # no hard links here: copy after publishing
                 pass
+        _kill_point("linked")
         os.replace(self.work, self.path)         # the commit point: FILE is the new checkpoint
+        _kill_point("published")
         if have_prev:
             os.replace(prev, self.work)
             self.h5 = h5py.File(self.work, "r+")
             if _catch_up(self.h5, self.path, state, stepper.history_name):
+                _kill_point("reopened")
                 return
             self.h5.close()                      # previous FILE in another layout (resumed v1)
         shutil.copyfile(self.path, self.work)
@@ -324,6 +351,7 @@ def _catch_up(work, path: str, state: dict, history_policy) -> bool:
             work.attrs[key] = src.attrs[key]
         for key, val in src["config"].attrs.items():
             work["config"].attrs[key] = val
+    _kill_point("rows_caught_up")
     _write_checkpoint(work, state, history_policy)
     return True
 

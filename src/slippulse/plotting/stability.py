@@ -7,7 +7,7 @@ import os
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..steady.analysis import pulse_length
+from ..steady.measures import pulse_length
 from ..stability.perturbation import (pair_table, read_series, smoothed_c_p, steady_curve,
                                       write_pair_table)
 from ..stability.verify import VerifyResult, drift_verdict, mode_growth

@@ -18,13 +18,15 @@ from ..core import h5io
 from ..steady import modeii
 from ..core.friction import RateStateFriction
 from ..core.params import Parameters
+from ..core.reference import paper_scaling
 
 #: τ_d/τ_min of the curves of Figs. 2 and S2 (nearest available are drawn).
 FIG2_TARGETS = (1.015, 1.02, 1.03, 1.05, 1.1, 1.2)
 #: τ_d/τ_min of the closed orbits of Fig. 1.
 FIG1_TARGETS = (1.05, 1.20)
-#: Constants of the paper's scaling fit (Fig. 3), drawn for comparison.
-PAPER_SCALING = {"tau_star": 1.0087, "a_v": 1.15, "a_G": 0.69}
+#: Constants of the paper's scaling fit (Eqs. 3–4), drawn for comparison; read from the data file
+#: ``slippulse/data/paper_scaling.toml`` (with its source).
+PAPER_SCALING = paper_scaling()
 _STYLES = ("-", "--", "-.", ":", (0, (5, 1, 1, 1)), (0, (1, 1)))
 #: Fig. 3 zooms in below this τ_d/τ_min (the deep part of the family) when it has pulses there.
 DEEP_INSET = 1.0125
@@ -208,7 +210,9 @@ def fig3(data):
     xp = np.linspace(max(PAPER_SCALING["tau_star"] + 1e-4, x.min() - 0.002), x.max(), 400)
     bp, Lp = an.scaling_law(xp, params=prm, **PAPER_SCALING)
     h4, = ax.plot(xp, bp, ":", color="0.45", lw=1.2,
-                  label=r"paper's constants ($\tilde\tau_*$=1.0087, $a_v$=1.15, $a_G$=0.69)")
+                  label=(r"paper's constants ($\tilde\tau_*$=%.4f, $a_v$=%.2f, $a_G$=%.2f)"
+                         % (PAPER_SCALING["tau_star"], PAPER_SCALING["a_v"],
+                            PAPER_SCALING["a_G"])))
     ax2.semilogy(xp, Lp, ":", color="0.45", lw=1.2)
     handles.append(h4)
     ax.set_xlabel(r"$\tau_d/\tau_{min}$")

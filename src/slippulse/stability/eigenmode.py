@@ -26,7 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator
 
+from ..core.h5io import state_order_of
 from ..core.params import ParameterError
+from ..steady.measures import pulse_length
 
 #: Largest |ε| accepted for a mode-seeded run: ε is the largest change of y = ln(v/v*+1)
 #: (≈ the relative change of the peak slip rate). The ±ε growth fit (perturbation.pair_growth)
@@ -287,7 +289,6 @@ def front_response(mode: Eigenmode, pulse, v_star: float) -> dict:
         (δc/c)/(δL/L) in the (ln L, ln c_p) plane), zeta (m, ξ − ξ_R on the pulse's grid),
         y1f, psi1f (front-frame fields), xi_front.
     """
-    from ..steady.analysis import pulse_length
     xi = pulse.xi
     y0 = np.log1p(pulse.v / v_star)
     y1 = mode.lnv.real
@@ -313,7 +314,6 @@ def front_response(mode: Eigenmode, pulse, v_star: float) -> dict:
 
 def _front_fields(pulse, v_star, zeta):
     """y = ln(v/v*+1) and ψ = ln φ of a pulse at ζ = ξ − ξ_R (PCHIP on its grid)."""
-    from ..steady.analysis import pulse_length
     _, _, xr = pulse_length(pulse.xi, pulse.v, v_star)
     x = xr + zeta
     y = PchipInterpolator(pulse.xi, np.log1p(pulse.v / v_star))(x)
@@ -418,7 +418,7 @@ def local_neighbours(pulse, params, h: float = 2e-3):
         sol = solve_pulse(params, q, n_points=pulse.xi.size,
                           guess=(pulse.xi, np.log(pulse.v), pulse.beta), passes=0,
                           adapt_guess=False,
-                          state_order=int(pulse.extra.get("state_order", 2)))
+                          state_order=state_order_of(pulse))
         if not sol.stats.converged:
             raise SpectrumError(f"neighbour of {pulse.label} at tau_d/tau_min = {q:.6g} did not "
                                 "converge on its grid")

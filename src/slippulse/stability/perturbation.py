@@ -2,7 +2,7 @@
 
 A run (:func:`run_perturbation`) seeds a steady pulse (``seeding.seed_pulse``) perturbed by a small
 relative amount ε of either sign (``verify.perturb_seed``: the slip-rate excess scaled by
-1 + ε, or the driving stress raised by ε τ_d), propagates it with ``pulse_verify.verify_pulse`` in
+1 + ε, or the driving stress raised by ε τ_d), propagates it with ``verify.verify_pulse`` in
 the frame that follows it, and stops at its fate:
 
 * ``grew``: L > grow_L·L⁰, max V > lost_factor·v_max⁰, or the FWHM no longer closes (crack-like);
@@ -97,7 +97,7 @@ def fit_growth(x, d, lo=1e-3, hi=3e-2, min_points=5):
     Rule: let i₁ be the first sample with |d| ≥ hi (else the last sample); the regime is the
     samples i₀ < i ≤ i₁ after the last sample i₀ < i₁ with |d| < lo, restricted to lo ≤ |d| ≤ hi.
     Below lo the deviation is mixed with the start-up and discretisation level (≈ 1e-4 at the
-    production resolution, pulse_verify), above hi it saturates (nonlinear). The uncertainty is
+    production resolution of verify), above hi it saturates (nonlinear). The uncertainty is
     the larger of the least-squares standard error of s and half the difference between the
     slopes fitted on the first and second halves of the regime (curvature = not yet/no longer
     exponential).
@@ -378,7 +378,7 @@ def analyse(res, pulse, c: dict) -> dict:
 def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
     """Scan runner: run one perturbed pulse and write ``out_path`` (HDF5) atomically.
 
-    The file holds the verification output (``pulse_verify.write_result``: errors, series incl.
+    The file holds the verification output (``verify.write_result``: errors, series incl.
     L, c_p, v_max, slip, the deviation field, snapshots) plus the analysis of :func:`analyse` as
     root attributes, ``case_json`` and ``complete = True``. Returns the summary row.
     """

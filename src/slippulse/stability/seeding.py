@@ -30,7 +30,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from ..core import friction as fr
-from ..steady.analysis import pulse_length
+from ..steady.measures import pulse_length
 from ..core.h5io import Pulse, read_pulse
 from ..core.params import ParameterError, Parameters
 from ..dynamics.sbi import elastic_functional

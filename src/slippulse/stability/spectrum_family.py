@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.h5io import label_ratio
 from ..steady.grid import GridMap
 from .count import count_unstable
 from .refine import check_refinable, mapped_pulse, refine_leading
@@ -26,6 +27,12 @@ class SpectrumReport:
     skipped: list = field(default_factory=list)     # labels with a stored converged spectrum
     failed: list = field(default_factory=list)
     wall_time: float = 0.0
+
+
+def _by_decreasing_ratio(label):
+    """Sort key of pulse labels by decreasing τ_d (names that are no pulse label: 0)."""
+    r = label_ratio(label)
+    return -r if np.isfinite(r) and r >= 0 else 0.0
 
 
 def check_family_file(path, labels=None):
@@ -46,8 +53,7 @@ def check_family_file(path, labels=None):
         if "pulses" not in h5 or len(h5["pulses"]) == 0:
             raise SchemaError(f"{path}: holds no pulses")
         grp = h5["pulses"]
-        present = sorted(grp.keys(), key=lambda s: -float(s[2:]) if s[2:].replace(".", "", 1)
-                         .isdigit() else 0.0)
+        present = sorted(grp.keys(), key=_by_decreasing_ratio)
         if labels:
             missing = [lab for lab in labels if lab not in grp]
             if missing:

@@ -27,7 +27,8 @@ from numba import njit, prange
 from scipy.special import kve
 
 from ..steady.equations import adjugate3
-from ..steady.hilbert import _GL_N, _GL_NODES, _GL_RMIN, _GL_WEIGHTS
+from ..steady.hilbert import (GL_N as _GL_N, GL_NODES as _GL_NODES, GL_RMIN as _GL_RMIN,
+                              GL_WEIGHTS as _GL_WEIGHTS)
 
 X_SERIES = 2.0          # |x| ≤ X_SERIES: power series; beyond: scaled Bessel functions
 DU = 0.005              # table step in u = ln|r| (cubic interpolation error ≲ 1e-10 relative)

@@ -30,7 +30,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from ..core.params import DEFAULT
-from ..steady.analysis import pulse_length
+from ..steady.measures import pulse_length
 from .seeding import DomainSpec, SeededPulse, follow_pulse, seed_pulse
 from ..dynamics.stepper import TimeStepRule
 

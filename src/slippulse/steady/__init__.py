@@ -3,7 +3,9 @@ Jacobian, Newton, the solver, continuation of the family, its analysis and the m
 from .equations import SteadyProblem, integrate_state
 from .solver import GridSpec, SteadySolution, solve_on_grid, solve_pulse
 from .continuation import DeepSettings, FamilyReport, march_arclength, run_family
-from .analysis import analyse_family, analyse_pulse, divergence_fit, pulse_length
+from .analysis import analyse_family, analyse_pulse
+from .fits import divergence_fit
+from .measures import pulse_length
 
 __all__ = ['SteadyProblem', 'integrate_state', 'GridSpec', 'SteadySolution', 'solve_on_grid',
            'solve_pulse', 'DeepSettings', 'FamilyReport', 'march_arclength', 'run_family',

@@ -24,14 +24,17 @@ from numba import njit
 from scipy.linalg import solve_banded
 
 _GL = {n: np.polynomial.legendre.leggauss(n) for n in (3, 4, 6, 8, 10, 12)}
-_GL_NODES = np.zeros((6, 12))
-_GL_WEIGHTS = np.zeros((6, 12))
-_GL_N = np.array([3, 4, 6, 8, 10, 12])
-for _k, _n in enumerate(_GL_N):
-    _GL_NODES[_k, :_n] = 0.5 * (_GL[_n][0] + 1.0)   # mapped to [0, 1]
-    _GL_WEIGHTS[_k, :_n] = 0.5 * _GL[_n][1]
+#: Gauss–Legendre rules of the near-pole cells (shared with the stability kernels): GL_N[k] nodes
+#: GL_NODES[k, :GL_N[k]] on [0, 1] with weights GL_WEIGHTS[k, :GL_N[k]], used where the pole
+#: distance r ≥ GL_RMIN[k].
+GL_NODES = np.zeros((6, 12))
+GL_WEIGHTS = np.zeros((6, 12))
+GL_N = np.array([3, 4, 6, 8, 10, 12])
+for _k, _n in enumerate(GL_N):
+    GL_NODES[_k, :_n] = 0.5 * (_GL[_n][0] + 1.0)   # mapped to [0, 1]
+    GL_WEIGHTS[_k, :_n] = 0.5 * _GL[_n][1]
 # Quadrature order by r = |2 x0 − 1| (pole distance in half-lengths): error ~ ρ^(−2n), ρ = r + √(r²−1)
-_GL_RMIN = np.array([400.0, 80.0, 20.0, 8.0, 4.0, 3.0])
+GL_RMIN = np.array([400.0, 80.0, 20.0, 8.0, 4.0, 3.0])
 
 
 @njit(cache=True)
@@ -56,17 +59,17 @@ def _assemble(xi, cubic, A, B):
                 m3 = 1.0 / 3.0 + x0 * m2
             else:
                 q = 0
-                for k in range(_GL_N.size):
-                    if r >= _GL_RMIN[k]:
+                for k in range(GL_N.size):
+                    if r >= GL_RMIN[k]:
                         q = k
                         break
                 m0 = 0.0
                 m1 = 0.0
                 m2 = 0.0
                 m3 = 0.0
-                for k in range(_GL_N[q]):
-                    s = _GL_NODES[q, k]
-                    wk = _GL_WEIGHTS[q, k] / (s - x0)
+                for k in range(GL_N[q]):
+                    s = GL_NODES[q, k]
+                    wk = GL_WEIGHTS[q, k] / (s - x0)
                     m0 += wk
                     m1 += wk * s
                     m2 += wk * s * s
@@ -140,7 +143,7 @@ def spline_slopes(xi, u):
     return solve_banded((1, 1), T, ru)
 
 
-def _tail_columns(xi, center):
+def tail_columns(xi, center):
     """Integrals of the far-field tails u_end (ξ_end − c)/(z − c) against 1/(z − ξ_i).
 
     Ahead (z > ξ_N, c < ξ_N): ∫_{ξ_N}^∞ a/((z−c)(z−ξ_i)) dz = a ln(|ξ_N−ξ_i|/|ξ_N−c|)/(c−ξ_i) with
@@ -203,11 +206,11 @@ def hilbert_matrix(xi, kind: str = "cubic", tails: bool = True, center: float | 
 
 
 def _add_tails(H, xi, center):
-    """Add the far-field tail integrals (see :func:`_tail_columns`) to the end columns of H."""
+    """Add the far-field tail integrals (see :func:`tail_columns`) to the end columns of H."""
     c = 0.5 * (xi[0] + xi[-1]) if center is None else float(center)
     if not (xi[0] < c < xi[-1]):
         raise ValueError("tail centre must lie inside the grid")
-    behind, ahead = _tail_columns(xi, c)
+    behind, ahead = tail_columns(xi, c)
     H[:, 0] += behind
     H[:, -1] += ahead
 

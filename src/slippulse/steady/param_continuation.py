@@ -37,10 +37,10 @@ def judge(sol) -> tuple[bool, str]:
 MAX_ITER = 30
 
 
-def attempt(params, ratio, n_points, guess=None):
+def attempt(params, tau_d_ratio, n_points, guess=None):
     """One solve; (solution or None, found, reason)."""
     try:
-        sol = solve_pulse(params, ratio, n_points=n_points, guess=guess, max_iter=MAX_ITER)
+        sol = solve_pulse(params, tau_d_ratio, n_points=n_points, guess=guess, max_iter=MAX_ITER)
     except (RuntimeError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
         return None, False, f"{type(exc).__name__}: {str(exc).splitlines()[0][:80]}"
     ok, why = judge(sol)

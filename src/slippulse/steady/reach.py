@@ -40,27 +40,28 @@ SOLVE_RANGE = (1.015, 1.325)
 DIRECT = 1e-9
 
 
-def route_targets(ratio: float, step: float = 0.005) -> tuple[float, int]:
-    """The walk from :data:`GUESS_RATIO` to ``ratio``: (signed step, number of steps), the step of
-    magnitude ≤ ``step`` that lands on ``ratio`` exactly (0 steps at the guess itself)."""
-    span = ratio - GUESS_RATIO
+def route_targets(tau_d_ratio: float, step: float = 0.005) -> tuple[float, int]:
+    """The walk from :data:`GUESS_RATIO` to ``tau_d_ratio``: (signed step, number of steps), the
+    step of magnitude ≤ ``step`` that lands on ``tau_d_ratio`` exactly (0 steps at the guess
+    itself)."""
+    span = tau_d_ratio - GUESS_RATIO
     if abs(span) < DIRECT:
         return 0.0, 0
     n = max(1, math.ceil(abs(span) / step - 1e-9))
     return span / n, n
 
 
-def _walk_up(params, ratio, h, progress, n_points, min_step):
-    """Natural continuation upward from the guess at GUESS_RATIO to ``ratio``; returns the last
-    (solution, message) pair, converged at ``ratio`` or not."""
+def _walk_up(params, tau_d_ratio, h, progress, n_points, min_step):
+    """Natural continuation upward from the guess at GUESS_RATIO to ``tau_d_ratio``; returns the
+    last (solution, message) pair, converged at ``tau_d_ratio`` or not."""
     sol = solve_pulse(params, GUESS_RATIO, n_points=n_points)
     if progress:
         progress(GUESS_RATIO, sol.to_pulse() if sol.stats.converged else None, sol.stats.message)
     if not sol.stats.converged:
         return None, f"the built-in guess at {GUESS_RATIO} failed ({sol.stats.message})"
     q, dq = GUESS_RATIO, h
-    while q < ratio - 1e-12:
-        trial = min(ratio, q + dq)
+    while q < tau_d_ratio - 1e-12:
+        trial = min(tau_d_ratio, q + dq)
         guess = (sol.problem.xi, sol.x[:-1], sol.beta)
         try:
             new = solve_pulse(params, trial, n_points=n_points, guess=guess, passes=0, max_iter=30)
@@ -79,35 +80,35 @@ def _walk_up(params, ratio, h, progress, n_points, min_step):
     return sol, "converged"
 
 
-def reach_pulse(params: Parameters, ratio: float, n_points: int = 2000, method: str = "newton",
-                tol: float = 1e-13, step: float = 0.005, min_step: float = 1e-4,
-                progress=None) -> tuple[SteadySolution | None, str]:
-    """Solve the steady pulse at τ_d = ``ratio`` τ_min from the built-in guess, continuing from
-    τ_d/τ_min = 1.2 where the guess does not reach (module docstring).
+def reach_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 2000,
+                method: str = "newton", tol: float = 1e-13, step: float = 0.005,
+                min_step: float = 1e-4, progress=None) -> tuple[SteadySolution | None, str]:
+    """Solve the steady pulse at τ_d = ``tau_d_ratio`` τ_min from the built-in guess, continuing
+    from τ_d/τ_min = 1.2 where the guess does not reach (module docstring).
 
     Parameters
     ----------
-    ratio : τ_d/τ_min, in (1, τ_peak/τ_min).
-    n_points, method, tol : of the final solve at ``ratio`` (as :func:`solve_pulse`).
+    tau_d_ratio : τ_d/τ_min, in (1, τ_peak/τ_min).
+    n_points, method, tol : of the final solve at ``tau_d_ratio`` (as :func:`solve_pulse`).
     step : largest continuation step in τ_d/τ_min.
     min_step : upward walk: smallest step before giving up.
-    progress : callable(ratio, pulse_or_None, message), optional
+    progress : callable(tau_d_ratio, pulse_or_None, message), optional
         Told about every solve of the walk (None: a failed attempt), like the family's.
 
     Returns
     -------
     (SteadySolution or None, str)
         The final solution (``stats.converged`` says whether it converged) and how it was reached;
-        None and the reason when the walk to ``ratio`` stopped before it.
+        None and the reason when the walk to ``tau_d_ratio`` stopped before it.
     """
-    params.check_tau_d(ratio * params.tau_min)
-    h, n = route_targets(ratio, step)
+    params.check_tau_d(tau_d_ratio * params.tau_min)
+    h, n = route_targets(tau_d_ratio, step)
     if n == 0:
-        return solve_pulse(params, ratio, n_points=n_points, method=method, tol=tol), \
+        return solve_pulse(params, tau_d_ratio, n_points=n_points, method=method, tol=tol), \
             "from the built-in guess"
     t0 = time.perf_counter()
     if h > 0:
-        sol, why = _walk_up(params, ratio, h, progress, min(n_points, 1000), min_step)
+        sol, why = _walk_up(params, tau_d_ratio, h, progress, min(n_points, 1000), min_step)
         if sol is None or not sol.stats.converged:
             return None, why
         guess = (sol.problem.xi, sol.x[:-1], sol.beta)
@@ -115,18 +116,18 @@ def reach_pulse(params: Parameters, ratio: float, n_points: int = 2000, method: 
     else:
         with tempfile.TemporaryDirectory(prefix="slippulse-reach-") as tmp:
             out = os.path.join(tmp, "walk.h5")
-            rep = run_family(params, out, start=GUESS_RATIO, stop=ratio, step=-h,
+            rep = run_family(params, out, start=GUESS_RATIO, stop=tau_d_ratio, step=-h,
                              progress=progress)
             if rep.stopped_early or not rep.written:
                 return None, (f"the family continuation from {GUESS_RATIO} stopped at "
                               f"tau_d/tau_min={rep.reached:.5f}: {rep.stop_reason}")
             last, _ = read_pulse(out, rep.written[-1])
-        if abs(last.tau_d_ratio - ratio) > 1e-9:
+        if abs(last.tau_d_ratio - tau_d_ratio) > 1e-9:
             return None, (f"the family continuation ended at tau_d/tau_min="
-                          f"{last.tau_d_ratio:.6f}, not {ratio}")
+                          f"{last.tau_d_ratio:.6f}, not {tau_d_ratio}")
         guess = (last.xi, np.log(last.v), last.beta)
         route = f"continued down from {GUESS_RATIO} by the family continuation ({n} steps)"
-    final = solve_pulse(params, ratio, n_points=n_points, guess=guess, passes=0, method=method,
-                        tol=tol)
+    final = solve_pulse(params, tau_d_ratio, n_points=n_points, guess=guess, passes=0,
+                        method=method, tol=tol)
     final.wall_time = time.perf_counter() - t0
     return final, route

@@ -18,10 +18,12 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from .grid import build_grid
-from ..core.h5io import Pulse
+from .measures import pulse_length
+from ..core.h5io import STATE_ORDER, Pulse
 from .newton import SOLVERS, SolveStats
 from ..core.params import ParameterError, Parameters
-from .equations import SteadyProblem
+from ..core import friction as fr
+from .equations import SteadyProblem, integrate_state
 
 MIN_POINTS = 64
 #: Largest grid: the Newton solver holds several dense (N+1)² matrices, 2 GB each at N = 16000.
@@ -70,7 +72,7 @@ class SteadySolution:
         p = prob.params
         v, phi, tau, _ = prob.fields(self.x)
         res = prob.residual(self.x)[:-1]
-        L = fwhm(prob.xi, v, p.v_star)
+        L = pulse_length(prob.xi, v, p.v_star, crossings=False)
         return Pulse(
             xi=prob.xi.copy(), v=v, phi=phi, tau=tau, residual=res,
             tau_d_ratio=prob.tau_d_ratio, tau_d=prob.tau_d, tau_min=p.tau_min,
@@ -84,15 +86,6 @@ class SteadySolution:
                    "state_order": int(prob.state_order),
                    "n_humps": int(count_humps(v)),
                    "y_pin": float(prob.y_pin)})
-
-
-def fwhm(xi, v, v_star):
-    """Pulse length L (FWHM of ln(v/v*+1)); the one definition is :func:`analysis.pulse_length`."""
-    from .analysis import pulse_length
-    try:
-        return float(pulse_length(xi, v, v_star)[0])
-    except ValueError:
-        return float("nan")
 
 
 def count_humps(v, rel=1e-2):
@@ -169,7 +162,7 @@ def default_guess(params: Parameters, tau_d_ratio: float, n_points: int = 400, L
 
 def adapted_grid(xi, y, phi, beta, params, v_stick, n_points, spec: GridSpec = GridSpec()):
     """Grid adapted to a solution: spacing ∝ min(1/|∂ξ ln v|, 1/|∂ξ ln φ|, body·L), graded far away."""
-    L = fwhm(xi, np.exp(y), params.v_star)
+    L = pulse_length(xi, np.exp(y), params.v_star, crossings=False)
     if not np.isfinite(L) or L <= 0:
         raise RuntimeError("cannot measure the pulse length on this solution")
     k, _ = front_pin(xi, y, math.log(v_stick))
@@ -207,7 +200,7 @@ def check_points(n_points: int) -> None:
 
 
 def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, hilbert="cubic",
-                  max_iter=60, state_order=4):
+                  max_iter=60, state_order=STATE_ORDER):
     """One solve on a fixed grid from (y, β); the phase condition is placed on the guess's front."""
     v_st = params.v_stick(tau_d_ratio * params.tau_min)
     k, ymid = front_pin(xi, y, math.log(v_st))
@@ -223,7 +216,7 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
                 method: str = "newton", tol: float = 1e-13, hilbert: str = "cubic",
                 spec: GridSpec = GridSpec(), passes: int = 2, coarse_points: int = 500,
                 progress=None, max_iter: int = 60, adapt_guess: bool = True,
-                state_order: int = 4) -> SteadySolution:
+                state_order: int = STATE_ORDER) -> SteadySolution:
     """Solve the steady pulse at τ_d = tau_d_ratio τ_min.
 
     Parameters
@@ -273,18 +266,34 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
     return SteadySolution(prob, x, stats, time.perf_counter() - t0, npass)
 
 
+def guess_state(params, tau_d_ratio, xi, v, beta):
+    """State φ(ξ) of a guessed slip rate v on xi at speed β, by the order-2 exponential update
+    (:func:`slippulse.steady.equations.integrate_state`, w frozen on half cells) from the rest
+    state ahead: robust on any guess; used to lay out grids, not to solve.
+
+    Raises ParameterError when τ_d = tau_d_ratio τ_min is outside (τ_min, τ_peak).
+    """
+    tau_d = float(tau_d_ratio) * params.tau_min
+    params.check_tau_d(tau_d)
+    phi_end = float(fr.phi_ss(params.v_stick(tau_d), params.v_star, params.D))
+    v = np.asarray(v, dtype=float)
+    w = fr.heal_rate(v, params.v_star, params.D)
+    dw_dy = v * v / (params.D * params.D * w)
+    xi = np.ascontiguousarray(xi, dtype=float)
+    return integrate_state(xi, v, beta * params.c_s, phi_end, w, dw_dy, False)[0]
+
+
 def regrid_guess(params, tau_d_ratio, xi, y, beta, n_points, spec: GridSpec = GridSpec()):
     """Lay out a grid of n_points adapted to a guess (ln v on xi, speed β; its state follows from
     the steady state equation) and move ln v onto it. Returns (xi_new, y_new)."""
     v_st = params.v_stick(tau_d_ratio * params.tau_min)
-    # no Hilbert matrix needed; φ only shapes the grid, from the robust order-2 update
-    probe = SteadyProblem(params, tau_d_ratio, xi, 0, 0.0, H=np.zeros((1, 1)), state_order=2)
-    phi = probe.state(np.exp(y), beta, False)[0]
+    # φ only shapes the grid, from the robust order-2 update
+    phi = guess_state(params, tau_d_ratio, xi, np.exp(y), beta)
     xi_new = adapted_grid(xi, y, phi, beta, params, v_st, n_points, spec)
     return xi_new, interpolate(xi, y, xi_new, v_st)
 
 
-def refine_nested(params, pulse, method="newton", tol=1e-13, state_order=4):
+def refine_nested(params, pulse, method="newton", tol=1e-13, state_order=STATE_ORDER):
     """The pulse re-solved on its own grid with the midpoints inserted (N → 2N − 1), started from
     its ln v interpolated there: a nested refinement, whose errors fall smoothly with the level
     (unlike re-adapted grids), for convergence studies. Returns a :class:`SteadySolution`."""

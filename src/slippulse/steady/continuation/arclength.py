@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..equations import SteadyProblem
+from ..solver import MAX_POINTS
 from .tolerance import GRID_TOLERANCE
 
 
@@ -101,7 +102,7 @@ class DeepSettings:
     check: bool = True
     tol_beta: float = GRID_TOLERANCE.beta
     tol_L: float = GRID_TOLERANCE.L
-    n_max: int = 16000
+    n_max: int = MAX_POINTS
     max_length: float = math.inf
     max_iter: int = 15
     regrid: float = 0.05

@@ -9,10 +9,10 @@ import time
 
 import numpy as np
 
-from ..analysis import pulse_length
+from ..measures import pulse_length
 from ..equations import SteadyProblem
 from ..newton import SolveStats, newton
-from ..solver import GridSpec, SteadySolution, front_pin, fwhm, regrid_guess
+from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess
 from .arclength import ArclengthProblem, DeepSettings, family_tangent
 from .natural import _judge
 from .stretch import _stretch, stretch_grid
@@ -32,7 +32,8 @@ class DeepMarch:
     settings : :class:`DeepSettings` (steps, Newton iterations, stretch).
     stop : the march is ``"finished"`` once τ_d/τ_min ≤ stop (default: never).
     max_length : the march is ``"stopped"`` once L ≥ max_length (m; default ``settings.max_length``).
-    on_attempt : callable(ratio, pulse_or_None, message), optional; called after every attempt.
+    on_attempt : callable(tau_d_ratio, pulse_or_None, message), optional; called after every
+        attempt.
     n_of : callable() → N, optional; the current N for re-laid grids (a grid check may raise it).
 
     Attributes
@@ -71,7 +72,8 @@ class DeepMarch:
         self.kappa = max(abs(n0[-1] / (-n0[-2] / (1.0 - self.beta))), 1e-5)
         self._orient = (1.0, 0.0, self.kappa)
         self.ds = settings.ds
-        self.L = self._L_grid = fwhm(base.xi, np.exp(x[:-2]), params.v_star)
+        self.L = self._L_grid = pulse_length(base.xi, np.exp(x[:-2]), params.v_star,
+                                             crossings=False)
         self.sol = SteadySolution(base, x, SolveStats(True, "start", 0, 0.0), 0.0, 0)
         self.tangent = (math.nan, math.nan)
         self.fold = None
@@ -94,7 +96,8 @@ class DeepMarch:
         # edge by exp(ds · d ln L/ds) (the healing edge moves by many of its own widths per
         # step, which the linear tangent n_y cannot carry); d ln L/ds by a finite difference
         eps = 1e-4
-        dlnL = (math.log(fwhm(base.xi, np.exp(x[:-2] + eps * n[:-2]), P.v_star)) -
+        dlnL = (math.log(pulse_length(base.xi, np.exp(x[:-2] + eps * n[:-2]), P.v_star,
+                                      crossings=False)) -
                 math.log(self.L)) / eps
         yp = _stretch(base.xi, x[:-2], base.xi[base.pin_index], math.exp(ds * dlnL))
         bp = 1.0 - (1.0 - beta) * math.exp(ds * t_a)
@@ -205,11 +208,11 @@ def march_arclength(params, start, n_points, spec=GridSpec(), deep=DeepSettings(
     caller replace the march's current pulse between steps: a solution put in
     ``handoff["sol"]`` (x = (y, β, q)) becomes the base of the next step, grid included.
     """
-    def on_attempt(ratio, pulse, msg):
+    def on_attempt(tau_d_ratio, pulse, msg):
         if rep is not None:
-            rep.record(ratio, pulse is not None, msg)
+            rep.record(tau_d_ratio, pulse is not None, msg)
         if progress:
-            progress(ratio, pulse, msg)
+            progress(tau_d_ratio, pulse, msg)
 
     m = DeepMarch(params, start, n_points, spec, deep, max_length=math.inf, on_attempt=on_attempt,
                   n_of=n_of)

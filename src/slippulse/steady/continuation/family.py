@@ -10,7 +10,7 @@ import numpy as np
 
 from ...core.h5io import list_pulses, read_pulse, write_pulse
 from ...core.params import ParameterError, Parameters
-from ..solver import GridSpec, solve_pulse
+from ..solver import MAX_POINTS, GridSpec, solve_pulse
 from .arclength import DeepSettings
 from .deep import DeepMarch, march_arclength
 from .gridcheck import as_both, check_grid_2n, check_pulse
@@ -54,7 +54,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
                spec: GridSpec = GridSpec(), progress=None, max_iter: int = 12,
                beta_switch: float = 0.85, deep: str = "beta",
                deep_settings: DeepSettings | None = None, tolerance: GridTolerance = GRID_TOLERANCE,
-               n_max: int = 16000, max_length: float = math.inf,
+               n_max: int = MAX_POINTS, max_length: float = math.inf,
                deep_points: int | None = None, log=None) -> FamilyReport:
     """Solve the family from `start` down to `stop` (τ_d/τ_min) and write it to `out`.
 
@@ -62,7 +62,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     ----------
     n_points : grid points of every pulse; None: :data:`FAMILY_POINTS` (fewer while β ≤
         :data:`FAMILY_POINTS_BETA`, more beyond, in the β-steps and the deep continuation).
-    progress : callable(ratio, pulse_or_None, message), optional
+    progress : callable(tau_d_ratio, pulse_or_None, message), optional
         Called after every attempted solve.
     max_iter : Newton iterations allowed per predicted step (converging steps take ≤ 6).
     beta_switch : above this β, step in β (τ_d free) directly: there τ_d-steps of the family's
@@ -218,14 +218,14 @@ def _resume(params, out, rep: FamilyReport):
     return _Base(last.xi, np.log(last.v), last.beta, last.tau_d_ratio)
 
 
-def _attempt(params, ratio, rep: FamilyReport, progress, **solve_args):
-    """Solve at τ_d/τ_min = ``ratio`` and judge it; the attempt is counted in ``rep`` and shown
-    by ``progress``. Returns (solution, pulse, ok, message)."""
-    sol = solve_pulse(params, ratio, **solve_args)
+def _attempt(params, tau_d_ratio, rep: FamilyReport, progress, **solve_args):
+    """Solve at τ_d/τ_min = ``tau_d_ratio`` and judge it; the attempt is counted in ``rep`` and
+    shown by ``progress``. Returns (solution, pulse, ok, message)."""
+    sol = solve_pulse(params, tau_d_ratio, **solve_args)
     pulse, ok, msg = _judge(sol)
-    rep.record(ratio, ok, msg)
+    rep.record(tau_d_ratio, ok, msg)
     if progress:
-        progress(ratio, pulse if ok else None, msg)
+        progress(tau_d_ratio, pulse if ok else None, msg)
     return sol, pulse, ok, msg
 
 

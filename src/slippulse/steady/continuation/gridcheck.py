@@ -10,7 +10,8 @@ import numpy as np
 
 from ..equations import SteadyProblem
 from ..newton import newton
-from ..solver import GridSpec, SteadySolution, front_pin, fwhm, interpolate, regrid_guess
+from ..measures import pulse_length
+from ..solver import MAX_POINTS, GridSpec, SteadySolution, front_pin, interpolate, regrid_guess
 from .arclength import ArclengthProblem, family_tangent
 from .homotopy import solve_robust
 from .tolerance import GRID_TOLERANCE
@@ -80,7 +81,8 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
         return fine, math.inf, math.inf
     p1 = fine.to_pulse()
     eps = 1e-3 / max(float(np.abs(n[:-2]).max()), 1e-12)
-    dL_ds = (fwhm(sol.xi, np.exp(sol.x[:-2] + eps * n[:-2]), params.v_star) - p0.L) / eps
+    dL_ds = (pulse_length(sol.xi, np.exp(sol.x[:-2] + eps * n[:-2]), params.v_star,
+                          crossings=False) - p0.L) / eps
     dq = float(xs[-1]) - q
     dbeta = p1.beta - beta - (n[-2] / n[-1]) * dq
     dL = p1.L - p0.L - dL_ds / n[-1] * dq
@@ -175,7 +177,7 @@ class GridCheck:
                 "grid_check_message": self.message, "grid_check_wall_time": float(self.wall_time)}
 
 
-def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=16000, body_levels=2,
+def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINTS, body_levels=2,
                 max_iter=15, stages=4, log=None) -> GridCheck:
     """Grid-check a pulse and refine it until it passes: N, or the body refinement, per pulse.
 

@@ -12,7 +12,8 @@ import scipy.linalg as sla
 from ...core.h5io import write_pulse
 from ..equations import SteadyProblem
 from ..newton import newton
-from ..solver import GridSpec, SteadySolution, front_pin, fwhm, regrid_guess, solve_pulse
+from ..measures import pulse_length
+from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess, solve_pulse
 from .stretch import _stretch
 
 
@@ -66,7 +67,7 @@ def tangent_step(params, base: _Base, value, fixed, n_points, spec=GridSpec(), m
     correct: :func:`newton` with the LU of J_x (chord iterations, then Newton if they stall).
     """
     t0 = time.perf_counter()
-    L = fwhm(base.xi, np.exp(base.y), params.v_star)
+    L = pulse_length(base.xi, np.exp(base.y), params.v_star, crossings=False)
     keep = (base.H is not None and base.xi.size == n_points and abs(L / base.L_grid - 1) <= regrid)
     if keep:
         xi, y, H, k, ky, L_grid = base.xi, base.y, base.H, base.pin, base.y_pin, base.L_grid
@@ -88,8 +89,8 @@ def tangent_step(params, base: _Base, value, fixed, n_points, spec=GridSpec(), m
     # moves by many of its own widths per step, which the linear tangent cannot carry), plus the
     # part of the tangent the stretch does not hold; the scalar unknown along the tangent
     eps = 1e-3 / max(float(np.abs(t[:n]).max()), 1e-12)
-    dlnL = (math.log(fwhm(xi, np.exp(y + eps * t[:n]), params.v_star)) -
-            math.log(fwhm(xi, np.exp(y), params.v_star))) / eps
+    dlnL = (math.log(pulse_length(xi, np.exp(y + eps * t[:n]), params.v_star, crossings=False)) -
+            math.log(pulse_length(xi, np.exp(y), params.v_star, crossings=False))) / eps
     if not math.isfinite(dlnL):            # FWHM not measurable on the perturbed profile
         dlnL = 0.0
     behind = xi < xi[k]

@@ -25,11 +25,11 @@ class FamilyReport:
     deep_steps: int = 0                              # accepted steps of the deep march
     limit_reached: bool = False                      # stopped cleanly at max_length
 
-    def record(self, ratio, ok, message):
+    def record(self, tau_d_ratio, ok, message):
         """Count one attempted solve; a failed one is kept with its τ_d/τ_min and message."""
         self.attempts += 1
         if not ok:
-            self.failures.append((float(ratio), message))
+            self.failures.append((float(tau_d_ratio), message))
 
     def wrote(self, pulse):
         """A converged pulse was written: the run has reached its τ_d."""

@@ -1,0 +1,132 @@
+"""Storage of a pulse's stability spectrum: the ``spectrum`` subgroup of its pulse group (xarray-
+readable; written atomically), and its reader."""
+from __future__ import annotations
+
+import numpy as np
+
+
+SPECTRUM_GROUP = "spectrum"
+MODE_FIELDS = {"delta": ("m", "slip perturbation delta_1 (mode normalised: max |lnv_1| = 1)"),
+               "V": ("m/s", "slip-rate perturbation V_1"),
+               "phi": ("s", "state perturbation phi_1"),
+               "lnv": ("1", "perturbation of ln(v/v* + 1)")}
+
+
+def write_spectrum(path, res, settings: dict):
+    """Store `res` (a :class:`~slippulse.stability.spectrum.PulseSpectrum`) as /pulses/<label>/spectrum (replacing an earlier one), atomically.
+
+    Layout (xarray: ``open_datatree(path, engine="h5netcdf")``): coordinate ``eigenvalue`` (index,
+    by decreasing Re σ); ``sigma_real``/``sigma_imag`` (1/s) and ``s_per_L_*`` on it; mode fields
+    ``delta_*``, ``V_*``, ``phi_*``, ``lnv_*`` on (eigenvalue, xi), xi being the pulse's own
+    coordinate in the parent group; scalars and the status as attributes.
+    """
+    from ..core.h5io import atomic_update, coordinate, describe, upgrade_steady
+
+    def fill(h5):
+        upgrade_steady(h5)                       # xi of every pulse group a dimension scale
+        grp_p = h5["pulses"][res.label]
+        if SPECTRUM_GROUP in grp_p:
+            del grp_p[SPECTRUM_GROUP]
+        g = grp_p.create_group(SPECTRUM_GROUP)
+        g.attrs["status"] = res.status
+        g.attrs["message"] = res.message
+        g.attrs["n_eigenvalues"] = int(res.sigmas.size)
+        g.attrs["n_unstable"] = res.n_unstable
+        lead = res.leading
+        g.attrs["leading_sigma_real"] = lead.real
+        g.attrs["leading_sigma_imag"] = lead.imag
+        g.attrs["leading_s_per_L"] = lead.real / res.rate_unit
+        g.attrs["rate_unit_c_over_L"] = res.rate_unit
+        g.attrs["uniform_slip_backward_error"] = float(res.neutral[0].real)
+        g.attrs["translation_sigma"] = float(res.neutral[1].real)
+        g.attrs["translation_s_per_L"] = float(res.neutral[1].real / res.rate_unit)
+        g.attrs["translation_mode_error"] = float(res.translation_error)
+        g.attrs["n_points"] = res.n_points
+        g.attrs["wall_time"] = res.wall_time
+        g.attrs["newton_iterations"] = res.newton_iterations
+        g.attrs["failures"] = "; ".join(res.failures)
+        ref = res.refined
+        if ref is not None:
+            # the leading growth rate of record: finest nested level, error = last correction
+            g.attrs["refine_status"] = ref.status
+            g.attrs["refine_message"] = ref.message
+            g.attrs["refine_n_points"] = np.asarray(ref.n_points, dtype="i8")
+            g.attrs["refine_s_levels"] = np.asarray(ref.s_levels, dtype=float)
+            g.attrs["refine_imag_levels"] = np.asarray(ref.imag_levels, dtype=float)
+            g.attrs["refine_translation_levels"] = np.asarray(ref.translation_levels, float)
+            g.attrs["refine_order"] = ref.order
+            g.attrs["refine_rule"] = ref.rule
+            g.attrs["refine_level_ratio"] = float(ref.ratio)
+            g.attrs["refine_target_s_err_per_L"] = float(ref.target)
+            g.attrs["refine_target_met"] = int(ref.target_met)
+            if ref.status == "converged":
+                g.attrs["s"] = ref.s
+                g.attrs["s_err"] = ref.s_err
+                g.attrs["s_per_L"] = ref.s / ref.rate_unit
+                g.attrs["s_err_per_L"] = ref.s_err / ref.rate_unit
+                g.attrs["sign_resolved"] = int(ref.sign_resolved)
+        cnt = res.count
+        if cnt is not None:
+            g.attrs["count_status"] = cnt.status
+            g.attrs["count_message"] = cnt.message
+            g.attrs["count_box_c_over_L"] = np.asarray(cnt.box, dtype=float)
+            g.attrs["count_evaluations"] = int(cnt.n_evals)
+            g.attrs["count_winding"] = float(cnt.winding)
+            g.attrs["count_max_step_rad"] = float(cnt.max_step)
+            if cnt.count is not None:
+                g.attrs["count"] = int(cnt.count)
+        for k, v in settings.items():
+            g.attrs[f"setting_{k}"] = v
+        units = {"leading_sigma_real": "1/s", "leading_sigma_imag": "1/s",
+                 "rate_unit_c_over_L": "1/s", "translation_sigma": "1/s", "wall_time": "s",
+                 "s": "1/s", "s_err": "1/s", "refine_s_levels": "1/s",
+                 "refine_imag_levels": "1/s", "refine_translation_levels": "1/s"}
+        for k, u in units.items():
+            if k in g.attrs:
+                g.attrs[f"{k}_units"] = u
+        nm = len(res.modes)
+        eig = coordinate(g, "eigenvalue", np.arange(nm, dtype="i8"), units="1", dtype="i8",
+                         long_name="eigenvalue index, by decreasing Re sigma")
+        xi = grp_p["xi"]
+        sel = slice(None)
+        if res.xi is not None and np.asarray(res.xi).size != xi.shape[0]:
+            rx, px = np.asarray(res.xi, float), xi[...]
+            step = (rx.size - 1) // max(px.size - 1, 1)
+            if step >= 1 and rx.size - 1 == step * (px.size - 1) and np.array_equal(rx[::step], px):
+                sel = slice(None, None, step)      # a nested refinement: the pulse's own nodes
+            else:
+                xi = coordinate(g, "xi_mode", rx, units="m",
+                                long_name="co-moving coordinate of the modes")
+        for part in ("real", "imag"):
+            describe(g.create_dataset(f"sigma_{part}", data=getattr(res.sigmas, part)), "1/s",
+                     f"eigenvalue sigma ({part} part), perturbations ~ exp(sigma t)", (eig,))
+            describe(g.create_dataset(f"s_per_L_{part}",
+                                      data=getattr(res.sigmas, part) / res.rate_unit), "1",
+                     f"sigma L / c_p ({part} part): e-folds per pulse length travelled", (eig,))
+        for name, (unit, long) in MODE_FIELDS.items():
+            arr = (np.stack([m[name][sel] for m in res.modes]) if nm
+                   else np.zeros((0, xi.shape[0]), complex))
+            for part in ("real", "imag"):
+                describe(g.create_dataset(f"{name}_{part}", data=getattr(arr, part)), unit,
+                         f"{long} ({part} part)", (eig, xi))
+
+    atomic_update(path, fill)
+
+
+def read_spectrum(path, label):
+    """The stored spectrum of a pulse as a dict (attrs + arrays), or None if there is none."""
+    import h5py
+    with h5py.File(path, "r") as h5:
+        grp = h5["pulses"].get(label)
+        if grp is None or SPECTRUM_GROUP not in grp:
+            return None
+        g = grp[SPECTRUM_GROUP]
+        out = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
+        out["sigma"] = g["sigma_real"][...] + 1j * g["sigma_imag"][...]
+        for name in MODE_FIELDS:
+            out[name] = g[f"{name}_real"][...] + 1j * g[f"{name}_imag"][...]
+        out["xi"] = (g["xi_mode"] if "xi_mode" in g else grp["xi"])[...]
+        out["tau_d_ratio"] = float(grp.attrs["tau_d_ratio"])
+        out["L"] = float(grp.attrs["L"])
+        out["c_p"] = float(grp.attrs["c_p"])
+    return out

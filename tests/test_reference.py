@@ -1,0 +1,54 @@
+"""Reference values live in data files with provenance, not in code constants (issue 22)."""
+import os
+import tomllib
+
+import pytest
+
+from slippulse.core import reference
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def test_every_data_file_names_its_source():
+    names = [f[:-5] for f in os.listdir(reference.DATA_DIR) if f.endswith(".toml")]
+    assert "paper_scaling" in names
+    for n in names:
+        src = reference.load(n)["source"]
+        assert src.get("kind") in ("paper", "run") and (src.get("where") or src.get("commit"))
+
+
+def test_paper_scaling_reads_the_file(tmp_path, monkeypatch):
+    (tmp_path / "paper_scaling.toml").write_text(
+        '[source]\nkind = "paper"\nwhere = "test"\n[values]\ntau_star = 1.5\na_v = 2.0\na_G = 3.0\n')
+    monkeypatch.setattr(reference, "DATA_DIR", str(tmp_path))
+    reference.load.cache_clear()
+    try:
+        assert reference.paper_scaling() == {"tau_star": 1.5, "a_v": 2.0, "a_G": 3.0}
+        (tmp_path / "bare.toml").write_text("[values]\nx = 1\n")
+        with pytest.raises(ValueError, match="source"):
+            reference.load("bare")
+    finally:
+        reference.load.cache_clear()
+
+
+def test_sbi_rates_file_has_provenance_and_rows():
+    with open(os.path.join(ROOT, "dynamic", "results", "sbi_growth_rates.toml"), "rb") as fh:
+        data = tomllib.load(fh)
+    assert data["source"]["commit"] and data["source"]["commands"]
+    rows = data["rates"]
+    assert rows and all({"tau_d_ratio", "s", "err", "domain"} <= set(r) for r in rows)
+
+
+def test_sbi_rates_agree_with_the_records_of_the_docs():
+    """docs/results/records.toml quotes some of the same SBI rates: each must be a row here."""
+    from slippulse.core.h5io import label_ratio
+    rec_path = os.path.join(ROOT, "docs", "results", "records.toml")
+    if not os.path.exists(rec_path):
+        pytest.skip("no docs/results/records.toml")
+    with open(rec_path, "rb") as fh:
+        records = tomllib.load(fh).get("sbi_generic", {})
+    with open(os.path.join(ROOT, "dynamic", "results", "sbi_growth_rates.toml"), "rb") as fh:
+        rows = {(r["tau_d_ratio"], r["s"], r["err"]) for r in tomllib.load(fh)["rates"]}
+    quoted = [(label_ratio(lab), v["value"], v["err"]) for lab, entry in records.items()
+              for k, v in entry.items() if k.startswith("s_per_L")]
+    assert quoted and all(q in rows for q in quoted), quoted
