@@ -425,6 +425,15 @@ def cmd_rates(args) -> int:
         parts.append(f"no fit: {exc}")
     for line in parts:
         print("fit: " + line)
+    if tau_star is not None and np.sum(win & (x > tau_star)) >= 2:
+        from ..stability.law import local_exponents
+        m = win & (x > tau_star)
+        xm, k = local_exponents(x[m] - tau_star, y[m])
+        print("local exponents d ln(s L/c_p)/d ln(tau_d/tau_min - tau_star): "
+              + ", ".join(f"{b:.2f} at {a + tau_star:.5f}" for a, b in zip(xm, k)))
+        xm, k = local_exponents(r["L"][m], y[m])
+        print("local exponents d ln(s L/c_p)/d ln L: "
+              + ", ".join(f"{b:.2f} at L = {a:.3g} m" for a, b in zip(xm, k)))
     if args.figure and tau_star is not None:
         from ..plotting.rates import plot_rates
         plot_rates(r, fits, args.figure, tau_star)

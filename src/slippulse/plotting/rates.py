@@ -37,18 +37,19 @@ def plot_rates(rates, fits, out, tau_star, dpi=130):
     ax[1].set_title("(b) against the pulse length")
     a = ax[2]
     a.axhline(0.0, color="0.4", lw=1)
-    a.errorbar(x, y, yerr=e, fmt="o", ms=4, color="C0", capsize=2)
+    a.errorbar(x - 1.0, y, yerr=e, fmt="o", ms=4, color="C0", capsize=2)
     bad = rates["sign_resolved"] == 0
     if np.any(bad):
-        a.errorbar(x[bad], y[bad], yerr=e[bad], fmt="x", ms=6, color="C1", capsize=2,
+        a.errorbar(x[bad] - 1.0, y[bad], yerr=e[bad], fmt="x", ms=6, color="C1", capsize=2,
                    label="sign not resolved")
         a.legend(fontsize=8)
-    a.axvline(tau_star, color="C3", ls="--", lw=1)
-    a.text(tau_star, a.get_ylim()[1] * 0.9, " τ̃*", color="C3", fontsize=9)
-    a.set_xlabel("τ_d/τ_min")
-    a.set_ylabel("s L/c_p")
+    a.axvline(tau_star - 1.0, color="C3", ls="--", lw=1, label="τ̃*")
+    a.set_xscale("log")
+    a.set_yscale("symlog", linthresh=1e-4)
+    a.set_xlabel("τ_d/τ_min − 1")
+    a.set_ylabel("s L/c_p  (symmetric log, linear below 1e-4)")
     a.set_title("(c) the sign along the family (s > 0: unstable)")
-    a.grid(True, alpha=0.3)
+    a.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     fig.savefig(out, dpi=dpi)
     plt.close(fig)
