@@ -49,11 +49,11 @@ def _check_out(out: str) -> None:
             format_version(h5, out)
 
 
-def _homotopy_guess(params, ratio, progress):
+def _homotopy_guess(params, tau_d_ratio, progress):
     """--homotopy: the pulse of ``params`` reached from Table I's by continuation in the
     parameters (N = 500 along the path), as a guess; a path that stops is reported (exit 1)."""
     from ..steady.param_continuation import as_guess, continue_in_params
-    sol, path = continue_in_params(DEFAULT, params, ratio, n_points=500, progress=progress)
+    sol, path = continue_in_params(DEFAULT, params, tau_d_ratio, n_points=500, progress=progress)
     if sol is None or not (path[-1][0] == 1.0 and path[-1][1]):
         reached = max([s for s, ok, _ in path if ok], default=0.0)
         raise SolverStop(f"continuation in the parameters from Table I stopped at s={reached:.3g} "
@@ -67,17 +67,17 @@ class SolverStop(RuntimeError):
 
 def cmd_solve(args) -> int:
     params = params_for_output(args)
-    ratio = _ratio(args.tau_d, params)
-    params.check_tau_d(ratio * params.tau_min)
-    _check_solve_range(ratio)
+    tau_d_ratio = _ratio(args.tau_d, params)
+    params.check_tau_d(tau_d_ratio * params.tau_min)
+    _check_solve_range(tau_d_ratio)
     check_points(args.points)
     if not (math.isfinite(args.tol) and args.tol > 0):
         raise ParameterError(f"tol={args.tol!r} is invalid: must be a finite number > 0 "
                              "(max |residual| target)")
-    out = args.out or os.path.join("runs", "steady", f"{pulse_label(ratio)}.h5")
+    out = args.out or os.path.join("runs", "steady", f"{pulse_label(tau_d_ratio)}.h5")
     _check_out(out)
     params = params_for_output(args, out)
-    label = pulse_label(ratio)
+    label = pulse_label(tau_d_ratio)
     before = stored_converged(out, label)
     if before is not None and not args.overwrite:
         raise UsageError(f"out={out!r}: pulse {label} already exists there "
@@ -85,7 +85,7 @@ def cmd_solve(args) -> int:
     png = None if args.no_figure else os.path.splitext(out)[0] + ".png"
     if png:
         check_figure(png, "out (its PNG)")
-    sol, route = _solve_any(params, ratio, args)
+    sol, route = _solve_any(params, tau_d_ratio, args)
     if sol is None:
         print(f"slippulse: solver did not converge: {route}; nothing written to {out}",
               file=sys.stderr)
@@ -108,22 +108,22 @@ def cmd_solve(args) -> int:
     return 0
 
 
-def _check_solve_range(ratio: float) -> None:
+def _check_solve_range(tau_d_ratio: float) -> None:
     """Refuse a tau-d outside what ``steady solve`` reaches (reach.SOLVE_RANGE), saying what does."""
     from ..steady.reach import SOLVE_RANGE
     lo, hi = SOLVE_RANGE
-    if not lo <= ratio <= hi:
+    if not lo <= tau_d_ratio <= hi:
         raise ParameterError(
-            f"tau-d={ratio:g} is outside what steady solve reaches, [{lo}, {hi}]: "
+            f"tau-d={tau_d_ratio:g} is outside what steady solve reaches, [{lo}, {hi}]: "
             + (f"deeper pulses come from the family continuation (slippulse steady family --to "
-               f"{ratio:g} --deep arclength)" if ratio < lo else
+               f"{tau_d_ratio:g} --deep arclength)" if tau_d_ratio < lo else
                f"above {hi} the pulse fades toward tau_peak/tau_min = 1.3319 and the continuation "
                "from 1.2 cannot follow it"))
 
 
-def _solve_any(params, ratio, args):
-    """``steady solve``'s solve: from the built-in guess at 1.2, continued to ``ratio``
-    (with --homotopy: from Table I's pulse continued in the parameters, then solved at ``ratio``)
+def _solve_any(params, tau_d_ratio, args):
+    """``steady solve``'s solve: from the built-in guess at 1.2, continued to ``tau_d_ratio``
+    (with --homotopy: from Table I's pulse continued in the parameters, then solved at ``tau_d_ratio``)
     (:func:`slippulse.steady.reach.reach_pulse`) with a progress bar over the walk's steps.
     Returns (solution or None, route or reason)."""
     from ..steady.reach import GUESS_RATIO, reach_pulse, route_targets
@@ -131,7 +131,7 @@ def _solve_any(params, ratio, args):
     if getattr(args, "homotopy", False):
         # --homotopy (issue 21): the guess is the pulse continued in the parameters from Table I's
         # at this tau_d; then one solve at the target from it
-        bar = tqdm(total=3, desc=f"steady {pulse_label(ratio)}", unit="pass", disable=args.quiet,
+        bar = tqdm(total=3, desc=f"steady {pulse_label(tau_d_ratio)}", unit="pass", disable=args.quiet,
                    file=sys.stderr)
 
         def progress(msg):
@@ -139,35 +139,35 @@ def _solve_any(params, ratio, args):
             bar.update(1)
 
         try:
-            guess = _homotopy_guess(params, ratio,
+            guess = _homotopy_guess(params, tau_d_ratio,
                                     lambda m: bar.set_postfix_str("path " + m[:55]))
-            sol = solve_pulse(params, ratio, n_points=args.points, method=args.method,
+            sol = solve_pulse(params, tau_d_ratio, n_points=args.points, method=args.method,
                               tol=args.tol, progress=progress, guess=guess)
         except SolverStop as exc:
             return None, str(exc)
         finally:
             bar.close()
         return sol, "by continuation in the parameters from Table I"
-    h, n = route_targets(ratio)
+    h, n = route_targets(tau_d_ratio)
     if n == 0:
-        bar = tqdm(total=3, desc=f"steady {pulse_label(ratio)}", unit="pass", disable=args.quiet,
+        bar = tqdm(total=3, desc=f"steady {pulse_label(tau_d_ratio)}", unit="pass", disable=args.quiet,
                    file=sys.stderr)
 
         def progress(msg):
             bar.set_postfix_str(msg[:60])
             bar.update(1)
 
-        sol = solve_pulse(params, ratio, n_points=args.points, method=args.method, tol=args.tol,
+        sol = solve_pulse(params, tau_d_ratio, n_points=args.points, method=args.method, tol=args.tol,
                           progress=progress)
         bar.close()
         return sol, "from the built-in guess"
-    prog = FamilyProgress(GUESS_RATIO, ratio, -h)
-    bar = tqdm(total=prog.total, desc=f"steady {pulse_label(ratio)} (from {GUESS_RATIO})",
+    prog = FamilyProgress(GUESS_RATIO, tau_d_ratio, -h)
+    bar = tqdm(total=prog.total, desc=f"steady {pulse_label(tau_d_ratio)} (from {GUESS_RATIO})",
                unit="step", disable=args.quiet, file=sys.stderr,
                bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}{postfix}]")
     prog.bar = bar
     try:
-        return reach_pulse(params, ratio, n_points=args.points, method=args.method, tol=args.tol,
+        return reach_pulse(params, tau_d_ratio, n_points=args.points, method=args.method, tol=args.tol,
                            progress=prog)
     finally:
         bar.close()
@@ -185,10 +185,10 @@ class FamilyProgress:
         self.failed = 0
         self.bar = bar
 
-    def __call__(self, ratio, pulse, msg):
+    def __call__(self, tau_d_ratio, pulse, msg):
         if pulse is None:
             self.failed += 1
-            state = f"{ratio:.5f} failed ({self.failed}): {msg[:40]}"
+            state = f"{tau_d_ratio:.5f} failed ({self.failed}): {msg[:40]}"
         else:
             self.position = max(self.position,
                                 min(self.total, 1.0 + (self.start - pulse.tau_d_ratio) / self.step))
