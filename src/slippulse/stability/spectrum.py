@@ -163,15 +163,19 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
             floor = min(MIN_RE, TRACK_FLOOR * g.real / unit)
             if v is not None and floor > 0:
                 add(g, np.asarray(v, complex), floor=floor)
-    # Arnoldi at the tracked shifts, then (if they gave nothing) at the default shifts
-    for sa in tracked + [complex(q * unit) for q in DEFAULT_SHIFTS]:
+    # Arnoldi at the tracked shifts (their candidates followed down to the tracked floor, the
+    # two nearest: near τ_min the translation mode is the other one), then (if they gave
+    # nothing) at the default shifts
+    n_tracked = len(tracked)
+    for i, sa in enumerate(tracked + [complex(q * unit) for q in DEFAULT_SHIFTS]):
         if found:
             break
-        if not sa.real > MIN_RE * unit:
+        floor = min(MIN_RE, TRACK_FLOOR * sa.real / unit) if i < n_tracked else MIN_RE
+        if not (floor > 0 and sa.real > floor * unit):
             continue
-        sig, vec = linearised_candidates(op, sa, k=1)
+        sig, vec = linearised_candidates(op, sa, k=2 if i < n_tracked else 1)
         for j in range(len(sig)):
-            add(complex(sig[j]), vec[:, j])
+            add(complex(sig[j]), vec[:, j], floor=floor)
     t1 = time.perf_counter()
     if found and extra:
         lead = max(f.sigma.real for f in found)
