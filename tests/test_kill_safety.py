@@ -68,14 +68,29 @@ def _check_consistent(path):
     return n_ck
 
 
-def _kill_and_resume(tmp_path, seed, n_kills):
-    rng = np.random.default_rng(seed)
+def _reference_run(tmp_path):
+    """An uninterrupted run into ref.h5; (ref, out, the command line of the run into out)."""
     cfg = tmp_path / "run.toml"
     cfg.write_text(CONFIG)
     ref, out = str(tmp_path / "ref.h5"), str(tmp_path / "killed.h5")
     assert main(["dynamic", "run", str(cfg), "--out", ref, "--no-progress"]) == 0
     cmd = [sys.executable, "-m", "slippulse.cli", "dynamic", "run", str(cfg), "--out", out,
            "--no-progress"]
+    return ref, out, cmd
+
+
+def _assert_same_as_reference(ref, out, context):
+    """Every dataset of `out` equals the uninterrupted run's, and no work file is left."""
+    a, b = _datasets(ref), _datasets(out)
+    assert set(a) == set(b), context
+    for key in a:
+        assert np.array_equal(a[key], b[key]), (key, *context)
+    assert not os.path.exists(out + ".partial")
+
+
+def _kill_and_resume(tmp_path, seed, n_kills):
+    rng = np.random.default_rng(seed)
+    ref, out, cmd = _reference_run(tmp_path)
     done, kills = False, []
     for k in range(n_kills):
         resume = os.path.exists(out)
@@ -95,11 +110,7 @@ def _kill_and_resume(tmp_path, seed, n_kills):
             break
     if not done:
         assert main(cmd[3:] + ["--resume"]) == 0
-    a, b = _datasets(ref), _datasets(out)
-    assert set(a) == set(b), (seed, kills)
-    for key in a:
-        assert np.array_equal(a[key], b[key]), (key, seed, kills)
-    assert not os.path.exists(out + ".partial")
+    _assert_same_as_reference(ref, out, (seed, kills))
     return kills
 
 
@@ -117,12 +128,7 @@ def _kill_at_points(tmp_path, kills):
     """Run, kill (SIGKILL, test hook SLIPPULSE_KILL_AT) at each (point, n-th pass) in turn with a
     resume in between; after each kill FILE is complete as of the expected checkpoint; the last
     resume runs to the end and every dataset equals an uninterrupted run's."""
-    cfg = tmp_path / "run.toml"
-    cfg.write_text(CONFIG)
-    ref, out = str(tmp_path / "ref.h5"), str(tmp_path / "killed.h5")
-    assert main(["dynamic", "run", str(cfg), "--out", ref, "--no-progress"]) == 0
-    cmd = [sys.executable, "-m", "slippulse.cli", "dynamic", "run", str(cfg), "--out", out,
-           "--no-progress"]
+    ref, out, cmd = _reference_run(tmp_path)
     for k, (point, nth, expect) in enumerate(kills):
         env = dict(os.environ, SLIPPULSE_KILL_AT=f"{point}:{nth}")
         rc = subprocess.run(cmd + (["--resume"] if k else []), env=env, stdout=subprocess.DEVNULL,
@@ -130,11 +136,7 @@ def _kill_at_points(tmp_path, kills):
         assert rc == -signal.SIGKILL, (point, rc)
         assert _check_consistent(out) == expect, point
     assert main(cmd[3:] + ["--resume"]) == 0
-    a, b = _datasets(ref), _datasets(out)
-    assert set(a) == set(b)
-    for key in a:
-        assert np.array_equal(a[key], b[key]), key
-    assert not os.path.exists(out + ".partial")
+    _assert_same_as_reference(ref, out, ())
 
 
 def test_kills_inside_the_checkpoint_leave_readable_resumable_file(tmp_path):

@@ -115,8 +115,9 @@ def fit_shifted_power_law(x, y, y_err, lo=None):
     """Fit y = A (x − x*)^n for x*, A, n (x* < min x, and ≥ lo if given).
 
     The profile χ²(x*) of the linear fit in logs is minimised over a fine grid of x* and refined
-    by a bounded scalar minimisation; the error of x* is where the profile, scaled by χ²_red at its minimum, rises
-    by 1. Raises ValueError with fewer than 4 usable points."""
+    by a bounded scalar minimisation; the error of x* is half the distance between the first
+    grid points on either side where the profile exceeds its minimum by χ²_red (at least 1).
+    Raises ValueError with fewer than 4 usable points."""
     x, y, e = (np.asarray(a, float) for a in (x, y, y_err))
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(e) & (y > 0) & (e > 0)
     x, y, e = x[ok], y[ok], e[ok]
@@ -141,7 +142,7 @@ def fit_shifted_power_law(x, y, y_err, lo=None):
     c2, law = chi2(best_gap)
     scale = max(1.0, c2 / max(x.size - 3, 1))
     target = c2 + scale
-    # Δχ² = scale on each side of the minimum, by interpolation on the profile
+    # Δχ² = scale on each side of the minimum: the first grid point beyond it
     def crossing(idx):
         for j in idx:
             if prof[j] > target:

@@ -29,7 +29,6 @@ import numpy as np
 
 from ..core.errors import UsageError
 from ..steady import solver
-from ..steady.grid import GridMap
 from .spectrum import order4_pulse, pulse_spectrum  # noqa: F401 (order4_pulse: re-exported)
 
 #: The error estimate needs a pulse of at least this many points to map.
@@ -62,8 +61,6 @@ def estimate(s_levels, ratio=LEVEL_RATIO):
             p = math.log(abs(d1 / d2)) / math.log(ratio)
             if ORDER_BOUNDS[0] <= p <= ORDER_BOUNDS[1]:
                 return s[-1], SAFETY * abs(d2) / (ratio ** p - 1.0), p, "three-level"
-        elif d2 == 0.0 and d1 == 0.0:
-            return s[-1], 0.0, float("nan"), "last correction"
     return s[-1], abs(d2), float("nan"), "last correction"
 
 
@@ -122,14 +119,7 @@ def check_refinable(pulse, levels, min_points=0):
 def mapped_pulse(params, pulse, gmap, n, tol=1e-13):
     """The pulse re-solved (steady Newton, state order 4) on the grid ``gmap(n)``, started from
     its ln v interpolated there. Returns a :class:`slippulse.steady.solver.SteadySolution`."""
-    t0 = time.perf_counter()
-    xi = gmap(n)
-    v_st = params.v_stick(pulse.tau_d_ratio * params.tau_min)
-    y = solver.interpolate(np.asarray(pulse.xi, float), np.log(np.asarray(pulse.v, float)), xi,
-                           v_st)
-    prob, x, stats = solver.solve_on_grid(params, pulse.tau_d_ratio, xi, y, pulse.beta, tol=tol,
-                                          state_order=4)
-    return solver.SteadySolution(prob, x, stats, time.perf_counter() - t0, 0)
+    return solver.resolve_on_grid(params, pulse, gmap(n), tol=tol, state_order=4)
 
 
 #: Largest level of a ladder that climbs toward a target (dense complex N×N matrices: ~1 GB each

@@ -1,22 +1,10 @@
 """Linear stability spectrum of steady pulses on the steady solver's grid (docs/spectrum.md): the
 per-pulse driver (:func:`pulse_spectrum`) and its result (:class:`PulseSpectrum`).
 
-A perturbation ∝ e^{σt} at fixed ξ = x − c_p t of a steady pulse (v₀, φ₀, β) obeys
-
-    V₁ = σ δ₁ − c δ₁′                                      (slip rate; c = β c_s)
-    (σ − c ∂_ξ) φ₁ = −w φ₁ − w_v φ₀ V₁                      (ageing law g = 1 − w φ, linearised)
-    σ_n (f_v V₁ + f_φ φ₁) = K_σ[δ₁]                         (friction = elastodynamics)
-
-with K_σ of symbol −(μ/2)√(k² + (σ − ikc)²/c_s²) (Re √ > 0). On the grid the unknown is V₁;
-δ₁ = D(σ)V₁ integrates (σ − c∂_ξ)δ₁ = V₁ from δ₁ = 0 far ahead (bounded ahead), φ₁ = Φ(σ)V₁ by the
-exponential state recursion, and the problem is the nonlinear eigenproblem M(σ) V₁ = 0
-(:meth:`StabilityOperator.matrices`; derivation in docs/spectrum.md). M is analytic for Re σ > 0
-(the imaginary axis carries the continuous spectrum of radiated waves and of the rest state behind
-the pulse), and M(0) is the linearised discrete steady problem: translation (V₁ = v₀′) is its null
-vector up to the discretisation; uniform slip (δ₁ = 1, V₁ = 0) is checked in the δ₁ form
-(:meth:`StabilityOperator.matrices_delta`), where it is exact. Eigenvalues are found by
-shift-invert Arnoldi on the linearisation M(σ_a) + (σ − σ_a) M′(σ_a) and refined by Newton on the
-bordered system (nonlinear inverse iteration with the exact M′).
+The linearised problem M(σ) V₁ = 0 and its derivation are stated in :mod:`.operators` (and
+docs/spectrum.md §1–2). Eigenvalues are found by shift-invert Arnoldi on the linearisation
+M(σ_a) + (σ − σ_a) M′(σ_a) and refined by Newton on the bordered system (nonlinear inverse
+iteration with the exact M′).
 
 The operators live in :mod:`.operators`, the eigen-solvers in :mod:`.eigensolve`, the storage in
 :mod:`.spectrum_store`; they are re-exported here.

@@ -293,15 +293,23 @@ def regrid_guess(params, tau_d_ratio, xi, y, beta, n_points, spec: GridSpec = Gr
     return xi_new, interpolate(xi, y, xi_new, v_st)
 
 
-def refine_nested(params, pulse, method="newton", tol=1e-13, state_order=STATE_ORDER):
-    """The pulse re-solved on its own grid with the midpoints inserted (N → 2N − 1), started from
-    its ln v interpolated there: a nested refinement, whose errors fall smoothly with the level
-    (unlike re-adapted grids), for convergence studies. Returns a :class:`SteadySolution`."""
+def resolve_on_grid(params, pulse, xi_new, method="newton", tol=1e-13, state_order=STATE_ORDER):
+    """The pulse re-solved on the grid `xi_new`, started from its ln v interpolated there and its
+    β. Returns a :class:`SteadySolution`."""
     t0 = time.perf_counter()
     xi = np.asarray(pulse.xi, float)
-    xin = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
     v_st = params.v_stick(pulse.tau_d_ratio * params.tau_min)
-    y = interpolate(xi, np.log(pulse.v), xin, v_st)
-    prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, xin, y, pulse.beta, method, tol,
+    y = interpolate(xi, np.log(np.asarray(pulse.v, float)), xi_new, v_st)
+    prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, xi_new, y, pulse.beta, method, tol,
                                    state_order=state_order)
     return SteadySolution(prob, x, stats, time.perf_counter() - t0, 0)
+
+
+def refine_nested(params, pulse, method="newton", tol=1e-13, state_order=STATE_ORDER):
+    """The pulse re-solved on its own grid with the midpoints inserted (N → 2N − 1), started from
+    its ln v interpolated there: a nested refinement, for convergence studies (near τ_min it keeps
+    the adapted grid's spacing jumps; :class:`slippulse.steady.grid.GridMap` does not). Returns a
+    :class:`SteadySolution`."""
+    xi = np.asarray(pulse.xi, float)
+    xin = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
+    return resolve_on_grid(params, pulse, xin, method, tol, state_order)
