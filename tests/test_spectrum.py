@@ -493,6 +493,38 @@ def test_observed_order_and_translation_at_1p05(default_family_to_1p02):
     assert np.all(np.diff(t) < 0) and t[-1] < 5e-5, t
     val, err, order, rule = estimate(ref.s_levels)
     assert rule == "three-level" and abs(val / ref.rate_unit - 0.6654) < 0.002
+    # the estimate checked against a known answer: σ_t (exact 0), extrapolated from the levels
+    # of the default ladder (2000/2828/4000) as s is, is ≤ 1e-5 c_p/L and inside its own bar
+    # (measured 1.1e-7, bar 2.8e-5)
+    assert abs(ref.translation_extrapolated) / ref.rate_unit <= 1e-5
+    assert ref.translation_covered
+
+
+@pytest.mark.slow
+def test_pinned_translation_gives_the_same_limit_with_a_smaller_error_at_1p05(
+        default_family_to_1p02):
+    """Translation pinned (docs/spectrum.md §5.3): the ladder 1414/2000/2828 at 1.05 τ_min has
+    the limit of the unpinned ladder 2000/2828/4000 within 1e-4 per L, and an error at
+    N = 1414 five times smaller than the unpinned one at N = 2000 (measured: 3.3e-4 and 1.5e-3)."""
+    from slippulse.core.h5io import read_pulse
+    from slippulse.stability.refine import mapped_pulse, refine_leading
+    from slippulse.stability.spectrum import pulse_spectrum
+    from slippulse.steady.grid import GridMap
+    p, params_ = read_pulse(default_family_to_1p02, "td1.0500")
+    gmap = GridMap(p.xi)
+    out = {}
+    for pin, n0 in ((False, 2000), (True, 1414)):
+        p0 = mapped_pulse(params_, p, gmap, n0).to_pulse()
+        first = pulse_spectrum(p0, params_, guesses=[0.66 * p0.c_p / p0.L], extra=False,
+                               pin_translation=pin)
+        ref = refine_leading(p0, params_, first, gmap, levels=2, pin_translation=pin)
+        assert ref.status == "converged" and ref.rule == "three-level", ref.message
+        out[pin] = (np.array(ref.s_levels) / ref.rate_unit, ref.s_extrapolated / ref.rate_unit,
+                    ref.s_err / ref.rate_unit)
+    assert abs(out[True][1] - out[False][1]) < 1e-4, out
+    assert abs(out[True][0][0] - out[True][1]) < 0.2 * abs(out[False][0][0] - out[False][1]), out
+    assert np.all(np.array(ref.translation_levels) == 0.0) or np.all(
+        np.abs(ref.translation_levels) < 1e-9 * ref.s)
 
 
 def test_min_points_maps_a_coarse_pulse_before_level_0(tmp_path, pulse12, params):

@@ -1,6 +1,7 @@
 """``slippulse steady ...``: solve steady pulses (and, later, families and their analysis)."""
 from __future__ import annotations
 
+import argparse
 import math
 import os
 import sys
@@ -301,6 +302,13 @@ def spectrum_line(label, res) -> str:
             rate += f" (s = {ref.s:.4g} ± {ref.s_err:.1g} 1/s)"
         trans = "/".join(f"{t / u:.1e}" for t, u in zip(ref.translation_levels,
                                                          [res.rate_unit] + [ref.rate_unit] * 9))
+        if ref.pinned:
+            trans = "0 (pinned)"
+        if math.isfinite(ref.translation_extrapolated):
+            # the check of the estimate against the known answer 0
+            trans += (f", extrapolated {ref.translation_extrapolated / ref.rate_unit:.1e}, "
+                      f"error bar {ref.translation_err / ref.rate_unit:.1e} "
+                      + ("covers 0" if ref.translation_covered else "DOES NOT cover 0"))
         levels = "N=" + "/".join(str(n) for n in ref.n_points)
     line = f"{label}: {rate}, {kind}; translation sigma_t L/c_p = {trans} (exact 0); {levels}"
     if res.count is not None:
@@ -312,6 +320,7 @@ def spectrum_line(label, res) -> str:
 
 
 def cmd_stability(args) -> int:
+    from ..stability.refine import MIN_REFINE_POINTS
     from ..stability.spectrum_family import (DEFAULT_LEVELS, MIN_SPECTRUM_POINTS,
                                              check_family_file, run_spectrum)
     labels = args.labels or None
@@ -325,6 +334,10 @@ def cmd_stability(args) -> int:
     if not (isinstance(args.levels, int) and 0 <= args.levels <= 6):
         raise ParameterError(f"levels={args.levels!r} is invalid: must be an integer in [0, 6] "
                              "(levels N_0 sqrt(2)^k above level 0 for the error estimate)")
+    if args.points is not None and not (isinstance(args.points, int)
+                                        and MIN_REFINE_POINTS <= args.points <= 8000):
+        raise ParameterError(f"points={args.points!r} is invalid: must be an integer in "
+                             f"[{MIN_REFINE_POINTS}, 8000] (N of the spectrum's first level)")
     if args.target is not None and not (math.isfinite(args.target) and args.target > 0):
         raise ParameterError(f"target={args.target!r} is invalid: must be a number > 0 "
                              "(s_err in units of c_p/L)")
@@ -361,7 +374,8 @@ def cmd_stability(args) -> int:
     rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
                        progress=progress, levels=args.levels, count_box=box,
                        level_progress=level_progress, min_points=args.min_points,
-                       target=args.target)
+                       target=args.target, pin_translation=args.pin_translation,
+                       level0_points=args.points)
     bar.close()
     done = [r for r in rep.results if r.status == "converged"]
     print(family_summary(args.file, done, rep))
@@ -583,6 +597,16 @@ def register(sub) -> None:
     p.add_argument("--target", type=float, default=None, metavar="S_ERR",
                    help="add levels beyond --levels (up to N = 8000) until s_err L/c_p <= S_ERR, "
                         "e.g. --target 1e-4 (default: the fixed --levels)")
+    p.add_argument("--points", type=int, default=None, metavar="N0",
+                   help="level 0 has exactly N0 points on the pulse's map, fewer than the "
+                        "pulse's own included (overrides --min-points; e.g. --points 2000 for "
+                        "the deep pulses, N up to 3542)")
+    p.add_argument("--pin-translation", action=argparse.BooleanOptionalAction, default=True,
+                   help="solve with the translation mode pinned at sigma = 0 (default; a "
+                        "rank-one change of the size of the discretisation error that removes "
+                        "its coupling to the leading mode, the largest error of s near tau_min; "
+                        "--no-pin-translation: M(0) exactly the linearised discrete steady "
+                        "problem; docs/spectrum.md section 5.3)")
     p.add_argument("--count", type=float, nargs=3, default=None, metavar=("X0", "X1", "Y1"),
                    help="also count the eigenvalues with X0 <= Re sigma L/c_p <= X1, "
                         "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "

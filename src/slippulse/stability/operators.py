@@ -131,7 +131,7 @@ class StabilityOperator:
     re-solves an older (order-2) pulse on its own grid first.
     """
 
-    def __init__(self, pulse, params):
+    def __init__(self, pulse, params, pin_translation=False):
         p = params
         self.params = p
         self.pulse = pulse
@@ -173,6 +173,14 @@ class StabilityOperator:
         self.S = slope_matrix(self.xi)
         self.length = float(pulse.L)
         self.rate_unit = self.c / self.length                      # c_p / L, 1/s
+        self.pin = None
+        if pin_translation:
+            # M̃(σ) = M(σ) − r tᵀ/(tᵀt), r = M(0) t, t = v₀′: translation is an exact null
+            # vector of M̃(0) (σ_t = 0 as in the continuum); the change is of the order of the
+            # residual r, i.e. of the discretisation (docs/spectrum.md §5.3)
+            t = self.S @ self.v0
+            r = self.matrices(0.0, deriv=False)[0] @ t
+            self.pin = (r, t / float(t @ t))
 
     def _state(self, sigma, Vm, deriv):
         """(Φ(σ) Vm, ∂_σΦ(σ) Vm) without the correction (the second only if deriv)."""
@@ -226,6 +234,8 @@ class StabilityOperator:
         times_D4(X, dX, a, B, self.cells[1], da, dB, XD, dXD, deriv)
         M -= XD
         M /= self.tau_d
+        if self.pin is not None:
+            M -= np.outer(self.pin[0], self.pin[1])
         if deriv:
             dM -= dXD
             dM /= self.tau_d

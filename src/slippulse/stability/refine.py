@@ -18,6 +18,10 @@ levels, corrections of opposite sign or growing, p outside [1, 8]) the plain est
 assumes no order:
 
     s = s_K,   s_err = |d₂|   (the last correction).
+
+The same extrapolation is applied to the translation eigenvalue σ_t, whose exact value is 0
+(:func:`richardson`): its extrapolated value, and whether its three-level error bar covers 0,
+check the estimate against a known answer at every pulse (docs/spectrum.md §5).
 """
 from __future__ import annotations
 
@@ -64,6 +68,19 @@ def estimate(s_levels, ratio=LEVEL_RATIO):
     return s[-1], abs(d2), float("nan"), "last correction"
 
 
+def richardson(values, ratio=LEVEL_RATIO):
+    """(extrapolated value, three-level error bar, order) of a sequence per level, where the
+    three-level rule of :func:`estimate` applies: x_K + d₂/(r^p − 1) and F_s|d₂|/(r^p − 1);
+    (nan, nan, nan) otherwise."""
+    x = [float(v) for v in values]
+    if len(x) < 3:
+        return float("nan"), float("nan"), float("nan")
+    val, err, p, rule = estimate(x, ratio)
+    if rule != "three-level":
+        return float("nan"), float("nan"), float("nan")
+    return x[-1] + (x[-1] - x[-2]) / (ratio ** p - 1.0), err, p
+
+
 @dataclass
 class RefinedRate:
     """The leading eigenvalue with its measured uncertainty (1/s), and the levels it came from."""
@@ -83,6 +100,19 @@ class RefinedRate:
     status: str = "converged"
     message: str = ""
     wall_time: float = 0.0
+    s_extrapolated: float = float("nan")            # Richardson value of s (nan: no order), 1/s
+    translation_extrapolated: float = float("nan")  # the same for σ_t (exact 0), 1/s
+    translation_err: float = float("nan")           # the three-level error bar of σ_t_K, 1/s
+    pinned: bool = False             # translation pinned (σ_t = 0 by construction, no check)
+    unit_levels: list = field(default_factory=list)     # c_p/L per level, 1/s
+    s_per_L: float = float("nan")    # s L/c_p, estimated from its own levels (L converges too)
+    s_err_per_L: float = float("nan")
+
+    @property
+    def translation_covered(self) -> bool:
+        """The error bar of the finest σ_t (exact 0), measured as that of s, covers 0 (False
+        where no order was observed)."""
+        return bool(abs(self.translation_levels[-1]) <= self.translation_err)
 
     @property
     def sign_resolved(self) -> bool:
@@ -90,7 +120,11 @@ class RefinedRate:
         return bool(abs(self.s) >= 2.0 * self.s_err)
 
     def per_length(self):
-        """(s L/c_p, s_err L/c_p)."""
+        """(s L/c_p, s_err L/c_p): the estimate of the sequence s_k L_k/c_k, whose error holds
+        that of L as well (at 1.2 τ_min, where s is converged to 1e−8, L's is the larger);
+        s/(c_p/L) and s_err/(c_p/L) where the levels are not known."""
+        if math.isfinite(self.s_per_L):
+            return self.s_per_L, self.s_err_per_L
         return self.s / self.rate_unit, self.s_err / self.rate_unit
 
     def describe(self) -> str:
@@ -103,15 +137,17 @@ class RefinedRate:
         return f"s L/c_p = {s:.4g} ± {e:.1g}"
 
 
-def check_refinable(pulse, levels, min_points=0):
-    """Refuse a pulse whose grid cannot carry the levels (too coarse to map, or too large)."""
+def check_refinable(pulse, levels, min_points=0, level0_points=None):
+    """Refuse a pulse whose grid cannot carry the levels (too coarse to map, or too large);
+    level 0 has max(N, min_points) points, or exactly `level0_points`."""
     n = int(pulse.n_points)
     if n < MIN_REFINE_POINTS:
         raise UsageError(f"pulse {pulse.label}: N = {n} is too coarse to refine; the error "
                          f"estimate needs N >= {MIN_REFINE_POINTS} (re-solve with more --points)")
-    finest = level_points(max(n, int(min_points)), levels)[-1]
+    n0 = int(level0_points) if level0_points else max(n, int(min_points))
+    finest = level_points(n0, levels)[-1]
     if finest > solver.MAX_POINTS:
-        raise UsageError(f"pulse {pulse.label}: N = {max(n, int(min_points))} refined {levels} "
+        raise UsageError(f"pulse {pulse.label}: N = {n0} refined {levels} "
                          f"time(s) is {finest} > {solver.MAX_POINTS} points (dense solver); use "
                          f"fewer --levels or a smaller --min-points")
 
@@ -128,7 +164,7 @@ MAX_LADDER_POINTS = 8000
 
 
 def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None, target=None,
-                   max_points=MAX_LADDER_POINTS):
+                   max_points=MAX_LADDER_POINTS, pin_translation=False):
     """The leading eigenvalue on `levels` further levels of the map `gmap`.
 
     Parameters
@@ -141,6 +177,7 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None
     target : optional s_err L/c_p to reach: levels are added beyond `levels` (N ≤ max_points)
         until the estimate is below it; the result says whether it was reached
         (``target_met``).
+    pin_translation : every level solved with translation pinned (:func:`pulse_spectrum`).
 
     Returns
     -------
@@ -149,7 +186,8 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None
     t0 = time.perf_counter()
     lead = first.leading
     out = RefinedRate(float("nan"), float("nan"), first.rate_unit, [int(first.n_points)],
-                      [lead.real], [lead.imag], [float(first.neutral[1].real)])
+                      [lead.real], [lead.imag], [float(first.neutral[1].real)],
+                      pinned=bool(pin_translation), unit_levels=[first.rate_unit])
     p = pulse
     mode = first.modes[0]["V"] if first.modes else None
     lev = 0
@@ -159,8 +197,8 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None
         if lev > levels:
             if target is None or n > max_points:
                 break
-            est = estimate(out.s_levels)
-            if est[1] / out.rate_unit <= target:
+            est = estimate([s / u for s, u in zip(out.s_levels, out.unit_levels)])
+            if est[1] <= target:
                 break
         sol = mapped_pulse(params, p, gmap, n)
         if not sol.stats.converged:
@@ -173,7 +211,8 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None
         gmode = None
         if mode is not None:               # the coarser level's mode, interpolated
             gmode = [np.interp(q.xi, p.xi, mode.real) + 1j * np.interp(q.xi, p.xi, mode.imag)]
-        res = pulse_spectrum(q, params, guesses=[guess], extra=False, tol=tol, guess_modes=gmode)
+        res = pulse_spectrum(q, params, guesses=[guess], extra=False, tol=tol, guess_modes=gmode,
+                             pin_translation=pin_translation)
         if res.status != "converged" or res.sigmas.size == 0:
             out.status = "failed"
             out.message = f"eigen-solve on level {lev} (N = {q.n_points}): {res.message}"
@@ -186,16 +225,22 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None
         out.imag_levels.append(lead.imag)
         out.translation_levels.append(float(res.neutral[1].real))
         out.rate_unit = res.rate_unit
+        out.unit_levels.append(res.rate_unit)
         if progress:
             progress(f"level {lev}: N={q.n_points} s L/c={lead.real / res.rate_unit:.6g}")
     if out.status == "converged":
         out.s, out.s_err, out.order, out.rule = estimate(out.s_levels)
+        out.s_per_L, out.s_err_per_L = estimate(
+            [s / u for s, u in zip(out.s_levels, out.unit_levels)])[:2]
+        out.s_extrapolated = richardson(out.s_levels)[0]
+        out.translation_extrapolated, out.translation_err = \
+            richardson(out.translation_levels)[:2]
         out.message = (f"{len(out.s_levels)} levels, N = "
                        f"{'/'.join(str(n) for n in out.n_points)}, {out.rule}"
                        + (f" (order {out.order:.2f})" if out.rule == "three-level" else ""))
         if target is not None:
             out.target = float(target)
-            out.target_met = bool(out.s_err / out.rate_unit <= target)
+            out.target_met = bool(out.per_length()[1] <= target)
             if not out.target_met:
                 out.message += (f"; target s_err L/c_p <= {target:g} not reached by N = "
                                 f"{out.n_points[-1]} (next level > {max_points} points)")

@@ -110,7 +110,8 @@ def order4_pulse(pulse, params):
     return SteadySolution(prob, x, stats, time.perf_counter() - t0, 0).to_pulse()
 
 
-def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", guess_modes=None):
+def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", guess_modes=None,
+                   pin_translation=False):
     """Leading eigenvalues and modes of one pulse.
 
     guesses : σ values (1/s) to start from (e.g. the neighbouring pulse's eigenvalues, rescaled);
@@ -121,9 +122,12 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
     guess_modes : V₁ on this pulse's grid for each guess (e.g. the neighbour's mode moved over in
         ξ/L); Newton starts from (guess, mode) directly and the Arnoldi stage is skipped when it
         converges.
+    pin_translation : solve the problem with translation pinned (:class:`StabilityOperator`'s
+        rank-one change that makes v₀′ an exact null vector of M(0); σ_t is then 0 by
+        construction, not a check; docs/spectrum.md §5.3).
     """
     t0 = time.perf_counter()
-    op = StabilityOperator(order4_pulse(pulse, params), params)
+    op = StabilityOperator(order4_pulse(pulse, params), params, pin_translation)
     unit = op.rate_unit
     found, failures, iters = [], [], 0
 

@@ -128,7 +128,8 @@ def _failed(label, pulse, message):
 
 def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progress=None,
                  levels=DEFAULT_LEVELS, count_box=None, level_progress=None,
-                 min_points=MIN_SPECTRUM_POINTS, target=None):
+                 min_points=MIN_SPECTRUM_POINTS, target=None, pin_translation=True,
+                 level0_points=None):
     """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
 
     Pulses are taken by decreasing τ_d; each starts from its neighbour's eigenvalues at equal
@@ -151,6 +152,10 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
     min_points : level 0 has N_0 = max(N, min_points) points (the steady equations re-solved on
         the map; with levels = 0 and N ≥ min_points, the pulse's own grid); a re-solve that
         fails marks the pulse failed.
+    pin_translation : solve with translation pinned (default; docs/spectrum.md §5.3).
+    level0_points : level 0 has exactly this many points on the map, fewer than the pulse's
+        own N included (overrides `min_points`); with `pin_translation` the deep pulses need
+        no more than the shallow ones (docs/spectrum.md §5.3).
     """
     from ..core.h5io import read_pulse
     t0 = time.perf_counter()
@@ -158,7 +163,11 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
     settings = {"tol": tol, "extra": int(bool(extra)), "min_re_c_over_L": MIN_RE,
                 "levels": int(levels), "count": int(count_box is not None),
                 "min_points": int(min_points), "ladder": "smooth map, ratio sqrt(2)",
-                "target": -1.0 if target is None else float(target)}   # -1: none
+                "target": -1.0 if target is None else float(target),   # -1: none
+                "pin_translation": int(bool(pin_translation)),
+                "level0_points": int(level0_points or 0)}                # 0: max(N, min_points)
+    unset = {"pin_translation": 0, "level0_points": 0}   # settings added later: value before
+    # (a spectrum stored before pinning existed was computed without it)
     rep = SpectrumReport()
     # tracking starts from the nearest pulse above the first one that has a stored spectrum
     # (any settings): the deep pulses' rates are below the default search's MIN_RE
@@ -166,7 +175,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
     for lab in chosen:
         stored = None if overwrite else read_spectrum(path, lab)
         if stored is not None and stored.get("status") == "converged" and all(
-                stored.get(f"setting_{k}") == v for k, v in settings.items()):
+                stored.get(f"setting_{k}", unset.get(k)) == v for k, v in settings.items()):
             rep.skipped.append(lab)
             prev, prev_mode = _track(stored)
             if progress:
@@ -174,9 +183,9 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
             continue
         pulse, _ = read_pulse(path, lab)
         if levels:
-            check_refinable(pulse, levels, min_points)
+            check_refinable(pulse, levels, min_points, level0_points)
         pulse = order4_pulse(pulse, params)
-        n0 = max(int(pulse.n_points), int(min_points))
+        n0 = int(level0_points) if level0_points else max(int(pulse.n_points), int(min_points))
         gmap = why = None
         if levels or n0 != pulse.n_points:
             gmap = GridMap(pulse.xi)
@@ -199,10 +208,11 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
                 modes = [np.interp(x, prev_mode[0], prev_mode[1].real)
                          + 1j * np.interp(x, prev_mode[0], prev_mode[1].imag)]
         res = pulse_spectrum(pulse, params, guesses=guesses, extra=extra, tol=tol, label=lab,
-                             guess_modes=modes)
+                             guess_modes=modes, pin_translation=pin_translation)
         if res.status == "converged" and res.sigmas.size and levels:
             res.refined = refine_leading(pulse, params, res, gmap, levels, tol=tol,
-                                         progress=level_progress, target=target)
+                                         progress=level_progress, target=target,
+                                         pin_translation=pin_translation)
             if res.refined.status != "converged":
                 res.status = "failed"
                 res.message = f"refinement failed: {res.refined.message}"

@@ -59,11 +59,14 @@ def write_spectrum(path, res, settings: dict):
             g.attrs["refine_level_ratio"] = float(ref.ratio)
             g.attrs["refine_target_s_err_per_L"] = float(ref.target)
             g.attrs["refine_target_met"] = int(ref.target_met)
+            # the check against a known answer: σ_t (exact 0) extrapolated as s is
+            g.attrs["refine_s_extrapolated"] = float(ref.s_extrapolated)
+            g.attrs["refine_translation_extrapolated"] = float(ref.translation_extrapolated)
+            g.attrs["refine_translation_err"] = float(ref.translation_err)
             if ref.status == "converged":
                 g.attrs["s"] = ref.s
                 g.attrs["s_err"] = ref.s_err
-                g.attrs["s_per_L"] = ref.s / ref.rate_unit
-                g.attrs["s_err_per_L"] = ref.s_err / ref.rate_unit
+                g.attrs["s_per_L"], g.attrs["s_err_per_L"] = ref.per_length()
                 g.attrs["sign_resolved"] = int(ref.sign_resolved)
         cnt = res.count
         if cnt is not None:
@@ -80,7 +83,9 @@ def write_spectrum(path, res, settings: dict):
         units = {"leading_sigma_real": "1/s", "leading_sigma_imag": "1/s",
                  "rate_unit_c_over_L": "1/s", "translation_sigma": "1/s", "wall_time": "s",
                  "s": "1/s", "s_err": "1/s", "refine_s_levels": "1/s",
-                 "refine_imag_levels": "1/s", "refine_translation_levels": "1/s"}
+                 "refine_imag_levels": "1/s", "refine_translation_levels": "1/s",
+                 "refine_s_extrapolated": "1/s", "refine_translation_extrapolated": "1/s",
+                 "refine_translation_err": "1/s"}
         for k, u in units.items():
             if k in g.attrs:
                 g.attrs[f"{k}_units"] = u
