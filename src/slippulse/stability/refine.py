@@ -134,7 +134,8 @@ class RefinedRate:
             return f"refinement failed: {self.message}"
         if not self.sign_resolved:
             return f"sign not resolved (s L/c_p in [{s - e:.2g}, {s + e:.2g}], |s| < 2 s_err)"
-        return f"s L/c_p = {s:.4g} ± {e:.1g}"
+        d = max(0, 1 - math.floor(math.log10(e))) if e > 0 else 6   # to the digit after e's
+        return f"s L/c_p = {s:.{d}f} ± {e:.1g}"
 
 
 def check_refinable(pulse, levels, min_points=0, level0_points=None):
@@ -164,7 +165,7 @@ MAX_LADDER_POINTS = 8000
 
 
 def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None, target=None,
-                   max_points=MAX_LADDER_POINTS, pin_translation=False):
+                   max_points=MAX_LADDER_POINTS, pin_translation=False, source=None):
     """The leading eigenvalue on `levels` further levels of the map `gmap`.
 
     Parameters
@@ -178,6 +179,9 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None
         until the estimate is below it; the result says whether it was reached
         (``target_met``).
     pin_translation : every level solved with translation pinned (:func:`pulse_spectrum`).
+    source : the pulse the map was made from (its own grid), or None: where the steady re-solve
+        of a level from the level below it does not converge, it is started from this one
+        (measured: the deep pulses from a level 0 of N = 2000).
 
     Returns
     -------
@@ -201,6 +205,8 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None
             if est[1] <= target:
                 break
         sol = mapped_pulse(params, p, gmap, n)
+        if not sol.stats.converged and source is not None:
+            sol = mapped_pulse(params, source, gmap, n)
         if not sol.stats.converged:
             out.status = "failed"
             out.message = (f"steady Newton on level {lev} (N = {sol.problem.n}) did not "
@@ -233,8 +239,9 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None
         out.s_per_L, out.s_err_per_L = estimate(
             [s / u for s, u in zip(out.s_levels, out.unit_levels)])[:2]
         out.s_extrapolated = richardson(out.s_levels)[0]
-        out.translation_extrapolated, out.translation_err = \
-            richardson(out.translation_levels)[:2]
+        if not out.pinned:              # pinned: σ_t = 0 by construction, nothing to check
+            out.translation_extrapolated, out.translation_err = \
+                richardson(out.translation_levels)[:2]
         out.message = (f"{len(out.s_levels)} levels, N = "
                        f"{'/'.join(str(n) for n in out.n_points)}, {out.rule}"
                        + (f" (order {out.order:.2f})" if out.rule == "three-level" else ""))

@@ -184,7 +184,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         pulse, _ = read_pulse(path, lab)
         if levels:
             check_refinable(pulse, levels, min_points, level0_points)
-        pulse = order4_pulse(pulse, params)
+        pulse = source = order4_pulse(pulse, params)
         n0 = int(level0_points) if level0_points else max(int(pulse.n_points), int(min_points))
         gmap = why = None
         if levels or n0 != pulse.n_points:
@@ -212,7 +212,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         if res.status == "converged" and res.sigmas.size and levels:
             res.refined = refine_leading(pulse, params, res, gmap, levels, tol=tol,
                                          progress=level_progress, target=target,
-                                         pin_translation=pin_translation)
+                                         pin_translation=pin_translation, source=source)
             if res.refined.status != "converged":
                 res.status = "failed"
                 res.message = f"refinement failed: {res.refined.message}"
