@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from slippulse.core.h5io import STATE_ORDER, UNSTORED_STATE_ORDER, read_pulse
+from slippulse.core.h5io import STATE_ORDER, UNSTORED_STATE_ORDER, read_pulse, state_order_of
 from slippulse.core.params import DEFAULT
 from slippulse.steady.continuation import GRID_TOLERANCE, DeepMarch, DeepSettings
 from slippulse.steady.continuation.gridcheck import as_both, check_pulse
@@ -52,9 +52,9 @@ def load_pulse(source, label=None):
     y = np.log(pu.v)
     k, _ = front_pin(pu.xi, y, math.log(P.v_stick(pu.tau_d_ratio * P.tau_min)))
     return P, rebuild(P, pu.xi, np.concatenate([y, [pu.beta, pu.tau_d_ratio]]), k, float(y[k]),
-                      # (a family file without the attribute predates issue 11; read as order
-                      # STATE_ORDER here, as before: the march re-solves at that order)
-                      int(pu.extra.get("state_order", STATE_ORDER)))
+                      # a file without the attribute predates issue 11 (order 2), read as the
+                      # other readers do (core.h5io.state_order_of)
+                      state_order_of(pu))
 
 
 def main(argv=None):
