@@ -54,6 +54,8 @@ def write_spectrum(path, res, settings: dict):
             g.attrs["refine_s_levels"] = np.asarray(ref.s_levels, dtype=float)
             g.attrs["refine_imag_levels"] = np.asarray(ref.imag_levels, dtype=float)
             g.attrs["refine_translation_levels"] = np.asarray(ref.translation_levels, float)
+            g.attrs["refine_rate_unit_levels"] = np.asarray(ref.unit_levels, float)   # c_p/L
+            g.attrs["refine_pinned"] = int(ref.pinned)
             g.attrs["refine_order"] = ref.order
             g.attrs["refine_rule"] = ref.rule
             g.attrs["refine_level_ratio"] = float(ref.ratio)
@@ -85,7 +87,7 @@ def write_spectrum(path, res, settings: dict):
                  "s": "1/s", "s_err": "1/s", "refine_s_levels": "1/s",
                  "refine_imag_levels": "1/s", "refine_translation_levels": "1/s",
                  "refine_s_extrapolated": "1/s", "refine_translation_extrapolated": "1/s",
-                 "refine_translation_err": "1/s"}
+                 "refine_translation_err": "1/s", "refine_rate_unit_levels": "1/s"}
         for k, u in units.items():
             if k in g.attrs:
                 g.attrs[f"{k}_units"] = u
