@@ -116,3 +116,15 @@ def test_rates_command_refuses_a_file_without_rates(tmp_path):
     r = subprocess.run([sys.executable, "-m", "slippulse.cli", "steady", "rates", f, "--below",
                         "0.5"], capture_output=True, text=True)
     assert r.returncode == 2 and "below=" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_shifted_fit_gives_a_nonzero_error_when_the_profile_is_narrower_than_its_grid():
+    """With errors of 1e-6 (the deep rates' s_err are ~1e-3 of s) the χ² profile over x* is far
+    narrower than the grid's spacing; the error of x* is still located (it was 0 before)."""
+    from slippulse.stability.law import fit_shifted_power_law
+    x = np.linspace(1.0092, 1.0115, 9)
+    rng = np.random.default_rng(3)
+    y = 1.5e3 * (x - 1.0067) ** 2.66 * (1 + 1e-6 * rng.normal(size=x.size))
+    sh = fit_shifted_power_law(x, y, 1e-6 * y, lo=1.0)
+    assert abs(sh.x_star - 1.0067) < 5 * sh.x_star_err
+    assert 0 < sh.x_star_err < 1e-5

@@ -116,7 +116,8 @@ def fit_shifted_power_law(x, y, y_err, lo=None):
 
     The profile χ²(x*) of the linear fit in logs is minimised over a fine grid of x* and refined
     by a bounded scalar minimisation; the error of x* is half the distance between the first
-    grid points on either side where the profile exceeds its minimum by χ²_red (at least 1).
+    points on either side where the profile exceeds its minimum by χ²_red (at least 1), located
+    by Brent's method between the minimum and the first grid point beyond.
     Raises ValueError with fewer than 4 usable points."""
     x, y, e = (np.asarray(a, float) for a in (x, y, y_err))
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(e) & (y > 0) & (e > 0)
@@ -142,13 +143,18 @@ def fit_shifted_power_law(x, y, y_err, lo=None):
     c2, law = chi2(best_gap)
     scale = max(1.0, c2 / max(x.size - 3, 1))
     target = c2 + scale
-    # Δχ² = scale on each side of the minimum: the first grid point beyond it
+    # Δχ² = scale on each side of the minimum: bracketed by the first grid point beyond it,
+    # then located by Brent's method (the profile can be narrower than the grid's spacing)
+    from scipy.optimize import brentq
+
     def crossing(idx):
         for j in idx:
             if prof[j] > target:
-                return gaps[j]
+                a, b = sorted((np.log(best_gap), np.log(gaps[j])))
+                return float(np.exp(brentq(lambda lg: chi2(np.exp(lg))[0] - target, a, b,
+                                           xtol=1e-12)))
         return float("nan")
-    hi_gap = crossing(range(k, gaps.size))
-    lo_gap = crossing(range(k, -1, -1))
+    hi_gap = crossing(j for j in range(gaps.size) if gaps[j] > best_gap)
+    lo_gap = crossing(j for j in range(gaps.size - 1, -1, -1) if gaps[j] < best_gap)
     err = 0.5 * (hi_gap - lo_gap) if np.isfinite(hi_gap) and np.isfinite(lo_gap) else float("nan")
     return ShiftedLaw(xmin - best_gap, float(err), law)
