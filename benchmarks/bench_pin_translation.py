@@ -52,7 +52,7 @@ def main(argv=None):
     top = max(n0 * 2 ** (lv / 2) for n0, lv in ladders)
     refn = min(n0 for n0, _ in ladders)
     ref_levels = 1
-    while refn * 2 ** ((ref_levels - 1) / 2) < top * 2 ** 0.5:
+    while refn * 2 ** ((ref_levels - 1) / 2) < top * 0.999:
         ref_levels += 1
     rref, s_ref, e_ref, t_ref = ladder(pulse, params, gmap, refn, ref_levels, True, guess)
     print(f"{a.label}: reference (pinned, N = {'/'.join(map(str, rref.n_points))}): "
