@@ -300,10 +300,11 @@ def spectrum_line(label, res) -> str:
             rate += f" (target s_err L/c_p <= {ref.target:g} not reached)"
         if ref.sign_resolved:
             rate += f" (s = {ref.s:.4g} ± {ref.s_err:.1g} 1/s)"
-        trans = "/".join(f"{t / u:.1e}" for t, u in zip(ref.translation_levels,
-                                                         [res.rate_unit] + [ref.rate_unit] * 9))
         if ref.pinned:
             trans = "0 (pinned)"
+        else:
+            trans = "/".join(f"{t / u:.1e}" for t, u in zip(ref.translation_levels,
+                                                             ref.unit_levels))
         if math.isfinite(ref.translation_extrapolated):
             # the check of the estimate against the known answer 0
             trans += (f", extrapolated {ref.translation_extrapolated / ref.rate_unit:.1e}, "
@@ -606,7 +607,7 @@ def register(sub) -> None:
                         "rank-one change of the size of the discretisation error that removes "
                         "its coupling to the leading mode, the largest error of s near tau_min; "
                         "--no-pin-translation: M(0) exactly the linearised discrete steady "
-                        "problem; docs/spectrum.md section 5.3)")
+                        "problem; docs/spectrum.md section 5)")
     p.add_argument("--count", type=float, nargs=3, default=None, metavar=("X0", "X1", "Y1"),
                    help="also count the eigenvalues with X0 <= Re sigma L/c_p <= X1, "
                         "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "

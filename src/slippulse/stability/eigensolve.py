@@ -148,7 +148,7 @@ def real_eigenvalues(op, lo, hi, n_scan=8, xtol=1e-8):
     n_eval = len(pts)
     ref = max(v[1] for v in vals)
     roots = []
-    for a, b, (sa, la), (sb, lb) in zip(pts, pts[1:], vals, vals[1:]):
+    for a, b, (sa, _), (sb, _) in zip(pts, pts[1:], vals, vals[1:]):
         if sa * sb >= 0:
             continue
         count = [0]
@@ -161,15 +161,3 @@ def real_eigenvalues(op, lo, hi, n_scan=8, xtol=1e-8):
         n_eval += count[0]
     return Bracket(roots, pts, np.array([v[0] for v in vals]), n_eval)
 
-
-def null_vector(op, sigma, x0, iterations=3):
-    """The eigenvector of M(σ) at an eigenvalue σ found without one (:func:`real_eigenvalues`),
-    by inverse iteration from x0; returns (x normalised to max |x| = 1, componentwise backward
-    error)."""
-    M = op.matrices(sigma, deriv=False)[0]
-    lu = lu_factor(M, check_finite=False)
-    x = np.asarray(x0, complex)
-    for _ in range(iterations):
-        x = lu_solve(lu, x, check_finite=False)
-        x = x / x[np.argmax(np.abs(x))]
-    return x, _relres(M, x)

@@ -115,6 +115,11 @@ class RefinedRate:
     s_err_per_L: float = float("nan")
 
     @property
+    def s_per_L_levels(self) -> list:
+        """s_k L_k/c_k per level."""
+        return [s / u for s, u in zip(self.s_levels, self.unit_levels)]
+
+    @property
     def translation_covered(self) -> bool:
         """The error bar of the finest σ_t (exact 0), measured as that of s, covers 0 (False
         where no order was observed)."""
@@ -144,6 +149,11 @@ class RefinedRate:
         return f"s L/c_p = {s:.{d}f} ± {e:.1g}"
 
 
+def level0_size(n, min_points=0, level0_points=None):
+    """N_0 of level 0: exactly `level0_points` where given, else max(N, min_points)."""
+    return int(level0_points) if level0_points else max(int(n), int(min_points))
+
+
 def check_refinable(pulse, levels, min_points=0, level0_points=None):
     """Refuse a pulse whose grid cannot carry the levels (too coarse to map, or too large);
     level 0 has max(N, min_points) points, or exactly `level0_points`."""
@@ -151,7 +161,7 @@ def check_refinable(pulse, levels, min_points=0, level0_points=None):
     if n < MIN_REFINE_POINTS:
         raise UsageError(f"pulse {pulse.label}: N = {n} is too coarse to refine; the error "
                          f"estimate needs N >= {MIN_REFINE_POINTS} (re-solve with more --points)")
-    n0 = int(level0_points) if level0_points else max(n, int(min_points))
+    n0 = level0_size(n, min_points, level0_points)
     finest = level_points(n0, levels)[-1]
     if finest > solver.MAX_POINTS:
         raise UsageError(f"pulse {pulse.label}: N = {n0} refined {levels} "
@@ -207,7 +217,7 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None
         if lev > levels:
             if target is None or n > max_points:
                 break
-            est = estimate([s / u for s, u in zip(out.s_levels, out.unit_levels)])
+            est = estimate(out.s_per_L_levels)
             if est[1] <= target:
                 break
         sol = mapped_pulse(params, p, gmap, n)
@@ -242,8 +252,7 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-7, progress=None
             progress(f"level {lev}: N={q.n_points} s L/c={lead.real / res.rate_unit:.6g}")
     if out.status == "converged":
         out.s, out.s_err, out.order, out.rule = estimate(out.s_levels)
-        out.s_per_L, out.s_err_per_L = estimate(
-            [s / u for s, u in zip(out.s_levels, out.unit_levels)])[:2]
+        out.s_per_L, out.s_err_per_L = estimate(out.s_per_L_levels)[:2]
         out.s_extrapolated = richardson(out.s_levels)[0]
         if not out.pinned:              # pinned: σ_t = 0 by construction, nothing to check
             out.translation_extrapolated, out.translation_err = \

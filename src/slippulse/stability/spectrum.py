@@ -124,7 +124,7 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-7, label="", gu
         converges.
     pin_translation : solve the problem with translation pinned (:class:`StabilityOperator`'s
         rank-one change that makes v₀′ an exact null vector of M(0); σ_t is then 0 by
-        construction, not a check; docs/spectrum.md §5.3).
+        construction, not a check; docs/spectrum.md §5).
     """
     t0 = time.perf_counter()
     op = StabilityOperator(order4_pulse(pulse, params), params, pin_translation)

@@ -16,7 +16,7 @@ import numpy as np
 from ..core.h5io import label_ratio
 from ..steady.grid import GridMap
 from .count import count_unstable
-from .refine import check_refinable, mapped_pulse, refine_leading
+from .refine import check_refinable, level0_size, mapped_pulse, refine_leading
 from .spectrum import (MIN_RE, PulseSpectrum, order4_pulse, pulse_spectrum, read_spectrum,
                        write_spectrum)
 
@@ -152,10 +152,10 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
     min_points : level 0 has N_0 = max(N, min_points) points (the steady equations re-solved on
         the map; with levels = 0 and N ≥ min_points, the pulse's own grid); a re-solve that
         fails marks the pulse failed.
-    pin_translation : solve with translation pinned (default; docs/spectrum.md §5.3).
+    pin_translation : solve with translation pinned (default; docs/spectrum.md §5).
     level0_points : level 0 has exactly this many points on the map, fewer than the pulse's
         own N included (overrides `min_points`); with `pin_translation` the deep pulses need
-        no more than the shallow ones (docs/spectrum.md §5.3).
+        no more than the shallow ones (docs/spectrum.md §5).
     """
     from ..core.h5io import read_pulse
     t0 = time.perf_counter()
@@ -185,7 +185,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         if levels:
             check_refinable(pulse, levels, min_points, level0_points)
         pulse = source = order4_pulse(pulse, params)
-        n0 = int(level0_points) if level0_points else max(int(pulse.n_points), int(min_points))
+        n0 = level0_size(pulse.n_points, min_points, level0_points)
         gmap = why = None
         if levels or n0 != pulse.n_points:
             gmap = GridMap(pulse.xi)
