@@ -21,7 +21,8 @@ class _Diag:
         self.Qi = np.linalg.inv(self.Q)
 
     def matrices(self, z, deriv=False):
-        return self.Q @ np.diag(z - self.lams) @ self.Qi, None
+        dM = np.eye(self.lams.size, dtype=complex) if deriv else None
+        return self.Q @ np.diag(z - self.lams) @ self.Qi, dM
 
 
 def test_arg_det_matches_numpy():
@@ -41,6 +42,32 @@ def test_count_finds_the_zeros_inside_the_box(lams, expected):
     assert res.status == "converged", res.message
     assert res.count == expected
     assert abs(res.winding - expected) < 0.05
+
+
+@pytest.mark.parametrize("lams, expected", [
+    ([0.0102 + 1.0j, 0.0102 + 1.0001j], 2),              # a pair 2e-4 inside the left edge
+    ([0.0105 + 1.3j, 0.0105 + 1.30002j, 0.0103 - 2.1j, 0.0103 - 2.10001j], 4),
+])
+def test_count_sees_zeros_closer_to_the_contour_than_the_spacing(lams, expected):
+    """Zeros just inside the edge turn the phase by about pi each within their own distance; the
+    wrapped steps alone miss whole turns (1 and 2 here), the first-order reach does not."""
+    op = _Diag(np.array(lams, complex))
+    res = count_unstable(op, (0.01, 4.0, 4.0))
+    assert res.status == "converged", res.message
+    assert res.count == expected and res.reach <= 0.6
+    blind = count_unstable(op, (0.01, 4.0, 4.0), derivative=False)
+    assert blind.count != expected and math.isnan(blind.reach)   # what the check is for
+
+
+def test_arg_det_derivative_is_jacobi_formula():
+    from slippulse.stability.count import log_det_derivative
+    rng = np.random.default_rng(5)
+    A, B = (rng.normal(size=(7, 7)) + 1j * rng.normal(size=(7, 7)) for _ in range(2))
+    z, h = 0.3 + 0.2j, 1e-6
+    a, g = log_det_derivative(A + z * B, B)
+    fd = (np.log(np.linalg.det(A + (z + h) * B)) - np.log(np.linalg.det(A + (z - h) * B))) / (2 * h)
+    assert abs(g - fd) < 1e-6 * abs(g)
+    assert abs(math.remainder(a - np.angle(np.linalg.det(A + z * B)), 2 * math.pi)) < 1e-12
 
 
 def test_count_fails_honestly_when_the_budget_is_too_small():
@@ -64,3 +91,22 @@ def test_refined_rate_sign_rule():
     assert text.startswith("sign not resolved") and "0.3 " not in text
     r = RefinedRate(s=-5.0, s_err=1.0, rate_unit=10.0)
     assert r.sign_resolved and r.per_length() == (-0.5, 0.1)
+
+
+def test_count_of_the_1p2_pulse_in_the_product(tmp_path, pulse12, params):
+    """`run_spectrum(count_box=...)` on the 1.2 τ_min pulse (N_0 = 300): one eigenvalue in
+    [0.5, 34] × ±34 c_p/L (the search's one real mode, s L/c_p ≈ 22.65), the walk's criteria
+    met and stored."""
+    from slippulse.core.h5io import write_pulse
+    from slippulse.stability.spectrum import read_spectrum
+    from slippulse.stability.spectrum_family import run_spectrum
+    f = str(tmp_path / "one.h5")
+    write_pulse(f, pulse12.to_pulse(), params)
+    rep = run_spectrum(f, extra=False, levels=0, level0_points=300, count_box=(0.5, 4.0, 4.0))
+    assert rep.failed == []
+    st = read_spectrum(f, "td1.2000")
+    assert st["count_status"] == "converged", st["count_message"]
+    assert list(st["count_box_c_over_L"]) == pytest.approx([0.5, 1.5 * st["leading_s_per_L"],
+                                                           1.5 * st["leading_s_per_L"]])
+    assert st["count"] == 1 and abs(st["count_winding"] - 1.0) < 0.05
+    assert st["count_max_step_rad"] <= 0.6 and st["count_max_reach_rad"] <= 0.6

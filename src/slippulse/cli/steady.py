@@ -315,8 +315,11 @@ def spectrum_line(label, res) -> str:
     if res.count is not None:
         c = res.count
         line += (f"; count: {c.count} in Re in [{c.box[0]:g}, {c.box[1]:.3g}], |Im| <= "
-                 f"{c.box[2]:.3g} c_p/L ({c.n_evals} det)" if c.count is not None
+                 f"{c.box[2]:.3g} c_p/L ({c.n_evals} det, {c.wall_time:.0f} s)"
+                 if c.count is not None
                  else f"; count FAILED: {c.message}")
+        if c.count is not None and s.real / res.rate_unit < c.box[0]:
+            line += " (the leading eigenvalue lies left of the box: not in this count)"
     return line + f"; {res.wall_time + (ref.wall_time if ref else 0.0):.1f} s"
 
 

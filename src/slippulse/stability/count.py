@@ -7,11 +7,23 @@ winding number of det M along C:
     Z = (1/2π) Δ_C arg det M(σ).
 
 arg det M comes from the LU factors (Σ arg u_ii plus π per row interchange). The contour is the
-rectangle x0 ≤ Re σ ≤ x1, |Im σ| ≤ y1 (in units of c_p/L), walked counter-clockwise; points are
-inserted between neighbours until the wrapped change of arg det between them is below
-``max_step`` radians (so that no turn of 2π can hide between two evaluations), and the sum of the
-changes must be within ``integer_tol`` of an integer multiple of 2π. A walk that does not meet
-either condition within ``max_evals`` evaluations reports status 'failed' and no count.
+rectangle x0 ≤ Re σ ≤ x1, |Im σ| ≤ y1 (in units of c_p/L), walked counter-clockwise. Points are
+inserted between neighbours until, for every pair a, b,
+
+- the wrapped change of arg det between them is below ``max_step`` radians, and
+- the change of the logarithmic derivative g = d ln det M/dσ = tr(M⁻¹ M′(σ)) (Jacobi's
+  formula) across the segment, |g_b − g_a| |σ_b − σ_a|, is below ``max_step`` too.
+
+The first condition alone cannot see a zero that lies closer to the contour than the spacing: the
+phase then jumps by about π within a distance of the zero's own distance, and two such zeros, or
+one jump read against the wrong branch, hide a turn of 2π between two evaluations. The second
+condition can. The zeros far from the segment add to g a large (N of them) but smooth part, which
+changes little across it; a zero at a distance d from the segment adds 1/(σ − λ), whose change
+across a segment of length h ≫ d is about 4/h at least (h/d when it is near an end), so the
+segment is halved until h is of the order of d. The sum of the changes must be within
+``integer_tol`` of an integer multiple of 2π. A walk that does not meet the conditions within
+``max_evals`` evaluations reports status 'failed' and no count. An operator whose ``matrices``
+gives no M′ is walked with the first condition only (``reach`` then nan).
 """
 from __future__ import annotations
 
@@ -20,16 +32,26 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import lu_factor
+from scipy.linalg import lu_factor, lu_solve
 
 
-def arg_det(M) -> tuple[float, float]:
-    """(ln|det M|, arg det M ∈ (−π, π]) from the LU factorisation of M."""
-    lu, piv = lu_factor(M, check_finite=False)
+def _lu_log_det(lu, piv) -> tuple[float, float]:
     d = np.diag(lu)
     swaps = int(np.count_nonzero(piv != np.arange(piv.size)))
     arg = float(np.sum(np.angle(d))) + math.pi * swaps
     return float(np.sum(np.log(np.abs(d)))), math.remainder(arg, 2.0 * math.pi)
+
+
+def arg_det(M) -> tuple[float, float]:
+    """(ln|det M|, arg det M ∈ (−π, π]) from the LU factorisation of M."""
+    return _lu_log_det(*lu_factor(M, check_finite=False))
+
+
+def log_det_derivative(M, dM) -> tuple[float, complex]:
+    """(arg det M, d ln det M/dσ = tr(M⁻¹ M′)) from one LU factorisation of M (Jacobi's formula)."""
+    lu = lu_factor(M, check_finite=False)
+    arg = _lu_log_det(*lu)[1]
+    return arg, complex(np.trace(lu_solve(lu, dM, check_finite=False)))
 
 
 def _wrap(x):
@@ -50,6 +72,7 @@ class ContourCount:
     wall_time: float
     points: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))   # σ L/c_p walked
     args: np.ndarray = field(default_factory=lambda: np.zeros(0))              # unwrapped arg det
+    reach: float = float("nan")      # largest |Δg| |Δσ| between neighbours (nan: not checked)
 
 
 def _rectangle(x0, x1, y1, per_side):
@@ -64,7 +87,7 @@ def _rectangle(x0, x1, y1, per_side):
 
 
 def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, integer_tol=0.05,
-                   progress=None):
+                   progress=None, derivative=True):
     """Count the eigenvalues of M(σ) in the box x0 ≤ Re σ L/c ≤ x1, |Im σ L/c| ≤ y1.
 
     Parameters
@@ -76,6 +99,8 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     max_evals : budget of determinant evaluations (one LU of an N×N complex matrix each).
     integer_tol : largest accepted distance of the winding number from an integer.
     progress : callable(n_evals) or None.
+    derivative : also bound the change of g = d ln det M/dσ between neighbours, |Δg| |Δσ|
+        (one more solve with N right-hand sides per evaluation).
     """
     t0 = time.perf_counter()
     x0, x1, y1 = (float(b) for b in box)
@@ -84,30 +109,53 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     unit = op.rate_unit
     cache = {}
 
+    checked = bool(derivative)
+
     def arg_at(z):
+        """(arg det M, d ln det M/dz or None) at z (units of c_p/L)."""
+        nonlocal checked
         if z not in cache:
-            cache[z] = arg_det(op.matrices(z * unit, deriv=False)[0])[1]
+            M, dM = op.matrices(z * unit, deriv=checked)
+            if checked and dM is None:
+                checked = False
+            if checked:
+                a, g = log_det_derivative(M, dM)
+                cache[z] = (a, g * unit)
+            else:
+                cache[z] = (arg_det(M)[1], None)
             if progress:
                 progress(len(cache))
         return cache[z]
+
+    def gaps(pts, vals):
+        """|wrapped Δarg| and |g_b − g_a| |Δσ| per neighbour pair."""
+        w = [_wrap(b[0] - a[0]) for a, b in zip(vals, vals[1:])]
+        if not checked:
+            return np.abs(w), np.zeros(len(w))
+        r = [abs(b[1] - a[1]) * abs(zb - za)
+             for a, b, za, zb in zip(vals, vals[1:], pts, pts[1:])]
+        return np.abs(w), np.array(r)
 
     pts = _rectangle(x0, x1, y1, per_side)
     vals = [arg_at(z) for z in pts]
     status, msg = "converged", ""
     while True:
-        steps = [abs(_wrap(b - a)) for a, b in zip(vals, vals[1:])]
-        bad = [k for k, s in enumerate(steps) if s > max_step]
+        steps, gap = gaps(pts, vals)
+        bad = [k for k in range(len(steps))
+               if steps[k] > max_step or gap[k] > max_step]
         if not bad:
             break
         if len(cache) + len(bad) > max_evals:
             status = "failed"
-            msg = (f"arg det M still changes by {max(steps):.2f} rad between neighbours after "
-                   f"{len(cache)} evaluations (budget {max_evals})")
+            msg = (f"arg det M still changes by {steps.max():.2f} rad between neighbours"
+                   + (f" (change of d ln det across {gap.max():.2f})" if checked else "") + f" after {len(cache)} evaluations (budget {max_evals})")
             break
         for k in reversed(bad):
             zm = 0.5 * (pts[k] + pts[k + 1])
             pts.insert(k + 1, zm)
             vals.insert(k + 1, arg_at(zm))
+    steps, gap = gaps(pts, vals)
+    vals = [v[0] for v in vals]
     dargs = np.array([_wrap(b - a) for a, b in zip(vals, vals[1:])])
     unwrapped = np.concatenate([[vals[0]], vals[0] + np.cumsum(dargs)])
     winding = float(np.sum(dargs) / (2.0 * math.pi))
@@ -122,4 +170,5 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
                    f"|Im sigma L/c| <= {y1:g}")
     return ContourCount(count, winding, (x0, x1, y1), len(cache),
                         float(np.max(np.abs(dargs))) if dargs.size else 0.0, status, msg,
-                        time.perf_counter() - t0, np.array(pts), unwrapped)
+                        time.perf_counter() - t0, np.array(pts), unwrapped,
+                        float(gap.max()) if checked and gap.size else float("nan"))

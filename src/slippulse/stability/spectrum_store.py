@@ -78,6 +78,7 @@ def write_spectrum(path, res, settings: dict):
             g.attrs["count_evaluations"] = int(cnt.n_evals)
             g.attrs["count_winding"] = float(cnt.winding)
             g.attrs["count_max_step_rad"] = float(cnt.max_step)
+            g.attrs["count_max_reach_rad"] = float(cnt.reach)     # nan: walk without M′
             if cnt.count is not None:
                 g.attrs["count"] = int(cnt.count)
         for k, v in settings.items():
