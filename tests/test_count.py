@@ -59,6 +59,30 @@ def test_count_sees_zeros_closer_to_the_contour_than_the_spacing(lams, expected)
     assert blind.count != expected and math.isnan(blind.reach)   # what the check is for
 
 
+class _Continuum:
+    """diag(σ − λ_j): a discrete 'continuum' of zeros 0.006 left of the left edge (Im spacing
+    0.1, like the grid's continuum near the imaginary axis) and one zero inside at 0.5."""
+
+    rate_unit = 1.0
+
+    def __init__(self):
+        self.lams = np.concatenate([-0.001 + 1j * np.arange(-6.0, 6.0 + 1e-9, 0.1), [0.5]])
+
+    def matrices(self, z, deriv=False):
+        dM = np.eye(self.lams.size, dtype=complex) if deriv else None
+        return np.diag(z - self.lams), dM
+
+
+def test_count_is_not_fooled_by_a_continuum_just_outside_the_edge():
+    """Each zero outside turns the phase by about -pi as the left edge passes it; the phase-only
+    walk aliases that drift (it counts -7 here), the derivative-checked walk counts the one."""
+    res = count_unstable(_Continuum(), (0.005, 4.0, 4.0), max_evals=2000)
+    assert res.status == "converged", res.message
+    assert res.count == 1
+    blind = count_unstable(_Continuum(), (0.005, 4.0, 4.0), max_evals=2000, derivative=False)
+    assert blind.count != 1
+
+
 def test_arg_det_derivative_is_jacobi_formula():
     from slippulse.stability.count import log_det_derivative
     rng = np.random.default_rng(5)

@@ -12,8 +12,12 @@ inserted between neighbours until, for every pair a, b,
 
 - the wrapped change of arg det between them is below ``max_step`` radians, and
 - the change of the logarithmic derivative g = d ln det M/dσ = tr(M⁻¹ M′(σ)) (Jacobi's
-  formula) across the segment, |g_b − g_a| |σ_b − σ_a|, is below ``max_step`` too.
+  formula) across the segment, |g_b − g_a| |σ_b − σ_a|, is below ``max_step`` too, and so is
+  the gap between the wrapped change and the trapezoidal integral of Im(g dσ).
 
+A steady drift of the phase faster than 2π per spacing (the discrete continuum just left of the
+left edge drives one; at 1.025 τ_min, −4.5 rad per unit of Im σ L/c_p) aliases to a small
+wrapped change; the trapezoid of the derivative does not.
 The first condition alone cannot see a zero that lies closer to the contour than the spacing: the
 phase then jumps by about π within a distance of the zero's own distance, and two such zeros, or
 one jump read against the wrong branch, hide a turn of 2π between two evaluations. The second
@@ -72,7 +76,7 @@ class ContourCount:
     wall_time: float
     points: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))   # σ L/c_p walked
     args: np.ndarray = field(default_factory=lambda: np.zeros(0))              # unwrapped arg det
-    reach: float = float("nan")      # largest |Δg| |Δσ| between neighbours (nan: not checked)
+    reach: float = float("nan")      # largest derivative criterion between neighbours (nan: none)
 
 
 def _rectangle(x0, x1, y1, per_side):
@@ -99,8 +103,9 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     max_evals : budget of determinant evaluations (one LU of an N×N complex matrix each).
     integer_tol : largest accepted distance of the winding number from an integer.
     progress : callable(n_evals) or None.
-    derivative : also bound the change of g = d ln det M/dσ between neighbours, |Δg| |Δσ|
-        (one more solve with N right-hand sides per evaluation).
+    derivative : also bound the change of g = d ln det M/dσ between neighbours, |Δg| |Δσ|, and
+        the gap between the wrapped change of arg det and the trapezoid of Im(g dσ) (one more
+        solve with N right-hand sides per evaluation).
     """
     t0 = time.perf_counter()
     x0, x1, y1 = (float(b) for b in box)
@@ -128,12 +133,13 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
         return cache[z]
 
     def gaps(pts, vals):
-        """|wrapped Δarg| and |g_b − g_a| |Δσ| per neighbour pair."""
+        """|wrapped Δarg| and max(|g_b − g_a| |Δσ|, |Δarg − trapezoid of Im g dσ|) per pair."""
         w = [_wrap(b[0] - a[0]) for a, b in zip(vals, vals[1:])]
         if not checked:
             return np.abs(w), np.zeros(len(w))
-        r = [abs(b[1] - a[1]) * abs(zb - za)
-             for a, b, za, zb in zip(vals, vals[1:], pts, pts[1:])]
+        r = [max(abs(b[1] - a[1]) * abs(zb - za),                     # change of g
+                 abs(wk - (0.5 * (a[1] + b[1]) * (zb - za)).imag))       # trapezoid of arg′
+             for wk, a, b, za, zb in zip(w, vals, vals[1:], pts, pts[1:])]
         return np.abs(w), np.array(r)
 
     pts = _rectangle(x0, x1, y1, per_side)
@@ -148,7 +154,7 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
         if len(cache) + len(bad) > max_evals:
             status = "failed"
             msg = (f"arg det M still changes by {steps.max():.2f} rad between neighbours"
-                   + (f" (change of d ln det across {gap.max():.2f})" if checked else "") + f" after {len(cache)} evaluations (budget {max_evals})")
+                   + (f" (derivative criterion {gap.max():.2f})" if checked else "") + f" after {len(cache)} evaluations (budget {max_evals})")
             break
         for k in reversed(bad):
             zm = 0.5 * (pts[k] + pts[k + 1])
