@@ -134,3 +134,22 @@ def test_count_of_the_1p2_pulse_in_the_product(tmp_path, pulse12, params):
                                                            1.5 * st["leading_s_per_L"]])
     assert st["count"] == 1 and abs(st["count_winding"] - 1.0) < 0.05
     assert st["count_max_step_rad"] <= 0.6 and st["count_max_reach_rad"] <= 0.6
+
+
+def test_cli_count_budget_bad_input_and_documented_default(tmp_path, pulse12, params):
+    import re
+    import subprocess
+    import sys
+    from slippulse.core.h5io import write_pulse
+    from slippulse.stability.spectrum_family import COUNT_EVALS
+    f = str(tmp_path / "one.h5")
+    write_pulse(f, pulse12.to_pulse(), params)
+    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f,
+                        "--count", "0.5", "4", "4", "--count-evals", "5"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.strip().count("\n") == 0 and "count_evals=5" in r.stderr
+    h = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", "--help"],
+                       capture_output=True, text=True).stdout
+    m = re.search(r"--count-evals N\s+budget of det M evaluations per count \(default (\d+)", h)
+    assert m and int(m.group(1)) == COUNT_EVALS

@@ -325,9 +325,11 @@ def spectrum_line(label, res) -> str:
 
 def cmd_stability(args) -> int:
     from ..stability.refine import MIN_REFINE_POINTS
-    from ..stability.spectrum_family import (DEFAULT_LEVELS, MIN_SPECTRUM_POINTS,
+    from ..stability.spectrum_family import (COUNT_EVALS, DEFAULT_LEVELS, MIN_SPECTRUM_POINTS,
                                              check_family_file, run_spectrum)
     labels = args.labels or None
+    if args.count_evals is None:
+        args.count_evals = COUNT_EVALS
     if args.levels is None:
         args.levels = DEFAULT_LEVELS
     if args.min_points is None:
@@ -351,6 +353,9 @@ def cmd_stability(args) -> int:
         if not (all(math.isfinite(b) for b in box) and 0.0 < box[0] < box[1] and box[2] > 0.0):
             raise ParameterError(f"count={list(box)!r} is invalid: need X0 X1 Y1 with "
                                  "0 < X0 < X1 and Y1 > 0 (units of c_p/L)")
+    if not (isinstance(args.count_evals, int) and 24 <= args.count_evals <= 20000):
+        raise ParameterError(f"count_evals={args.count_evals!r} is invalid: must be an integer "
+                             "in [24, 20000] (det M evaluations of the count)")
     if args.figure:
         check_figure(args.figure, "--figure")             # format and writability, before the work
     chosen, _ = check_family_file(args.file, labels)      # bad input fails here, before any work
@@ -377,6 +382,7 @@ def cmd_stability(args) -> int:
 
     rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
                        progress=progress, levels=args.levels, count_box=box,
+                       count_evals=args.count_evals,
                        level_progress=level_progress, min_points=args.min_points,
                        target=args.target, pin_translation=args.pin_translation,
                        level0_points=args.points)
@@ -615,6 +621,10 @@ def register(sub) -> None:
                    help="also count the eigenvalues with X0 <= Re sigma L/c_p <= X1, "
                         "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "
                         "times the leading rate), e.g. --count 0.01 4 4")
+    p.add_argument("--count-evals", type=int, default=None, metavar="N",
+                   help="budget of det M evaluations per count (default 400; a walk "
+                        "that needs more is reported failed, with no count; near the "
+                        "imaginary axis one evaluation takes 5-25 s at N = 1000-2000)")
     p.add_argument("--figure", default=None, metavar="PNG",
                    help="also draw s(tau_d) and the leading modes into this file")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -16,6 +16,8 @@ import numpy as np
 from ..core.h5io import label_ratio
 from ..steady.grid import GridMap
 from .count import count_unstable
+
+COUNT_EVALS = 400           # default budget of det M evaluations per count (docs/spectrum.md §6)
 from .refine import check_refinable, level0_size, mapped_pulse, refine_leading
 from .spectrum import (MIN_RE, PulseSpectrum, order4_pulse, pulse_spectrum, read_spectrum,
                        write_spectrum)
@@ -129,7 +131,7 @@ def _failed(label, pulse, message):
 def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progress=None,
                  levels=DEFAULT_LEVELS, count_box=None, level_progress=None,
                  min_points=MIN_SPECTRUM_POINTS, target=None, pin_translation=True,
-                 level0_points=None):
+                 level0_points=None, count_evals=COUNT_EVALS):
     """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
 
     Pulses are taken by decreasing τ_d; each starts from its neighbour's eigenvalues at equal
@@ -153,6 +155,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         the map; with levels = 0 and N ≥ min_points, the pulse's own grid); a re-solve that
         fails marks the pulse failed.
     pin_translation : solve with translation pinned (default; docs/spectrum.md §5).
+    count_evals : budget of determinant evaluations of the count (reported failed beyond it).
     level0_points : level 0 has exactly this many points on the map, fewer than the pulse's
         own N included (overrides `min_points`); with `pin_translation` the deep pulses need
         no more than the shallow ones (docs/spectrum.md §5).
@@ -219,7 +222,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         if res.status == "converged" and count_box is not None:
             lead = res.leading.real / res.rate_unit if res.sigmas.size else 0.0
             box = (count_box[0], max(count_box[1], 1.5 * lead), max(count_box[2], 1.5 * lead))
-            res.count = count_unstable(res.operator, box,
+            res.count = count_unstable(res.operator, box, max_evals=count_evals,
                                        progress=(lambda k: level_progress(f"count: {k} det"))
                                        if level_progress else None)
         res.operator = None                             # N×N matrices: not kept per pulse
