@@ -154,13 +154,14 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
         if len(cache) + len(bad) > max_evals:
             status = "failed"
             msg = (f"arg det M still changes by {steps.max():.2f} rad between neighbours"
-                   + (f" (derivative criterion {gap.max():.2f})" if checked else "") + f" after {len(cache)} evaluations (budget {max_evals})")
+                   + (f" (derivative criterion {gap.max():.2f})" if checked else "")
+                   + f" after {len(cache)} evaluations (budget {max_evals})")
             break
         for k in reversed(bad):
             zm = 0.5 * (pts[k] + pts[k + 1])
             pts.insert(k + 1, zm)
             vals.insert(k + 1, arg_at(zm))
-    steps, gap = gaps(pts, vals)
+    _, gap = gaps(pts, vals)
     vals = [v[0] for v in vals]
     dargs = np.array([_wrap(b - a) for a, b in zip(vals, vals[1:])])
     unwrapped = np.concatenate([[vals[0]], vals[0] + np.cumsum(dargs)])
