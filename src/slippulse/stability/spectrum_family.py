@@ -16,11 +16,11 @@ import numpy as np
 from ..core.h5io import label_ratio
 from ..steady.grid import GridMap
 from .count import count_unstable
-
-COUNT_EVALS = 400           # default budget of det M evaluations per count (docs/spectrum.md §6)
 from .refine import check_refinable, level0_size, mapped_pulse, refine_leading
 from .spectrum import (MIN_RE, PulseSpectrum, order4_pulse, pulse_spectrum, read_spectrum,
                        write_spectrum)
+
+COUNT_EVALS = 400           # default budget of det M evaluations per count (docs/spectrum.md §6)
 
 
 @dataclass
