@@ -15,16 +15,16 @@ inserted between neighbours until, for every pair a, b,
   formula) across the segment, |g_b − g_a| |σ_b − σ_a|, is below ``max_step`` too, and so is
   the gap between the wrapped change and the trapezoidal integral of Im(g dσ).
 
-A steady drift of the phase faster than 2π per spacing (the discrete continuum just left of the
-left edge drives one; at 1.025 τ_min, −4.5 rad per unit of Im σ L/c_p) aliases to a small
-wrapped change; the trapezoid of the derivative does not.
 The first condition alone cannot see a zero that lies closer to the contour than the spacing: the
 phase then jumps by about π within a distance of the zero's own distance, and two such zeros, or
-one jump read against the wrong branch, hide a turn of 2π between two evaluations. The second
-condition can. The zeros far from the segment add to g a large (N of them) but smooth part, which
+one jump read against the wrong branch, hide a turn of 2π between two evaluations. The change of
+g can. The zeros far from the segment add to g a large (N of them) but smooth part, which
 changes little across it; a zero at a distance d from the segment adds 1/(σ − λ), whose change
 across a segment of length h ≫ d is about 4/h at least (h/d when it is near an end), so the
-segment is halved until h is of the order of d. The sum of the changes must be within
+segment is halved until h is of the order of d. Nor can the first condition see a steady drift
+of the phase faster than 2π per spacing (the discrete continuum just left of the left edge
+drives one; at 1.025 τ_min, −4.5 rad per unit of Im σ L/c_p): it aliases to a small wrapped
+change, the trapezoid of the derivative does not. The sum of the changes must be within
 ``integer_tol`` of an integer multiple of 2π. A walk that does not meet the conditions within
 ``max_evals`` evaluations reports status 'failed' and no count. An operator whose ``matrices``
 gives no M′ is walked with the first condition only (``reach`` then nan).
@@ -133,20 +133,21 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
         return cache[z]
 
     def gaps(pts, vals):
-        """|wrapped Δarg| and max(|g_b − g_a| |Δσ|, |Δarg − trapezoid of Im g dσ|) per pair."""
-        w = [_wrap(b[0] - a[0]) for a, b in zip(vals, vals[1:])]
+        """Wrapped Δarg and max(|g_b − g_a| |Δσ|, |Δarg − trapezoid of Im g dσ|) per pair."""
+        w = np.array([_wrap(b[0] - a[0]) for a, b in zip(vals, vals[1:])])
         if not checked:
-            return np.abs(w), np.zeros(len(w))
+            return w, np.zeros(w.size)
         r = [max(abs(b[1] - a[1]) * abs(zb - za),                     # change of g
                  abs(wk - (0.5 * (a[1] + b[1]) * (zb - za)).imag))       # trapezoid of arg′
              for wk, a, b, za, zb in zip(w, vals, vals[1:], pts, pts[1:])]
-        return np.abs(w), np.array(r)
+        return w, np.array(r)
 
     pts = _rectangle(x0, x1, y1, per_side)
     vals = [arg_at(z) for z in pts]
     status, msg = "converged", ""
-    while True:
-        steps, gap = gaps(pts, vals)
+    while True:            # leaves with dargs, gap of the final points (the walk or its budget)
+        dargs, gap = gaps(pts, vals)
+        steps = np.abs(dargs)
         bad = [k for k in range(len(steps))
                if steps[k] > max_step or gap[k] > max_step]
         if not bad:
@@ -161,10 +162,7 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
             zm = 0.5 * (pts[k] + pts[k + 1])
             pts.insert(k + 1, zm)
             vals.insert(k + 1, arg_at(zm))
-    _, gap = gaps(pts, vals)
-    vals = [v[0] for v in vals]
-    dargs = np.array([_wrap(b - a) for a, b in zip(vals, vals[1:])])
-    unwrapped = np.concatenate([[vals[0]], vals[0] + np.cumsum(dargs)])
+    unwrapped = np.concatenate([[vals[0][0]], vals[0][0] + np.cumsum(dargs)])
     winding = float(np.sum(dargs) / (2.0 * math.pi))
     count = None
     if status == "converged":
