@@ -325,8 +325,10 @@ def spectrum_line(label, res) -> str:
 
 def cmd_stability(args) -> int:
     from ..stability.refine import MIN_REFINE_POINTS
-    from ..stability.spectrum_family import (COUNT_EVALS, DEFAULT_LEVELS, MIN_SPECTRUM_POINTS,
-                                             check_family_file, run_spectrum)
+    from ..stability.spectrum_family import (COUNT_EVALS, DEFAULT_LEVELS, DEFAULT_REL_TARGET,
+                                             DEFAULT_TARGET, MAX_SPECTRUM_POINTS,
+                                             MIN_SPECTRUM_POINTS, check_family_file,
+                                             run_spectrum)
     labels = args.labels or None
     if args.count_evals is None:
         args.count_evals = COUNT_EVALS
@@ -334,9 +336,23 @@ def cmd_stability(args) -> int:
         args.levels = DEFAULT_LEVELS
     if args.min_points is None:
         args.min_points = MIN_SPECTRUM_POINTS
+    if args.max_points is None:           # a --min-points above the default raises it
+        args.max_points = max(MAX_SPECTRUM_POINTS, args.min_points)
+    if args.target is None:
+        args.target = DEFAULT_TARGET
+    if args.rel_target is None:
+        args.rel_target = DEFAULT_REL_TARGET
     if not (isinstance(args.min_points, int) and 0 <= args.min_points <= 8000):
         raise ParameterError(f"min-points={args.min_points!r} is invalid: must be an integer in "
                              "[0, 8000] (smallest N of the spectrum's first level)")
+    if not (isinstance(args.max_points, int) and max(args.min_points, MIN_REFINE_POINTS)
+            <= args.max_points <= 8000):
+        raise ParameterError(f"max-points={args.max_points!r} is invalid: must be an integer in "
+                             f"[{max(args.min_points, MIN_REFINE_POINTS)}, 8000] (largest N of "
+                             "the spectrum's first level, at least --min-points)")
+    if not (math.isfinite(args.rel_target) and 0.0 <= args.rel_target < 1.0):
+        raise ParameterError(f"rel-target={args.rel_target!r} is invalid: must be a number in "
+                             "[0, 1) (s_err as a fraction of |s|)")
     if not (isinstance(args.levels, int) and 0 <= args.levels <= 6):
         raise ParameterError(f"levels={args.levels!r} is invalid: must be an integer in [0, 6] "
                              "(levels N_0 sqrt(2)^k above level 0 for the error estimate)")
@@ -385,7 +401,8 @@ def cmd_stability(args) -> int:
                        count_evals=args.count_evals,
                        level_progress=level_progress, min_points=args.min_points,
                        target=args.target, pin_translation=args.pin_translation,
-                       level0_points=args.points)
+                       level0_points=args.points, rel_target=args.rel_target,
+                       max_points=args.max_points)
     bar.close()
     done = [r for r in rep.results if r.status == "converged"]
     print(family_summary(args.file, done, rep))
@@ -597,20 +614,24 @@ def register(sub) -> None:
                    help="only the leading eigenvalue (skip the search below it)")
     p.add_argument("--levels", type=int, default=None,
                    help="levels above level 0 (N_0 sqrt(2)^k points, the pulse re-solved on one "
-                        "smooth map of its grid) for the error of the leading growth rate: s is "
-                        "the finest level's; s_err from the observed order with 2 levels or more "
-                        "(default 2; 0: no estimate; docs/spectrum.md section 5)")
+                        "smooth map of its grid) for the error of the leading growth rate, at "
+                        "least: more are added until --target is met; s is the finest level's; "
+                        "s_err the last correction (2 levels) or from the observed order (3 or "
+                        "more) (default 1; 0: no estimate; docs/spectrum.md section 5)")
     p.add_argument("--min-points", type=int, default=None,
-                   help="level 0 has N_0 = max(N, MIN_POINTS) points (default 2000: coarser "
-                        "levels are not yet in the asymptotic "
-                        "range near tau_min; 0: the pulse's own N)")
+                   help="level 0 has N_0 = N clipped to [MIN_POINTS, MAX_POINTS] (default 1000)")
+    p.add_argument("--max-points", type=int, default=None,
+                   help="the upper end of that clip (default 2828, or MIN_POINTS where larger: "
+                        "enough at the deepest pulses of the family, 1.009 tau_min, where "
+                        "N = 2000 is not)")
     p.add_argument("--target", type=float, default=None, metavar="S_ERR",
-                   help="add levels beyond --levels (up to N = 8000) until s_err L/c_p <= S_ERR, "
-                        "e.g. --target 1e-4 (default: the fixed --levels)")
+                   help="add levels beyond --levels (up to N = 8000) until s_err L/c_p <= "
+                        "max(S_ERR, REL |s L/c_p|) (default 1e-4)")
+    p.add_argument("--rel-target", type=float, default=None, metavar="REL",
+                   help="the relative part of that goal (default 1e-3; 0: absolute only)")
     p.add_argument("--points", type=int, default=None, metavar="N0",
-                   help="level 0 has exactly N0 points on the pulse's map, fewer than the "
-                        "pulse's own included (overrides --min-points; e.g. --points 2000 for "
-                        "the deep pulses, N up to 3542)")
+                   help="level 0 has exactly N0 points on the pulse's map (overrides "
+                        "--min-points and --max-points)")
     p.add_argument("--pin-translation", action=argparse.BooleanOptionalAction, default=True,
                    help="solve with the translation mode pinned at sigma = 0 (default; a "
                         "rank-one change of the size of the discretisation error that removes "

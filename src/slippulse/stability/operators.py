@@ -276,6 +276,8 @@ class StabilityOperator:
         n = self.n
         Vm = -self.c * self.S.astype(complex)
         Vm[np.diag_indices(n)] += sigma
-        Y = self._state(sigma, Vm, False)[0] + self.state_correction @ Vm
+        # state_correction @ Vm with Vm = −c S + σ I, as one real product (S is real)
+        corr = (-self.c) * (self.state_correction @ self.S) + sigma * self.state_correction
+        Y = self._state(sigma, Vm, False)[0] + corr
         K = self.elastic.matrices(sigma, deriv=False)[0]
         return (self.fv[:, None] * Vm + self.fphi[:, None] * Y - K) / self.tau_d

@@ -81,12 +81,20 @@ def check_family_file(path, labels=None):
 
 
 #: Default smallest N of the spectrum's level 0 (a pulse with fewer points is mapped onto this
-#: many). Measured at 1.02 τ_min on the smooth map of the default family's N = 1250 grid:
-#: s L/c_p = 0.0923, 0.0151, 0.01728, 0.01778 at N = 1250, 1768, 2500, 3536; the corrections fall
-#: as N^−4.3 from N ≈ 1800 on (docs/spectrum.md §5).
-MIN_SPECTRUM_POINTS = 2000
-#: Default number of levels above level 0 (three levels: the observed order enters s_err).
-DEFAULT_LEVELS = 2
+#: many). Pinned, the ladder from N = 1000 is in the asymptotic range at 1.2–1.05 τ_min
+#: (observed order 3.6–4.1, docs/spectrum.md §5).
+MIN_SPECTRUM_POINTS = 1000
+#: Default largest N of level 0 (a pulse with more points is mapped onto this many). Measured,
+#: pinned: at 1.008993 τ_min (own N = 3542) level 0 at N = 2828 is 1.2e-5 from the converged
+#: s L/c_p; at 1.009365 τ_min N = 2000 is not resolved (s L/c_p = 0.0093 against 2.2e-4).
+MAX_SPECTRUM_POINTS = 2828
+#: Default number of levels above level 0 (two levels: the last correction is the error); more
+#: are added until the goal below is met.
+DEFAULT_LEVELS = 1
+#: Default accuracy goal of the ladder: s_err L/c_p <= max(DEFAULT_TARGET, DEFAULT_REL_TARGET
+#: |s L/c_p|) (issue 17: 1e-4 below 1.02 τ_min, where s L/c_p < 0.02).
+DEFAULT_TARGET = 1e-4
+DEFAULT_REL_TARGET = 1e-3
 
 
 def _level0(pulse, params, gmap, n0):
@@ -128,10 +136,11 @@ def _failed(label, pulse, message):
                          pulse.c_p / pulse.L, int(pulse.n_points), "failed", message, 0.0)
 
 
-def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progress=None,
+def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-6, progress=None,
                  levels=DEFAULT_LEVELS, count_box=None, level_progress=None,
-                 min_points=MIN_SPECTRUM_POINTS, target=None, pin_translation=True,
-                 level0_points=None, count_evals=COUNT_EVALS):
+                 min_points=MIN_SPECTRUM_POINTS, target=DEFAULT_TARGET, pin_translation=True,
+                 level0_points=None, count_evals=COUNT_EVALS, rel_target=DEFAULT_REL_TARGET,
+                 max_points=MAX_SPECTRUM_POINTS):
     """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
 
     Pulses are taken by decreasing τ_d; each starts from its neighbour's eigenvalues at equal
@@ -148,12 +157,13 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         argument principle (:func:`slippulse.stability.count.count_unstable`), on the pulse's grid.
         x1 and y1 are raised to 1.5 times the leading s L/c_p where that is larger.
     level_progress : callable(str) or None, told about each refinement level / count evaluation.
-    target : optional s_err L/c_p to reach; levels are added beyond `levels` until it is (or
-        the next level would exceed :data:`slippulse.stability.refine.MAX_LADDER_POINTS`; then
-        the pulse keeps its estimate and ``refine_target_met`` = 0).
-    min_points : level 0 has N_0 = max(N, min_points) points (the steady equations re-solved on
-        the map; with levels = 0 and N ≥ min_points, the pulse's own grid); a re-solve that
-        fails marks the pulse failed.
+    target, rel_target : the goal s_err L/c_p <= max(target, rel_target |s L/c_p|); levels
+        are added beyond `levels` until it is met (or the next level would exceed
+        :data:`slippulse.stability.refine.MAX_LADDER_POINTS`; then the pulse keeps its estimate
+        and ``refine_target_met`` = 0). target None: the fixed `levels`.
+    min_points, max_points : level 0 has N_0 = N clipped to [min_points, max_points] points
+        (the steady equations re-solved on the map; with levels = 0 and N inside, the pulse's
+        own grid); a re-solve that fails marks the pulse failed. max_points None: no bound.
     pin_translation : solve with translation pinned (default; docs/spectrum.md §5).
     count_evals : budget of determinant evaluations of the count (reported failed beyond it).
     level0_points : level 0 has exactly this many points on the map, fewer than the pulse's
@@ -167,9 +177,12 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
                 "levels": int(levels), "count": int(count_box is not None),
                 "min_points": int(min_points), "ladder": "smooth map, ratio sqrt(2)",
                 "target": -1.0 if target is None else float(target),   # -1: none
+                "rel_target": 0.0 if target is None else float(rel_target),
+                "max_points": int(max_points or 0),                      # 0: no bound
                 "pin_translation": int(bool(pin_translation)),
-                "level0_points": int(level0_points or 0)}                # 0: max(N, min_points)
-    unset = {"pin_translation": 0, "level0_points": 0}   # settings added later: value before
+                "level0_points": int(level0_points or 0)}                # 0: N clipped
+    unset = {"pin_translation": 0, "level0_points": 0, "rel_target": 0.0,
+             "max_points": 0}                    # settings added later: value before
     # (a spectrum stored before pinning existed was computed without it)
     rep = SpectrumReport()
     # tracking starts from the nearest pulse above the first one that has a stored spectrum
@@ -186,9 +199,9 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
             continue
         pulse, _ = read_pulse(path, lab)
         if levels:
-            check_refinable(pulse, levels, min_points, level0_points)
+            check_refinable(pulse, levels, min_points, level0_points, max_points)
         pulse = source = order4_pulse(pulse, params)
-        n0 = level0_size(pulse.n_points, min_points, level0_points)
+        n0 = level0_size(pulse.n_points, min_points, level0_points, max_points)
         gmap = why = None
         if levels or n0 != pulse.n_points:
             gmap = GridMap(pulse.xi)
@@ -215,7 +228,8 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-7, progr
         if res.status == "converged" and res.sigmas.size and levels:
             res.refined = refine_leading(pulse, params, res, gmap, levels, tol=tol,
                                          progress=level_progress, target=target,
-                                         pin_translation=pin_translation, source=source)
+                                         pin_translation=pin_translation, source=source,
+                                         rel_target=rel_target)
             if res.refined.status != "converged":
                 res.status = "failed"
                 res.message = f"refinement failed: {res.refined.message}"

@@ -1,0 +1,91 @@
+"""The spectrum's ladder climbs to an accuracy goal, and its level 0 is clipped (issue 17, item 5:
+cost; docs/spectrum.md §5). Newton judges the pair it returns."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from slippulse.stability.refine import goal, level0_size
+
+
+def test_goal_is_absolute_or_relative_whichever_is_larger():
+    assert goal(1e-4, 1e-3, 0.0178) == pytest.approx(1e-4)       # 1.02 tau_min
+    assert goal(1e-4, 1e-3, 0.6654) == pytest.approx(6.654e-4)   # 1.05 tau_min
+    assert goal(1e-4, 1e-3, -0.6654) == pytest.approx(6.654e-4)
+    assert goal(1e-4, 0.0, 22.65) == pytest.approx(1e-4)
+
+
+def test_level0_is_the_pulse_N_clipped_unless_given():
+    assert level0_size(700, 1000, None, 2828) == 1000
+    assert level0_size(1250, 1000, None, 2828) == 1250
+    assert level0_size(3542, 1000, None, 2828) == 2828
+    assert level0_size(3542, 1000, None, None) == 3542
+    assert level0_size(3542, 1000, 2000, 2828) == 2000          # --points overrides both
+
+
+@pytest.fixture(scope="module")
+def ladder12(pulse12, params):
+    """Level 0 of the 1.2 tau_min pulse on its map at N = 400, with its leading eigenvalue."""
+    from slippulse.stability.refine import mapped_pulse
+    from slippulse.stability.spectrum import pulse_spectrum
+    from slippulse.steady.grid import GridMap
+    p = pulse12.to_pulse()
+    gmap = GridMap(p.xi)
+    p0 = mapped_pulse(params, p, gmap, 400).to_pulse()
+    first = pulse_spectrum(p0, params, guesses=[22.65 * p0.c_p / p0.L], extra=False,
+                           pin_translation=True, neutral=False)
+    assert first.status == "converged" and np.isnan(first.neutral).all()
+    return p0, gmap, first
+
+
+def test_ladder_stops_at_the_goal_and_says_when_its_cap_stops_it(ladder12, params):
+    from slippulse.stability.refine import refine_leading
+    p0, gmap, first = ladder12
+    kw = dict(levels=1, pin_translation=True, max_points=800)
+    easy = refine_leading(p0, params, first, gmap, target=1.0, **kw)
+    assert easy.status == "converged" and easy.n_points == [400, 566] and easy.target_met
+    # unreachable: climbs to the cap (800) and says so
+    hard = refine_leading(p0, params, first, gmap, target=1e-12, **kw)
+    assert hard.n_points == [400, 566, 800] and not hard.target_met
+    assert "not reached" in hard.message
+    # the relative part of the goal: half of s L/c_p ≈ 11 is met by two levels
+    rel = refine_leading(p0, params, first, gmap, target=1e-12, rel_target=0.5, **kw)
+    assert rel.n_points == [400, 566] and rel.target_met
+    assert rel.target == pytest.approx(0.5 * rel.per_length()[0])
+    # pinned: the translation eigenvalue is computed on level 0 only
+    assert np.isnan(hard.translation_levels[1:]).all()
+
+
+def test_newton_reports_the_true_residual_of_the_pair_it_returns(ladder12, params):
+    """A converged step is judged by the residual of the new pair, linearised about the last
+    σ with the matrices in hand; it must be the true backward error of the pair returned."""
+    from scipy.interpolate import CubicSpline
+
+    from slippulse.stability.eigensolve import _relres, newton_eigen
+    from slippulse.stability.refine import mapped_pulse
+    from slippulse.stability.spectrum import StabilityOperator
+    p0, gmap, first = ladder12
+    q = mapped_pulse(params, p0, gmap, 566).to_pulse()
+    V = first.modes[0]["V"]
+    x0 = CubicSpline(p0.xi, V.real)(q.xi) + 1j * CubicSpline(p0.xi, V.imag)(q.xi)
+    op = StabilityOperator(q, params, pin_translation=True)
+    guess = first.leading * (q.c_p / q.L) / (p0.c_p / p0.L)
+    e = newton_eigen(op, guess, x0, tol=1e-6)
+    assert e.converged, e.message
+    true = _relres(op.matrices(e.sigma, deriv=False)[0], e.V)
+    assert true < 1e-6
+    assert abs(e.residual - true) < 1e-9 + 1e-3 * true, (e.residual, true)
+
+
+@pytest.mark.parametrize("args, name", [(["--max-points", "500"], "max-points"),
+                                        (["--rel-target", "-1"], "rel-target"),
+                                        (["--rel-target", "1.5"], "rel-target")])
+def test_cli_ladder_options_out_of_range_are_one_line(tmp_path, pulse12, params, args, name):
+    from slippulse.core.h5io import write_pulse
+    f = str(tmp_path / "one.h5")
+    write_pulse(f, pulse12.to_pulse(), params)
+    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f, "-q",
+                        *args], capture_output=True, text=True)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.strip().count("\n") == 0 and name in r.stderr, r.stderr
