@@ -3,7 +3,7 @@ and defaults before this change (issue 17, item 5), side by side on the same pul
 
     git worktree add --detach /work/base17 0190b52
     python benchmarks/bench_spectrum_cost.py FAMILY.h5 --base /work/base17 \
-        --labels td1.2000 td1.0500 td1.0200 td1.012759 td1.009365 --reference REF.h5
+        --labels td1.2000 td1.0500 td1.0200 td1.012759 td1.009365 --reference REF.h5 [REF2.h5]
 
 Three runs, each command as a subprocess from its own tree on its own copy of FAMILY.h5 (numba
 caches warmed first, not timed):
@@ -18,6 +18,11 @@ caches warmed first, not timed):
 Prints wall times per pulse and in all, their ratios, and s L/c_p ± err of each run; with
 ``--reference`` (a file whose pulses hold spectra of record) the distance of each run's value to
 the reference's, and whether its error bar covers it.
+
+    python benchmarks/bench_spectrum_cost.py FAMILY.h5 --compare --reference REF.h5 [REF2.h5]
+
+only compares the spectra stored in FAMILY.h5 (e.g. after ``slippulse steady stability
+FAMILY.h5``) with the references, pulse by pulse, and checks the goal of the defaults.
 """
 from __future__ import annotations
 
@@ -59,14 +64,63 @@ def rate(path, lab):
                 "/".join(str(int(n)) for n in a["refine_n_points"]))
 
 
+def references(paths, labels=None):
+    """{label: (s L/c_p, err, levels)} from the files (the first that has a pulse wins)."""
+    ref = {}
+    for path in reversed(paths):
+        with h5py.File(path, "r") as h5:
+            have = [lab for lab in h5["pulses"] if labels is None or lab in labels]
+        ref.update({lab: r for lab in have if (r := rate(path, lab)) is not None})
+    return ref
+
+
+def compare(path, ref_paths):
+    """The stored rates of `path` against the references; the goal of the defaults."""
+    from slippulse.core.h5io import label_ratio
+    from slippulse.stability.spectrum_family import DEFAULT_REL_TARGET, DEFAULT_TARGET
+    ref = references(ref_paths)
+    with h5py.File(path, "r") as h5:
+        labels = sorted(h5["pulses"], key=lambda k: -label_ratio(k))
+    print("| pulse | s L/c_p ± err (levels) | reference ± err (levels) | |diff| | |diff| / err "
+          "| covered |")
+    print("|---|---|---|---|---|---|")
+    missed, bad, n = [], 0, 0
+    for lab in labels:
+        v = rate(path, lab)
+        if v is None:
+            print(f"| {lab} | no rate stored | | | | |")
+            continue
+        if v[1] > max(DEFAULT_TARGET, DEFAULT_REL_TARGET * abs(v[0])):
+            missed.append(lab)
+        r = ref.get(lab)
+        if r is None:
+            continue
+        d = abs(v[0] - r[0])
+        ok = d <= v[1] + r[1]
+        n += 1
+        bad += not ok
+        print(f"| {lab} | {v[0]:.7g} ± {v[1]:.1g} ({v[2]}) | {r[0]:.7g} ± {r[1]:.1g} ({r[2]}) "
+              f"| {d:.1g} | {d / v[1]:.2f} | {'yes' if ok else 'NO'} |")
+    print(f"{n} pulses with a reference, {bad} not covered; {len(labels)} pulses, goal of the "
+          f"defaults missed at {len(missed)} {missed[:5]}")
+    return 0
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("family")
-    ap.add_argument("--base", required=True, help="worktree of the code before this change")
-    ap.add_argument("--labels", nargs="+", required=True)
-    ap.add_argument("--reference", default=None, help="file with spectra of record")
+    ap.add_argument("--base", help="worktree of the code before this change")
+    ap.add_argument("--labels", nargs="+")
+    ap.add_argument("--compare", action="store_true",
+                    help="only compare the spectra stored in FAMILY with --reference")
+    ap.add_argument("--reference", nargs="+", default=None,
+                    help="files with spectra of record (the first that has a pulse's wins)")
     ap.add_argument("--workdir", default=None)
     a = ap.parse_args(argv)
+    if a.compare:
+        return compare(a.family, a.reference or [])
+    if not (a.base and a.labels):
+        ap.error("--base and --labels are needed (or --compare)")
     work = a.workdir or tempfile.mkdtemp(prefix="bench_cost_")
     os.makedirs(work, exist_ok=True)
     new_src, old_src = os.path.join(HERE, "src"), os.path.join(a.base, "src")
@@ -91,7 +145,7 @@ def main(argv=None):
                                    + opts(n_points(f, lab)), src, work)
         vals[name] = {lab: rate(f, lab) for lab in a.labels}
     print(f"load average at end: {os.getloadavg()}")
-    ref = {lab: rate(a.reference, lab) for lab in a.labels} if a.reference else {}
+    ref = references(a.reference or [], set(a.labels))
     names = list(runs)
     print("| pulse | " + " | ".join(f"{n}: s L/c_p ± err (levels), wall" for n in names)
           + (" | reference |" if ref else " |"))
@@ -105,13 +159,14 @@ def main(argv=None):
                 continue
             c = f"{v[0]:.7g} ± {v[1]:.1g} ({v[2]}), {times[n][lab]:.0f} s"
             r = ref.get(lab)
-            if r is not None:
+            if r is not None and r:
                 d = abs(v[0] - r[0])
                 c += f"; off {d:.1g}, " + ("covered" if d <= v[1] + r[1] else "NOT covered")
             cells.append(c)
         r = ref.get(lab)
         print(f"| {lab} | " + " | ".join(cells)
-              + (f" | {r[0]:.7g} ± {r[1]:.1g} ({r[2]}) |" if ref else " |"))
+              + ((f" | {r[0]:.7g} ± {r[1]:.1g} ({r[2]}) |" if r else " | – |") if ref
+                 else " |"))
     tot = {n: sum(times[n].values()) for n in names}
     print("total wall: " + ", ".join(f"{n} {tot[n]:.0f} s" for n in names))
     print(f"ratio old defaults / new defaults: {tot[names[0]] / tot[names[2]]:.2f}; "
