@@ -29,23 +29,16 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
-import time
 
 import h5py
-
-HERE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from bench_spectrum_family import HERE, run as run_cli   # one subprocess runner for both
 
 
 def run(cmd, src, cwd):
-    env = dict(os.environ, PYTHONPATH=src)
-    t0 = time.perf_counter()
-    r = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
-    if r.returncode not in (0, 1):
-        sys.exit(f"failed: {' '.join(cmd)}\n{r.stderr[-2000:]}")
-    return time.perf_counter() - t0
+    """Wall time of `cmd` run with the package from `src` (bench_spectrum_family.run)."""
+    return run_cli(cmd, src, cwd)[0]
 
 
 def n_points(path, lab):
@@ -77,6 +70,7 @@ def references(paths, labels=None):
 def compare(path, ref_paths):
     """The stored rates of `path` against the references; the goal of the defaults."""
     from slippulse.core.h5io import label_ratio
+    from slippulse.stability.refine import goal
     from slippulse.stability.spectrum_family import DEFAULT_REL_TARGET, DEFAULT_TARGET
     ref = references(ref_paths)
     with h5py.File(path, "r") as h5:
@@ -90,7 +84,7 @@ def compare(path, ref_paths):
         if v is None:
             print(f"| {lab} | no rate stored | | | | |")
             continue
-        if v[1] > max(DEFAULT_TARGET, DEFAULT_REL_TARGET * abs(v[0])):
+        if v[1] > goal(DEFAULT_TARGET, DEFAULT_REL_TARGET, v[0]):
             missed.append(lab)
         r = ref.get(lab)
         if r is None:

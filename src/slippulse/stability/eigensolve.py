@@ -23,10 +23,12 @@ class Eigen:
     history: list = field(default_factory=list)
 
 
-def _relres(M, x):
-    """Componentwise backward error max_i |M x|_i / (|M| |x|)_i (the rows of M span many decades:
-    the leading edge is resolved with cells 10⁴× finer than the body)."""
-    return float(np.max(np.abs(M @ x) / (np.abs(M) @ np.abs(x))))
+def _relres(M, x, r=None):
+    """Componentwise backward error max_i |r|_i / (|M| |x|)_i of the residual r (default M x; the
+    rows of M span many decades: the leading edge is resolved with cells 10⁴× finer than the
+    body)."""
+    r = M @ x if r is None else r
+    return float(np.max(np.abs(r) / (np.abs(M) @ np.abs(x))))
 
 
 def newton_eigen(op, sigma0, x0, tol=1e-10, max_iter=12, min_re=None, res_tol=1e-6):
@@ -64,8 +66,7 @@ def newton_eigen(op, sigma0, x0, tol=1e-10, max_iter=12, min_re=None, res_tol=1e
         hist.append(complex(sigma_new))
         if abs(step) <= tol * max(abs(sigma), scale):
             # the new pair's residual, linearised about σ_k (see above)
-            res_new = float(np.max(np.abs(M @ x - step * (dM @ x))
-                                   / (np.abs(M) @ np.abs(x))))
+            res_new = _relres(M, x, M @ x - step * (dM @ x))
             if min(res, res_new) < res_tol:
                 return Eigen(sigma_new, x, True, it, res_new if res_new < res_tol else res,
                              "converged", hist)

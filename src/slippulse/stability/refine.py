@@ -36,7 +36,7 @@ from scipy.interpolate import CubicSpline
 
 from ..core.errors import UsageError
 from ..steady import solver
-from .spectrum import order4_pulse, pulse_spectrum  # noqa: F401 (order4_pulse: re-exported)
+from .spectrum import NEWTON_TOL, order4_pulse, pulse_spectrum  # noqa: F401 (re-export)
 
 #: The error estimate needs a pulse of at least this many points to map.
 MIN_REFINE_POINTS = 200
@@ -191,8 +191,8 @@ def mapped_pulse(params, pulse, gmap, n, tol=1e-13):
 MAX_LADDER_POINTS = 8000
 
 
-def refine_leading(pulse, params, first, gmap, levels=2, tol=1e-6, progress=None, target=None,
-                   max_points=MAX_LADDER_POINTS, pin_translation=False, source=None,
+def refine_leading(pulse, params, first, gmap, levels=2, tol=NEWTON_TOL, progress=None,
+                   target=None, max_points=MAX_LADDER_POINTS, pin_translation=False, source=None,
                    rel_target=0.0):
     """The leading eigenvalue on `levels` further levels of the map `gmap`.
 

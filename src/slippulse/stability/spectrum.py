@@ -21,7 +21,7 @@ from .eigensolve import Eigen, linearised_candidates, neutral_modes, newton_eige
 from .operators import ElasticOperator, StabilityOperator, slope_matrix, symbol
 from .spectrum_store import MODE_FIELDS, SPECTRUM_GROUP, read_spectrum, write_spectrum
 
-__all__ = ["DEFAULT_SHIFTS", "MIN_RE", "MODE_FIELDS", "SPECTRUM_GROUP", "TRACK_FLOOR", "Eigen",
+__all__ = ["DEFAULT_SHIFTS", "MIN_RE", "MODE_FIELDS", "NEWTON_TOL", "SPECTRUM_GROUP", "TRACK_FLOOR", "Eigen",
            "ElasticOperator", "PulseSpectrum", "StabilityOperator", "linearised_candidates", "neutral_modes",
            "newton_eigen", "order4_pulse", "pulse_spectrum", "read_spectrum", "slope_matrix",
            "symbol", "write_spectrum"]
@@ -30,6 +30,7 @@ __all__ = ["DEFAULT_SHIFTS", "MIN_RE", "MODE_FIELDS", "SPECTRUM_GROUP", "TRACK_F
 DEFAULT_SHIFTS = (25.0, 8.0, 2.0, 0.5, 0.15, 0.05)   # first search shifts, in units of c_p/L
 MIN_RE = 1e-3                              # eigenvalues with Re σ < MIN_RE c/L are not sought
 TRACK_FLOOR = 0.1                          # ... except a tracked one, down to this × its guess
+NEWTON_TOL = 1e-6                          # Newton's step criterion (pulse_spectrum's tol)
 
 
 @dataclass
@@ -110,8 +111,8 @@ def order4_pulse(pulse, params):
     return SteadySolution(prob, x, stats, time.perf_counter() - t0, 0).to_pulse()
 
 
-def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=1e-6, label="", guess_modes=None,
-                   pin_translation=False, neutral=True):
+def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label="",
+                   guess_modes=None, pin_translation=False, neutral=True):
     """Leading eigenvalues and modes of one pulse.
 
     guesses : σ values (1/s) to start from (e.g. the neighbouring pulse's eigenvalues, rescaled);

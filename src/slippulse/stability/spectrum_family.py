@@ -17,8 +17,8 @@ from ..core.h5io import label_ratio
 from ..steady.grid import GridMap
 from .count import count_unstable
 from .refine import check_refinable, level0_size, mapped_pulse, refine_leading
-from .spectrum import (MIN_RE, PulseSpectrum, order4_pulse, pulse_spectrum, read_spectrum,
-                       write_spectrum)
+from .spectrum import (MIN_RE, NEWTON_TOL, PulseSpectrum, order4_pulse, pulse_spectrum,
+                       read_spectrum, write_spectrum)
 
 COUNT_EVALS = 400           # default budget of det M evaluations per count (docs/spectrum.md §6)
 
@@ -136,7 +136,7 @@ def _failed(label, pulse, message):
                          pulse.c_p / pulse.L, int(pulse.n_points), "failed", message, 0.0)
 
 
-def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=1e-6, progress=None,
+def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL, progress=None,
                  levels=DEFAULT_LEVELS, count_box=None, level_progress=None,
                  min_points=MIN_SPECTRUM_POINTS, target=DEFAULT_TARGET, pin_translation=True,
                  level0_points=None, count_evals=COUNT_EVALS, rel_target=DEFAULT_REL_TARGET,
