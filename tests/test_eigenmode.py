@@ -71,6 +71,46 @@ def test_mode_seed_past_balances_friction(steady12_with_spectrum, pulse12, param
     assert dk[0] == pytest.approx(dV0 / m.sigma.real, rel=1e-9)
 
 
+def test_front_frame_seed_moves_the_body_and_carries_the_displacement_exactly(
+        steady12_with_spectrum, pulse12, params):
+    """frame="front" (docs/stability.md §10.7): at t = 0 the change of y = ln(v/v*+1) is ε times
+    the front-frame field, at most ε, with no displacement spike; the slip of the past (the
+    pulse on X(t) = ct + a(e^{σt} − 1), a = ε η, plus the growing body) equals the quadrature of
+    ∫_{−∞}^0 ΔV_k(t) dt at low k, which checks the series of exponentials independently."""
+    from slippulse.stability.eigenmode import front_frame_seed_fields
+    pu = pulse12.to_pulse()
+    m = leading_mode(pu, params, path=steady12_with_spectrum, compute=False)
+    spec = DomainSpec(dx=4e-3, ahead=2.0, behind=3.0)
+    base = seed_pulse(pu, params, spec)
+    eps = 5e-3
+    good = seed_pulse(pu, params, spec)
+    perturb_along_mode(good, m, eps, frame="front")
+    st0, st = base.stepper, good.stepper
+    y = lambda v: np.log1p(v / params.v_star)
+    dy = np.abs(y(st.V) - y(st0.V))
+    assert 0.5 * eps < dy.max() <= 1.001 * eps
+    # the lab seed with the same body change has the displacement spike at the front
+    eta, rv, _, scale = front_frame_seed_fields(m, pu, params.v_star)
+    lab = seed_pulse(pu, params, spec)
+    perturb_along_mode(lab, m, eps / scale * 1e-2)    # 1 % of the same mode amplitude
+    assert np.abs(y(lab.stepper.V) - y(st0.V)).max() > 2 * dy.max() * 1e-2
+    # the slip of the past, mode by mode, against a quadrature in t
+    sigma, c, a = m.sigma.real, pu.c_p, eps * eta
+    V0k = np.fft.rfft(st0.V)
+    bk = np.fft.rfft(st.V - st0.V)
+    kk = st.kabs
+    t = np.linspace(-60.0 / sigma, 0.0, 400_001)
+    A = a * (np.exp(sigma * t) - 1.0)
+    for j in (1, 2, 5, 20):
+        k = kk[j]
+        trans = V0k[j] * (np.exp(1j * k * a) - 1.0) / (-1j * k * c)      # the far past, exactly
+        f = (V0k[j] * np.exp(-1j * k * c * t) * (np.exp(-1j * k * A) - np.exp(1j * k * a))
+             + bk[j] * np.exp((sigma - 1j * k * c) * t) * np.exp(-1j * k * A))
+        want = trans + np.trapezoid(f, t)
+        got = st.delta_k[j] - st0.delta_k[j]
+        assert got == pytest.approx(want, rel=1e-6, abs=1e-12 * abs(V0k[j]) / (k * c))
+
+
 def test_cli_mode_seed_refuses_bad_input_and_writes_nothing(tmp_path, steady12_with_spectrum,
                                                             pulse12, spectrum12, params, capsys):
     from slippulse.cli.app import main

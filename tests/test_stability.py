@@ -82,6 +82,39 @@ def test_pair_growth_of_a_decaying_response_uses_the_late_half():
     assert g["s_per_s"] == pytest.approx(-1.5, rel=1e-6)
 
 
+def test_pair_growth_on_a_grid_integral():
+    """F± = F₀(1 + b(t) ± εA e^{st}): the frame-free potency rate (verify.potency_rate) gives s,
+    with the linear regime still ended by the v_max error; a missing or unknown one is refused."""
+    t = np.linspace(0, 1, 400)
+    s, eps = 5.0, 1e-3
+    base, lin = 2e-4 * t, 0.3 * eps * np.exp(s * t)
+    vmax = 2.0 * eps * np.exp(s * t)                    # |d±| > 0.03 after t ≈ 0.54
+    plus = dict(_series(t, vmax), potency_rate=7.0 * (1 + base + lin))
+    minus = dict(_series(t, -vmax), potency_rate=7.0 * (1 + base - lin))
+    g = pair_growth(plus, minus, eps, observable="potency_rate")
+    assert g["regime"] == "growth"
+    assert g["s_per_s"] == pytest.approx(s, rel=1e-3)
+    assert g["r"][0] == pytest.approx(0.3 * eps, rel=1e-9)   # relative to the mean F at t = 0
+    assert g["t1"] < 0.55
+    with pytest.raises(ValueError, match="potency_rate"):
+        pair_growth(_series(t, vmax), _series(t, -vmax), eps, observable="potency_rate")
+    with pytest.raises(ValueError, match="observable"):
+        pair_growth(plus, minus, eps, observable="L")
+
+
+def test_potency_rate_does_not_see_whole_cell_shifts():
+    """A whole-cell shift of the frame permutes the periodic grid: Σ V Δx is unchanged to
+    rounding (no interpolation), and it is the integral of V."""
+    from types import SimpleNamespace
+    from slippulse.stability.verify import potency_rate
+    x = np.arange(4096) * 1e-3
+    V = 1e-9 + np.exp(-((x - 1.3) / 0.05) ** 2) * (1 + 0.3 * np.sin(40 * x))
+    a = potency_rate(SimpleNamespace(V=V, dx=1e-3))
+    b = potency_rate(SimpleNamespace(V=np.roll(V, 137), dx=1e-3))
+    assert a == pytest.approx(np.trapezoid(V, x), rel=1e-9)
+    assert b == pytest.approx(a, rel=1e-13)
+
+
 def test_case_validation_names_the_key():
     with pytest.raises(ParameterError, match="unknown case key"):
         check_case({"steady": "f.h5", "label": "td1.2000", "epsilon": 1e-3})

@@ -108,12 +108,15 @@ def register(subparsers) -> None:
 
 def _mode_args(p) -> None:
     """--perturb/--eps/--mode-file: the eigenmode-seeded start (stability/eigenmode.py)."""
-    p.add_argument("--perturb", choices=("none", "mode"), default="none",
+    p.add_argument("--perturb", choices=("none", "mode", "mode_front"), default="none",
                    help="'mode': add eps x the pulse's unstable eigenmode, with a past that grew "
-                        "as exp(sigma t) (docs/stability.md section 10)")
+                        "as exp(sigma t) (docs/stability.md section 10); 'mode_front': the same "
+                        "mode with eps measured in the frame of the front and the front's "
+                        "displacement carried exactly (section 10.7; near tau_min the body then "
+                        "gets eps instead of ~1e-3 eps)")
     p.add_argument("--eps", type=float, default=1e-3,
-                   help="mode amplitude: largest change of ln(v/v*+1), 0 < |eps| <= 0.01 "
-                        "(default 1e-3)")
+                   help="mode amplitude: largest change of ln(v/v*+1) (with mode_front: in the "
+                        "frame of the front), 0 < |eps| <= 0.01 (default 1e-3)")
     p.add_argument("--mode-file", metavar="FILE", default=None,
                    help="take the stored mode from FILE (default: the steady file's spectrum, "
                         "else computed now); it must belong to the same pulse")
@@ -296,14 +299,15 @@ def cmd_verify(args) -> int:
     _check_grid(dx, args.ahead, args.behind, pulse.L)
     if not 2 <= args.samples <= 100_000:
         raise UsageError(f"--samples={args.samples} must be in [2, 100000]")
-    eigen = _eigenmode(args, pulse, params, required=args.perturb == "mode")
+    seeded = args.perturb in ("mode", "mode_front")
+    eigen = _eigenmode(args, pulse, params, required=seeded)
     try:
         spec = DomainSpec(dx=dx, ahead=args.ahead, behind=args.behind)
         rule = TimeStepRule(kind="adaptive", xi_stab=args.xi_stab)
         res = verify_pulse(pulse, params, args.distance, spec, rule=rule,
                            far_field=args.far_field, n_samples=args.samples,
                            progress=not args.no_progress, eigen=eigen,
-                           perturbation=("mode", args.eps) if args.perturb == "mode" else None)
+                           perturbation=(args.perturb, args.eps) if seeded else None)
     except ParameterError as exc:
         raise UsageError(str(exc))
     write_result(out, res, params, source=os.path.abspath(args.steady), label=label,
@@ -333,21 +337,23 @@ def cmd_seed(args) -> int:
     from ..stability.seeding import default_dx
     dx = default_dx(params) if args.dx is None else args.dx
     _check_grid(dx, args.ahead, args.behind, pulse.L)
-    eigen = _eigenmode(args, pulse, params, required=True) if args.perturb == "mode" else None
+    seeded = args.perturb in ("mode", "mode_front")
+    eigen = _eigenmode(args, pulse, params, required=True) if seeded else None
     try:
         seed = seed_pulse(pulse, params, DomainSpec(dx=dx, ahead=args.ahead,
                                                     behind=args.behind),
                           far_field=args.far_field)
         if eigen is not None:
             from ..stability.eigenmode import perturb_along_mode
-            perturb_along_mode(seed, eigen, args.eps)
+            perturb_along_mode(seed, eigen, args.eps,
+                               frame="front" if args.perturb == "mode_front" else "lab")
     except ParameterError as exc:
         raise UsageError(str(exc))
     mis = write_seed(out, seed, source=os.path.abspath(args.steady), label=pulse.label)
     if eigen is not None:
         import h5py
         with h5py.File(out, "a") as h5:
-            h5.attrs["perturbation"], h5.attrs["eps"] = "mode", float(args.eps)
+            h5.attrs["perturbation"], h5.attrs["eps"] = args.perturb, float(args.eps)
             h5.attrs["eigen_s_per_L"], h5.attrs["eigen_sigma"] = eigen.s_per_L, eigen.sigma.real
             h5.attrs["eigen_source"] = eigen.source
     st = seed.stepper

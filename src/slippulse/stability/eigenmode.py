@@ -217,7 +217,7 @@ def mode_on_grid(mode: Eigenmode, pulse, xi_grid):
     return (PchipInterpolator(pulse.xi, rv)(xi_grid), PchipInterpolator(pulse.xi, rphi)(xi_grid))
 
 
-def perturb_along_mode(seed, mode: Eigenmode, eps: float) -> None:
+def perturb_along_mode(seed, mode: Eigenmode, eps: float, frame: str = "lab") -> None:
     """Perturb a seeded steady pulse along its unstable eigenmode, with a past that grew as e^{σt}.
 
     The seed (``seeding.seed_pulse`` of the unperturbed pulse) holds v₀, φ₀ translating at c
@@ -235,7 +235,22 @@ def perturb_along_mode(seed, mode: Eigenmode, eps: float) -> None:
 
     V = V₀ exp(ε V₁/v₀), φ = φ₀ exp(ε φ₁/φ₀) on the grid (positive for any ε; linear part ε V₁,
     ε φ₁). The far-field load stays the steady pulse's (it is static).
+
+    ``frame="front"`` (docs/stability.md §10.7): ε is the largest change of y in the frame of the
+    front, max |y₁ᶠ| (``front_response``), not max |y₁|, which near τ_min is the mode's front
+    displacement (y₁ ≈ −η_R y₀′, 1850 times the body's change at 1.05 τ_min). The mode is
+    split into its body and its displacement, V₁ = V₁ᶠ − η_R v₀′, and the displacement is
+    carried exactly, as a translation: the past is the steady pulse on the trajectory
+    X(t) = ct + A(t), A(t) = a(e^{σt} − 1), a = ε η_R (A(0) = 0: the front is where the steady
+    seed put it), plus the body ε V₁ᶠ e^{σt} riding on it. In Fourier,
+    e^{−ikA(t)} = e^{ika} Σ_n (−ika)^n e^{nσt}/n!, so the past is a sum of growing exponentials,
+    each added to the slip and the SOE history as above (rates nσ and (n + 1)σ; the series is
+    summed until its terms are below 1e−17 of the first). At t = 0: V = V₀ exp(ε V₁ᶠ/v₀),
+    φ = φ₀ exp(ε φ₁ᶠ/φ₀), no displacement spike. To first order in ε this is the same seed
+    as ``"lab"`` translated by a (an exact symmetry); beyond it the displacement is exact.
     """
+    if frame not in ("lab", "front"):
+        raise ValueError(f"frame={frame!r} must be 'lab' or 'front'")
     from ..dynamics.sbi import elastic_functional
     check_same_pulse(mode, seed.pulse)
     check_eps(eps)
@@ -247,6 +262,9 @@ def perturb_along_mode(seed, mode: Eigenmode, eps: float) -> None:
     st = seed.stepper
     sigma = float(mode.sigma.real)
     c = float(seed.pulse.c_p)
+    if frame == "front":
+        _perturb_front_frame(seed, mode, eps, sigma, c)
+        return
     rv, rphi = mode_on_grid(mode, seed.pulse, st.x - seed.xi_shift)
     V_new = st.V * np.exp(eps * rv)
     dV = V_new - st.V
@@ -258,6 +276,72 @@ def perturb_along_mode(seed, mode: Eigenmode, eps: float) -> None:
     st.delta_k = st.delta_k + dVk / p
     st.delta = st.fft.inverse(st.delta_k).copy()
     st.history.prefill_translating(dVk, st.kabs, c, sigma=sigma, add=True)
+    f = st.fft.inverse(elastic_functional(st.params.mu, st.kabs, st.delta_k, st.history.value()))
+    st.tau = st.law.tau_load - st.eta * st.V + f
+
+
+def front_frame_seed_fields(mode: Eigenmode, pulse, v_star: float):
+    """The mode split for the front-frame seed: (η, rv_f, rphi_f, scale) on the pulse's grid.
+
+    η = η_R of :func:`front_response` per unit of the stored mode (m); rv_f = V₁ᶠ/v₀ =
+    V₁/v₀ + η (ln v₀)′ and rphi_f = φ₁/φ₀ + η (ln φ₀)′, the body's relative fields; all three
+    divided by ``scale`` = max |y₁ᶠ| (y₁ᶠ = y₁ + η y₀′), so that ε = 1 is a unit change of
+    y = ln(v/v*+1) in the frame of the front."""
+    fr = front_response(mode, pulse, v_star)
+    eta = float(fr["eta_front"])
+    scale = float(np.max(np.abs(fr["y1f"])))
+    rv = fr["y1f"] * (pulse.v + v_star) / pulse.v        # V₁ᶠ/v₀ = y₁ᶠ (v₀ + v*)/v₀
+    rphi = fr["psi1f"]                                    # φ₁ᶠ/φ₀ = ψ₁ + η ψ₀′
+    return eta / scale, rv / scale, rphi / scale, scale
+
+
+def _perturb_front_frame(seed, mode: Eigenmode, eps: float, sigma: float, c: float) -> None:
+    """``perturb_along_mode(frame="front")``: the body with its growing past, the displacement
+    as an exact translation of the past (see there)."""
+    from ..dynamics.sbi import elastic_functional
+    st = seed.stepper
+    pulse = seed.pulse
+    eta, rv, rphi, _ = front_frame_seed_fields(mode, pulse, seed.params.v_star)
+    xg = st.x - seed.xi_shift
+    rv_g = PchipInterpolator(pulse.xi, rv)(xg)
+    rphi_g = PchipInterpolator(pulse.xi, rphi)(xg)
+    a = eps * eta
+    V0k = st.fft.forward(st.V).copy()
+    V_new = st.V * np.exp(eps * rv_g)
+    body_k = st.fft.forward(V_new - st.V).copy()
+    k = st.kabs
+    ph = np.exp(1j * k * a)
+    terms = [(V0k * (ph - 1.0), 0.0)]                 # the far past: the pulse shifted by −a
+    x = -1j * k * a
+    coef = np.ones_like(x)
+    n = 0
+    while True:
+        n += 1
+        coef = coef * x / n                           # (−ika)^n / n!
+        if n > 1 and np.max(np.abs(coef)) < 1e-17:
+            break
+        terms.append((V0k * ph * coef, n * sigma))
+    coef = np.ones_like(x)
+    terms.append((body_k * ph, sigma))
+    n = 0
+    while True:
+        n += 1
+        coef = coef * x / n
+        if n > 1 and np.max(np.abs(coef)) < 1e-17:
+            break
+        terms.append((body_k * ph * coef, (n + 1) * sigma))
+    dk = np.zeros_like(st.delta_k)
+    for amp, rate in terms:
+        p = rate - 1j * k * c
+        with np.errstate(all="ignore"):
+            d = np.where(p != 0, amp / np.where(p != 0, p, 1.0), 0.0)
+        dk = dk + d
+        st.history.prefill_translating(amp, k, c, sigma=rate, add=True)
+    st.V = V_new
+    st.phi = st.phi * np.exp(eps * rphi_g)
+    st.V_k = st.fft.forward(st.V).copy()
+    st.delta_k = st.delta_k + dk
+    st.delta = st.fft.inverse(st.delta_k).copy()
     f = st.fft.inverse(elastic_functional(st.params.mu, st.kabs, st.delta_k, st.history.value()))
     st.tau = st.law.tau_load - st.eta * st.V + f
 

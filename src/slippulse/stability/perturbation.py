@@ -35,7 +35,8 @@ from ..core.params import ParameterError
 CASE_DEFAULTS = {
     "steady": None,          # steady family file (HDF5 pulse schema), required
     "label": None,           # pulse group, e.g. "td1.0500", required
-    "perturbation": "excess",  # "excess" | "tau_d" | "mode" (the unstable eigenmode)
+    "perturbation": "excess",  # "excess" | "tau_d" | "mode" | "mode_front" (the unstable
+                               # eigenmode; "mode_front": ε in the frame of the front)
     "mode_file": "",         # "mode": file holding the pulse's spectrum ("": the steady file)
     "eps": 1e-3,             # relative perturbation (signed); 0: unperturbed
     "dx": 4e-3,              # SBI grid spacing, m
@@ -67,10 +68,10 @@ def check_case(case: dict) -> dict:
     for key in ("steady", "label"):
         if not isinstance(c[key], str) or not c[key]:
             raise ParameterError(f"case key {key!r} is required (a string)")
-    if c["perturbation"] not in ("excess", "tau_d", "mode"):
-        raise ParameterError(f"perturbation={c['perturbation']!r} must be 'excess', 'tau_d' or "
-                             "'mode'")
-    if c["perturbation"] == "mode" and float(c["eps"]) != 0:
+    if c["perturbation"] not in ("excess", "tau_d", "mode", "mode_front"):
+        raise ParameterError(f"perturbation={c['perturbation']!r} must be 'excess', 'tau_d', "
+                             "'mode' or 'mode_front'")
+    if c["perturbation"] in ("mode", "mode_front") and float(c["eps"]) != 0:
         from .eigenmode import check_eps
         check_eps(c["eps"])
     if not isinstance(c["mode_file"], str):
@@ -221,17 +222,36 @@ def _plateau(t, lr, tol, efold):
     return np.arange(first, n), float(0.5 * (seg.max() - seg.min()))
 
 
+#: Observables of a ±ε pair (:func:`pair_growth`): the v_max error, and the frame-free
+#: potency rate Σ V Δx (``verify.potency_rate``, relative to its mean at t = 0).
+PAIR_OBSERVABLES = ("v_max_error", "potency_rate")
+
+
+def _observable(series: dict, name: str, ref: float | None = None):
+    if name == "v_max_error":
+        return series["v_max_error"]
+    if name not in PAIR_OBSERVABLES:
+        raise ValueError(f"observable={name!r} must be one of {PAIR_OBSERVABLES}")
+    if name not in series:
+        raise ValueError(f"the run has no {name!r} series (written before it was recorded)")
+    return series[name] / ref - 1.0
+
+
 def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: float = 0.05,
-                efold: float = 0.5, min_points: int = 5, min_efolds: float = 0.5) -> dict:
+                efold: float = 0.5, min_points: int = 5, min_efolds: float = 0.5,
+                observable: str = "v_max_error") -> dict:
     """Growth rate from a ±ε pair: the antisymmetric response r = (d₊ − d₋)/2.
 
-    d± = v_max/v_max⁰ − 1 of the runs perturbed by +ε and −ε, sampled at nearly the same times
+    d± = v_max/v_max⁰ − 1 of the runs perturbed by +ε and −ε (``observable="v_max_error"``),
+    or F±/F̄₀ − 1 for the frame-free potency rate F = Σ V Δx (``"potency_rate"``; F̄₀ the
+    mean of the two runs' F at t = 0), sampled at nearly the same times
     (same distance and sampling: ``verify_pulse`` samples at the first step past each time of
     a fixed grid; the −ε run is interpolated linearly onto the +ε run's times). r cancels the
     unperturbed seed's own drift (start-up and discretisation error, which excites the same
     mode) and the quadratic part of the response; q = (d₊ + d₋)/2 holds both.
 
-    Rule for the linear regime: it ends before the first sample where max(|d₊|, |d₋|) > d_max
+    Rule for the linear regime: it ends before the first sample where the larger of the two runs'
+    |v_max/v_max⁰ − 1| exceeds d_max, whatever the observable
     (beyond, the cubic response shows: the local rate rises). Before that, the local growth
     rate ℓ (slope of ln|r| over a sliding window of ``efold`` e-folds) approaches a constant
     after the start-up transient of the other modes the perturbation excites (measured at
@@ -262,9 +282,14 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: f
     tm = minus["t"]
     n = int(np.searchsorted(plus["t"], tm[-1], side="right"))
     t = plus["t"][:n]
-    dm = np.interp(t, tm, minus["v_max_error"])       # samples differ by < one time step
-    r = 0.5 * (plus["v_max_error"][:n] - dm)
-    q = 0.5 * (plus["v_max_error"][:n] + dm)
+    ref = None
+    if observable != "v_max_error" and observable in plus and observable in minus:
+        ref = 0.5 * (float(plus[observable][0]) + float(minus[observable][0]))
+    obs_p, obs_m = _observable(plus, observable, ref), _observable(minus, observable, ref)
+    dm = np.interp(t, tm, obs_m)       # samples differ by < one time step
+    r = 0.5 * (obs_p[:n] - dm)
+    q = 0.5 * (obs_p[:n] + dm)
+    vm = np.interp(t, tm, minus["v_max_error"])
     a = plus["attrs"]
     conv = float(a["L"]) / float(a["c_p"])
     out = {"s_per_s": math.nan, "s_per_s_err": math.nan, "s_per_L": math.nan,
@@ -272,7 +297,7 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: f
            "sym_ratio": math.nan, "mode": None, "mode_spread": math.nan, "r": r, "q": q, "t": t,
            "eps": abs(eps), "regime": "none"}
     ar = np.abs(r)
-    big = np.maximum(np.abs(plus["v_max_error"][:n]), np.abs(dm))
+    big = np.maximum(np.abs(plus["v_max_error"][:n]), np.abs(vm))
     bad = np.nonzero((big > d_max) | ~np.isfinite(r))[0]
     i1 = int(bad[0]) if bad.size else n
     if i1 < 2:
@@ -338,7 +363,7 @@ def run_perturbation(case: dict, progress: bool = False):
 
     eps = float(c["eps"])
     eigen = None
-    if c["perturbation"] == "mode":
+    if c["perturbation"] in ("mode", "mode_front"):
         from .eigenmode import leading_mode
         eigen = leading_mode(pulse, params, path=c["steady"], mode_path=c["mode_file"] or None)
     res = verify_pulse(pulse, params, float(c["distance"]), spec, rule=rule, eigen=eigen,
@@ -456,14 +481,16 @@ def pair_rows(rows: list[dict]) -> list[tuple[dict, dict]]:
 PAIR_COLUMNS = ("label", "tau_d_ratio", "eps", "dx", "xi_stab", "ahead", "behind", "history",
                 "perturbation", "s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "t0", "t1",
                 "n", "regime", "sym_ratio", "mode_spread", "fate_plus", "fate_minus",
-                "wall_time", "eigen_s_per_L", "rel_to_eigen")
+                "wall_time", "eigen_s_per_L", "rel_to_eigen",
+                "s_per_L_potency_rate", "s_per_L_err_potency_rate", "rel_to_eigen_potency_rate")
 
 
 def pair_table(rows: list[dict]) -> list[dict]:
     """One row per ±ε pair: the case keys, :func:`pair_growth` and the fates of both signs."""
     out = []
     for rp, rm in pair_rows(rows):
-        g = pair_growth(read_series(rp["file"]), read_series(rm["file"]), float(rp["eps"]))
+        sp, sm = read_series(rp["file"]), read_series(rm["file"])
+        g = pair_growth(sp, sm, float(rp["eps"]))
         c = check_case({k: rp[k] for k in CASE_DEFAULTS if k in rp})
         row = {k: c[k] for k in ("label", "dx", "xi_stab", "ahead", "behind", "history",
                                  "perturbation")}
@@ -477,6 +504,13 @@ def pair_table(rows: list[dict]) -> list[dict]:
         se = float(rp.get("eigen_s_per_L", math.nan))
         row["eigen_s_per_L"] = se
         row["rel_to_eigen"] = g["s_per_L"] / se - 1.0 if math.isfinite(se) and se else math.nan
+        for obs in PAIR_OBSERVABLES[1:]:
+            # the frame-free potency rate (runs written before it have none: nan)
+            gi = (pair_growth(sp, sm, float(rp["eps"]), observable=obs)
+                  if obs in sp and obs in sm else {"s_per_L": math.nan, "s_per_L_err": math.nan})
+            row[f"s_per_L_{obs}"], row[f"s_per_L_err_{obs}"] = gi["s_per_L"], gi["s_per_L_err"]
+            row[f"rel_to_eigen_{obs}"] = (gi["s_per_L"] / se - 1.0 if math.isfinite(se) and se
+                                          else math.nan)
         row["wall_time"] = float(rp.get("wall_time", math.nan)) + float(rm.get("wall_time", math.nan))
         row["_growth"] = g
         row["_file_plus"], row["_file_minus"] = rp["file"], rm["file"]

@@ -38,11 +38,14 @@ from ..dynamics.stepper import TimeStepRule
 LNV_WINDOW = (-1.25, 0.25)
 SERIES = ("c_p_error", "v_max_error", "L_error", "lnv_error")
 #: Other series written by :func:`write_result`, with units.
-EXTRA_SERIES = {"L": "m", "v_max": "m/s", "slip": "m", "distance": "1", "c_p": "m/s"}
+EXTRA_SERIES = {"L": "m", "v_max": "m/s", "slip": "m", "distance": "1", "c_p": "m/s",
+                "potency_rate": "m^2/s"}
 #: Window and sampling of the stored deviation field y − y⁰ (in L⁰ relative to the front).
 DEV_WINDOW = (-1.5, 0.5)
 DEV_POINTS = 201
-PERTURBATIONS = ("excess", "tau_d", "mode")
+PERTURBATIONS = ("excess", "tau_d", "mode", "mode_front")
+#: The mode-seeded kinds and the frame in which their ε is measured (eigenmode.perturb_along_mode).
+MODE_FRAMES = {"mode": "lab", "mode_front": "front"}
 
 
 class PulseLost(RuntimeError):
@@ -126,7 +129,7 @@ def perturbed_pulse(pulse, kind: str, eps: float):
         raise ValueError(f"perturbation={kind!r} must be one of {PERTURBATIONS}")
     if not (math.isfinite(eps) and abs(eps) < 0.5):
         raise ValueError(f"eps={eps!r} must satisfy |eps| < 0.5")
-    if kind == "mode":                 # seeded unperturbed, then eigenmode.perturb_along_mode
+    if kind in MODE_FRAMES:            # seeded unperturbed, then eigenmode.perturb_along_mode
         from .eigenmode import check_eps
         check_eps(eps)
         return pulse
@@ -175,6 +178,18 @@ def deviation_field(st, x_front, steady_y, xi_front, rel, v_star):
     xs = (x_front + rel) % st.length
     y = np.interp(xs, np.r_[st.x, st.length], np.log1p(np.r_[st.V, st.V[0]] / v_star))
     return y - steady_y(xi_front + rel)
+
+
+def potency_rate(st) -> float:
+    """Σ V Δx over the whole periodic grid, m²/s.
+
+    A functional Σ g(V_i) Δx does not see the frame: a whole-cell shift of the frame permutes
+    the periodic grid, and there is no interpolation. In a ±ε pair seeded with the mode
+    (δ₁, V₁) its antisymmetric part is ε e^{σt} ∫ V₁ dξ + O(ε³) = ε e^{σt} σ ∫ δ₁ dξ: the
+    mode's translation part (−η v₀′) drops out (∫ v₀′ dξ = 0), so it measures the pulse body's
+    response (docs/stability.md §10.7). (Σ ln(V/v*+1) Δx was tried too: it weights the creeping
+    tail, where the frame's reset of the entering cells acts, and was noisier.)"""
+    return float(np.sum(st.V) * st.dx)
 
 
 def _lost_how(st, pulse) -> str:
@@ -227,7 +242,9 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
         Start from a perturbed pulse (:func:`perturb_seed`): ``("excess", ε)`` scales the slip-rate
         excess by 1 + ε, ``("tau_d", ε)`` raises the driving stress by ε·τ_d, ``("mode", ε)`` adds
         ε × the unstable eigenmode ``eigen`` with its growing past
-        (``eigenmode.perturb_along_mode``; 0 < |ε| ≤ ``eigenmode.EPS_MAX``). The errors are still
+        (``eigenmode.perturb_along_mode``; 0 < |ε| ≤ ``eigenmode.EPS_MAX``), ``("mode_front", ε)``
+        the same mode with ε measured in the frame of the front and the front's displacement
+        carried exactly (``frame="front"``). The errors are still
         measured against the unperturbed steady pulse.
     eigen : eigenmode.Eigenmode, optional
         The pulse's unstable eigenmode (``eigenmode.leading_mode``): required by ``("mode", ε)``;
@@ -257,11 +274,11 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
                       history_options=history_options, threads=threads,
                       history_start=history_start, history=history,
                       wrap_dislocation=wrap_dislocation)
-    if perturbation is not None and perturbation[0] == "mode":
+    if perturbation is not None and perturbation[0] in MODE_FRAMES:
         from .eigenmode import perturb_along_mode
         if eigen is None:
             raise ValueError("perturbation ('mode', eps) needs the pulse's eigenmode (eigen=)")
-        perturb_along_mode(seed, eigen, float(perturbation[1]))
+        perturb_along_mode(seed, eigen, float(perturbation[1]), frame=MODE_FRAMES[perturbation[0]])
     elif perturbation is not None:
         perturb_seed(seed, pulse, *perturbation)
     # run: step to t_end = distance·L⁰/c_p⁰, sampling n_samples times
@@ -310,7 +327,7 @@ class _Recorder:
         self.t_samp = np.linspace(0.0, self.t_end, n_samples + 1)
         self.t_snap = set(np.round(np.linspace(0, n_samples, n_snapshots)).astype(int))
         self.n_samples = n_samples
-        self.rows, self.devs, self.snapshots = [], [], []
+        self.rows, self.devs, self.snapshots, self.potency = [], [], [], []
         self.rel_dev = np.linspace(DEV_WINDOW[0], DEV_WINDOW[1], DEV_POINTS) * pulse.L
         self.slip_fix = 0.0
 
@@ -327,6 +344,7 @@ class _Recorder:
         self.rows.append((st.t, X, L, vmax, err, raw + self.slip_fix))
         self.devs.append(deviation_field(st, xr, self.steady_y, self.xi_front, self.rel_dev,
                                          self.v_star))
+        self.potency.append(potency_rate(st))
         if j in self.t_snap:
             self.snapshots.append((st.t, st.x - xr, st.V.copy()))
 
@@ -397,6 +415,8 @@ def _measure(rec: _Recorder, pulse):
               "L": L, "v_max": vmax, "slip": slip, "distance": (X - X[0]) / pulse.L,
               "c_p": np.r_[np.nan, np.diff(X) / np.diff(t)] if t.size > 1 else np.array([np.nan]),
               "deviation": np.array(rec.devs), "deviation_xi": rec.rel_dev / pulse.L}
+    if rec.potency:
+        series["potency_rate"] = np.array(rec.potency)
     q = min(max(1, (t.size - 1) // 4), t.size - 1)
     with np.errstate(invalid="ignore", divide="ignore"):
         cp_end = (X[-1] - X[-1 - q]) / (t[-1] - t[-1 - q]) / pulse.c_p - 1.0 if q > 0 else np.nan
@@ -494,6 +514,7 @@ SERIES_LONG_NAMES = {
     "L": "pulse length (FWHM of ln(v/v*+1))", "v_max": "peak slip rate",
     "slip": "slip across the pulse", "distance": "distance travelled, in steady pulse lengths L0",
     "c_p": "pulse speed over the last sampling interval",
+    "potency_rate": "sum of V dx over the periodic grid (frame-free)",
 }
 
 
