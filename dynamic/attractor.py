@@ -41,9 +41,11 @@ def _pairs(scan_dir):
     for f in files:
         s = read_series(f)
         a = s["attrs"]
-        if str(a.get("perturbation")) != "mode":
+        if str(a.get("perturbation")) not in ("mode", "mode_front"):
             continue
-        key = (str(a["steady_file"]), str(a["label"]), float(a["dx"]), abs(float(a["eps"])))
+        # one pair per case: the period and the seed's frame tell pairs of one scan apart
+        key = (str(a["steady_file"]), str(a["label"]), float(a["dx"]), abs(float(a["eps"])),
+               float(a["ahead"]), float(a["behind"]), str(a["perturbation"]))
         runs.setdefault(key, {})[1 if float(a["eps"]) > 0 else -1] = s
     return [(k, g[1], g[-1]) for k, g in runs.items() if 1 in g and -1 in g]
 
@@ -52,7 +54,7 @@ def pair_analysis(key, plus, minus, d_max=0.03):
     """Rate (fit of ln|r| from the start to the end of the linear regime and over its first
     third), and the amplitude ratios rX/r, rL/r of the antisymmetric front displacement and
     length change per unit antisymmetric v_max change, against the mode's prediction."""
-    steady, label, dx, eps = key
+    steady, label, dx, eps = key[:4]
     a = plus["attrs"]
     n = min(plus["t"].size, minus["t"].size)
     t = plus["t"][:n]
@@ -81,6 +83,7 @@ def pair_analysis(key, plus, minus, d_max=0.03):
     fr = front_response(mode, pulse, params.v_star)
     sig = mode.sigma.real
     return {"label": label, "steady": os.path.basename(steady), "dx": dx, "eps": eps,
+            "period_L": key[4] + key[5], "perturbation": key[6],
             "eigen_s_per_L": mode.s_per_L, "s_fit_all": s_all, "s_fit_first_third": s_first,
             "d_end": float(t[i1 - 1] / conv),
             "rel_all": s_all / mode.s_per_L - 1, "rel_first": s_first / mode.s_per_L - 1,

@@ -217,25 +217,26 @@ def test_overlap_is_one_when_mode_and_tangent_coincide(pulse12, params):
 
 @pytest.mark.slow
 def test_seeded_mode_grows_at_its_eigenvalue_at_1p1(params, tmp_path):
-    """A ±ε pair seeded along the eigenmode at 1.1 τ_min grows at the eigenvalue within 2 % over
-    0.4 L (no start-up transient to wait for). Steady pulse N = 2000 (continued from 1.2), its
-    spectrum, 4 mm SBI grid, 4+4 L domain (on 3+2 L the mode's periodic images lower the rate by
-    ≈ 3 %, docs/stability.md §10.3; measured here: −1.2 %). ~5–10 min."""
-    from slippulse.stability.perturbation import pair_growth, read_series, run_case
+    """A ±ε pair seeded along the eigenmode at 1.1 τ_min (ε = 1e−2 in the frame of the front)
+    grows at the eigenvalue within 1 % over 0.4 L: the frame-free potency rate, least squares
+    from 0.1 L (docs/stability.md §10.7). Steady pulse N = 2000 (continued from 1.2), its
+    spectrum (the pinned ladder, ± 3e−5 per L), 4 mm SBI grid, 8+8 L domain (measured −0.5 %;
+    on 4+4 L the mode's periodic images lower the rate by 1.4 %). ~2 min."""
+    from slippulse.stability.perturbation import mode_pair_growth, read_series, run_case
     from slippulse.stability.spectrum_family import run_spectrum
     from slippulse.steady.continuation import run_family
     path = str(tmp_path / "fam.h5")
     run_family(params, path, start=1.2, stop=1.1, step=0.02, n_points=2000)
     run_spectrum(path, labels=["td1.1000"], extra=False)
     rows = []
-    for eps in (1e-3, -1e-3):
-        case = {"steady": path, "label": "td1.1000", "perturbation": "mode", "eps": eps,
-                "dx": 4e-3, "ahead": 4.0, "behind": 4.0, "distance": 0.4, "samples_per_L": 200}
+    for eps in (1e-2, -1e-2):
+        case = {"steady": path, "label": "td1.1000", "perturbation": "mode_front", "eps": eps,
+                "dx": 4e-3, "ahead": 8.0, "behind": 8.0, "distance": 0.4, "samples_per_L": 200}
         rows.append(run_case(case, str(tmp_path / f"m{eps}.h5")))
-    g = pair_growth(read_series(rows[0]["file"]), read_series(rows[1]["file"]), 1e-3)
+    g = mode_pair_growth(read_series(rows[0]["file"]), read_series(rows[1]["file"]), 1e-2)
     s_eig = rows[0]["eigen_s_per_L"]
-    assert g["regime"] == "growth"
-    assert g["s_per_L"] == pytest.approx(s_eig, rel=0.02)
+    assert g["n"] >= 40
+    assert g["s_per_L"] == pytest.approx(s_eig, rel=0.01)
 
 
 def test_scan_case_with_mode_perturbation_is_checked():
