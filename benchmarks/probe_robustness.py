@@ -94,7 +94,13 @@ def _sigint(args, delay, new_session=True):
                          stderr=subprocess.PIPE, text=True, start_new_session=new_session)
     time.sleep(delay)
     os.killpg(p.pid, signal.SIGINT)
-    _, err = p.communicate(timeout=120)
+    try:
+        _, err = p.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        # a run that ignored Ctrl-C: kill its whole group, so that no orphan keeps a core busy
+        os.killpg(p.pid, signal.SIGKILL)
+        p.communicate()
+        return None, "did not stop within 120 s of SIGINT (killed)"
     return p.returncode, err
 
 

@@ -233,6 +233,35 @@ def test_interrupted_run_records_its_status(tmp_path, monkeypatch, capsys):
         assert h5.attrs["status"] == "stopped"
 
 
+def test_ctrl_c_is_taken_at_a_step_boundary(tmp_path, monkeypatch):
+    """A real SIGINT in the middle of a step's bookkeeping does not tear it: the step finishes,
+    the loop stops before the next one, the file is marked 'interrupted' at its last checkpoint,
+    and Ctrl-C is the default handler again afterwards."""
+    import signal
+    from slippulse.dynamics.runfile import RunFile
+    cfg = tmp_path / "run.toml"
+    cfg.write_text("[grid]\nn = 64\nlength = 0.5\n[time]\nmax_steps = 50\n"
+                   "[output]\ncheckpoint_every = 5\n")
+    out = str(tmp_path / "run.h5")
+    real_record = RunFile.record_step
+    seen = []
+
+    def record(self, st):
+        if st.nstep == 12:
+            os.kill(os.getpid(), signal.SIGINT)
+            seen.append("after the signal")     # a KeyboardInterrupt here would skip this
+        real_record(self, st)
+        seen.append(st.nstep)
+
+    monkeypatch.setattr(RunFile, "record_step", record)
+    assert main(["dynamic", "run", str(cfg), "--out", out, "--no-progress"]) == 130
+    assert seen[-2:] == ["after the signal", 12]        # step 12 recorded whole, no step 13
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    with h5py.File(out, "r") as h5:
+        assert h5.attrs["status"] == "interrupted"
+        assert int(h5["checkpoint/nstep"][()]) == 10
+
+
 # ------------------------------------------------------------------ item 5
 
 def test_version_and_python_dash_m():

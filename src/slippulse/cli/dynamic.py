@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import sys
+import threading
 import time
 
 import numpy as np
@@ -190,11 +192,14 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
                mininterval=0.5 if sys.stderr.isatty() else 10.0,
                bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
     status, message, rc = "finished", "t_end reached", 0
+    sigint = _StepBoundaryInterrupt()
     try:
         while st.t < t_end * (1 - 1e-14):
             if max_steps is not None and st.nstep >= max_steps:
                 status, message = "stopped", f"max_steps={max_steps} reached"
                 break
+            if sigint.requested:
+                raise KeyboardInterrupt
             dt = st.step()
             out.record_step(st)
             if st.nstep % snap_every == 0:
@@ -210,6 +215,7 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
     except KeyboardInterrupt:
         status, message, rc = "interrupted", "interrupted by the user", 130
     finally:
+        sigint.restore()
         bar.close()
     if status == "interrupted":
         # the state may be half-updated mid-step: keep FILE at its last checkpoint, marked
@@ -241,6 +247,29 @@ def _require_converged(args, pulse) -> None:
 
 def _unconverged_prefix(pulse) -> str:
     return "" if pulse.converged else f"UNCONVERGED steady pulse {pulse.label} (--allow-unconverged): "
+
+
+class _StepBoundaryInterrupt:
+    """Ctrl-C (SIGINT) during a run, taken at a step boundary: the first one sets a flag that the
+    loop reads between steps, so it cannot land inside a write, an FFT plan or a finalizer (where
+    a KeyboardInterrupt may be swallowed); a second one raises KeyboardInterrupt at once. Only
+    the main thread can install it; elsewhere the default behaviour stays."""
+
+    def __init__(self):
+        self.requested = False
+        self._installed = threading.current_thread() is threading.main_thread()
+        if self._installed:
+            self._prev = signal.signal(signal.SIGINT, self._handler)
+
+    def _handler(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def restore(self):
+        if self._installed:
+            signal.signal(signal.SIGINT, self._prev if self._prev is not None else signal.SIG_DFL)
+            self._installed = False
 
 
 def _mark_interrupted(out: RunFile) -> None:
