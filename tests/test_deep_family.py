@@ -181,3 +181,32 @@ def test_family_kill9_then_rerun_resumes_with_file_intact(tmp_path):
     for lab, p in kept.items():
         assert np.array_equal(read_pulse(out, lab)[0].v, p.v)   # not redone
     assert all(read_pulse(out, lab)[0].extra["grid_check_passed"] for lab in labels)
+
+
+def test_ds_min_reaches_the_auto_deep_march(tmp_path, monkeypatch):
+    """`--ds-min` of `steady family` (default --deep auto) is the deep march's smallest step: it
+    was once silently replaced by AUTO_DEEP's 0.004. The march is stubbed: this checks the
+    settings it would get, resumed from a deep pulse."""
+    from types import SimpleNamespace
+    from slippulse.cli.app import main
+    from slippulse.steady.continuation import family
+    seen = {}
+
+    def resume(params, out, rep):
+        rep.resumed_method, rep.reached_L = "arclength", 1000.0
+        return SimpleNamespace(xi=None, y=None, beta=0.998, q=1.0095)
+
+    def auto_deep(*args, settings=None, **kw):
+        seen["settings"] = settings
+
+    monkeypatch.setattr(family, "_resume", resume)
+    monkeypatch.setattr(family, "_check_auto_args", lambda *a, **k: None)
+    monkeypatch.setattr(family, "_auto_deep", auto_deep)
+    out = str(tmp_path / "fam.h5")
+    main(["steady", "family", "--from", "1.2", "--to", "1.009", "--out", out, "-q",
+          "--ds-min", "0.0005"])
+    s = seen["settings"]
+    assert s.ds_min == 0.0005
+    assert (s.stretch, s.ds_max, s.max_iter) == (family.AUTO_DEEP.stretch, family.AUTO_DEEP.ds_max,
+                                                 family.AUTO_DEEP.max_iter)
+    assert family.auto_deep_settings(None) is family.AUTO_DEEP

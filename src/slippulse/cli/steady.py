@@ -15,6 +15,7 @@ from ..steady.newton import SOLVERS
 from ..core.params import DEFAULT, ParameterError
 from .paramargs import add_params_args, check_files, params_for_output
 from ..steady.solver import MAX_POINTS, check_points, solve_pulse
+from ..steady.continuation.arclength import DeepSettings
 
 
 def summary_line(pulse, params) -> str:
@@ -246,7 +247,7 @@ def cmd_family(args) -> int:
     bar = tqdm(total=prog.total, desc="family", unit="pulse", disable=args.quiet, file=sys.stderr,
                bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}{postfix}]")
     prog.bar = bar
-    from ..steady.continuation import FAMILY_POINTS, DeepSettings
+    from ..steady.continuation import FAMILY_POINTS
     n_deep = FAMILY_POINTS[1] if args.points is None else args.points
     if args.max_points < n_deep:
         raise ParameterError(f"max-points={args.max_points} is invalid: must be >= points={n_deep}")
@@ -585,8 +586,9 @@ def register(sub) -> None:
     p.add_argument("--max-points", type=int, default=MAX_POINTS,
                    help=f"largest grid a per-pulse grid check may use (default {MAX_POINTS}; "
                         "auto needs >= 3999)")
-    p.add_argument("--ds-min", type=float, default=0.004,
-                   help="arclength: smallest step before giving up (default 0.004)")
+    p.add_argument("--ds-min", type=float, default=DeepSettings.ds_min,
+                   help="auto and arclength: smallest step of the deep march before it stops "
+                        f"(default {DeepSettings.ds_min:g})")
     p.add_argument("--max-length", type=float, default=math.inf,
                    help="stop (exit 0) once the pulse length exceeds this (m; default no limit)")
     p.add_argument("--no-grid-check", action="store_true",

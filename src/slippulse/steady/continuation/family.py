@@ -2,6 +2,7 @@
 continuation, every pulse appended atomically to one HDF5 file (a rerun resumes)."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import time
@@ -96,7 +97,8 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
 
     def go_deep(start_sol, resolve):
         _auto_deep(params, out, start_sol, stop, rep, progress, write, deep_points if resolve
-                   else None, max_length, n_max, tolerance, spec)
+                   else None, max_length, n_max, tolerance, spec,
+                   settings=auto_deep_settings(deep_settings))
         rep.wall_time = time.perf_counter() - t0
         return rep
 
@@ -314,6 +316,15 @@ DEEP_POINTS = 2000
 AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25)
 
 
+def auto_deep_settings(deep_settings: DeepSettings | None = None) -> DeepSettings:
+    """The "auto" deep march's settings: :data:`AUTO_DEEP` with the caller's smallest step
+    ``deep_settings.ds_min`` (``--ds-min``), the one setting of the arclength march that "auto"
+    takes from the user."""
+    if deep_settings is None:
+        return AUTO_DEEP
+    return dataclasses.replace(AUTO_DEEP, ds_min=deep_settings.ds_min)
+
+
 def _check_auto_args(params, out, tol, n_max, deep_points, max_length):
     """Bad input of the "auto" family as ParameterError: a grid check that cannot fit in
     ``n_max``, a file of other parameters, of an older family format, or of another tolerance."""
@@ -382,7 +393,7 @@ class _CheckedWriter:
 
 
 def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_length, n_max,
-               tol, spec):
+               tol, spec, settings=AUTO_DEEP):
     """The deep part of the "auto" family: from ``start`` = (xi, y, β, q) — re-solved at its τ_d
     on ``resolve_n`` adapted points unless None (then taken on its own grid) — the
     pseudo-arclength march on the deformed grid (:class:`DeepMarch`, :data:`AUTO_DEEP`), every
@@ -398,7 +409,7 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
         if progress:
             progress(q, pulse if ok else None, f"deep start N={resolve_n}: {msg}")
         start = as_both(params, sol) if ok else start
-    march = DeepMarch(params, start, settings=AUTO_DEEP, stop=stop, max_length=max_length,
+    march = DeepMarch(params, start, settings=settings, stop=stop, max_length=max_length,
                       on_attempt=lambda r, p, m: (rep.record(r, p is not None, m),
                                                   progress and progress(r, p, m)))
     while march.status == "running":
