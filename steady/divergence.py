@@ -13,7 +13,9 @@ prints, as Markdown:
    (:func:`slippulse.steady.analysis.divergence_fit`, joint and single), the paper's Eqs. 3–4 fitted for
    (τ̃*, a_v, a_G) (:func:`~slippulse.steady.analysis.scaling_fit`), and the τ̃*-free form in 1 − β
    (:func:`~slippulse.steady.analysis.beta_parametrised_fit`), over windows in τ_d and in L;
-3. local exponents d ln L/d ln(1−β) and d ln(q − τ̃*)/d ln(1−β) along the family;
+3. local exponents d ln L/d ln(1−β) and d ln(q − τ̃*)/d ln(1−β) along the family, and over the
+   deepest decade of L: d ln(1−β)/d ln L, d ln L/d ln d with τ̃* from the joint fit to that
+   decade, and −dτ_d/d ln L;
 4. the paper's Eqs. 3–4 (τ̃* = 1.0087, a_v = 1.15, a_G = 0.69) evaluated on the same pulses;
 5. edge structure against L (:func:`~slippulse.steady.analysis.edge_structure`, Ḡ at fixed δ) and the
    distance of each edge profile from that of the longest pulse.
@@ -24,6 +26,7 @@ prints, as Markdown:
    and the fits repeated on the N, 2N − 1 and extrapolated branches.
 
 Figures (PNG): divergence_deep.png (L and 1 − β against τ_d/τ_min − τ̃* on log axes),
+local_exponents_deep.png (the local exponents against L, with τ̃* from the deepest decade of L),
 edges_deep.png (edge measures against L), edge_profiles.png (the two edges overlaid).
 About 1 min.
 """
@@ -43,7 +46,7 @@ from slippulse.plotting.steady import PAPER_SCALING
 from slippulse.steady.equations import SteadyProblem
 
 Q_WINDOWS = ((1.0, 1.0113), (1.0, 1.0125), (1.0, 1.015), (1.0, 1.02), (1.0, 1.03))
-L_MIN = (100.0, 200.0, 400.0)
+L_MIN = (100.0, 200.0, 400.0, 1000.0, 2000.0)
 
 
 def load(family, deep_dir):
@@ -227,6 +230,37 @@ def main(argv=None):
                  if d[k] > 0 and d[j] > 0 else float("nan"))
         print(f"| {q[i]:.6f} | {om[i]:.3e} | {L[i]:.4g} | {r_loc:.3f} | {m_loc:.3f} |")
 
+    # the deepest decade of L (issue 18, item 4): local exponents against L, with τ̃* from the
+    # joint fit to that decade, and the two single fits that bracket it
+    deep = L >= L.max() / 10.0
+    tau_deep, loc = float("nan"), None
+    if deep.sum() >= 6:
+        fd = {qt: an.divergence_fit(q[deep], b[deep], L[deep], window=(0.0, 2.0), quantities=qt)
+              for qt in ("both", "L", "beta")}
+        tau_deep = fd["both"]["tau_star"]
+        print(f"\n## The deepest decade of L ({L[deep].min():.4g}–{L.max():.4g} m, "
+              f"{int(deep.sum())} pulses)\n")
+        print(f"τ̃* = {tau_deep:.5f} ± {fd['both']['tau_star_err']:.5f} (joint), "
+              f"{fd['L']['tau_star']:.5f} (L alone), {fd['beta']['tau_star']:.5f} (1 − β alone); "
+              "local exponents (centred differences):\n")
+        print("| L (m) | τ_d/τ_min | d ln L/d ln(1−β) | d ln(1−β)/d ln L "
+              f"| d ln L/d ln d (τ̃* = {tau_deep:.5f}) | −dτ_d/d ln L |")
+        print("|---|---|---|---|---|---|")
+        order = np.argsort(L)
+        lnL, lnb, qq = np.log(L[order]), np.log(1 - b[order]), q[order]
+        dd_ = qq - tau_deep
+        loc = dict(L=L[order][1:-1],
+                   r=((lnL[2:] - lnL[:-2]) / (lnb[2:] - lnb[:-2])),
+                   m=np.where((dd_[2:] > 0) & (dd_[:-2] > 0),
+                              -(lnL[2:] - lnL[:-2]) / np.log(np.abs(dd_[2:] / dd_[:-2])), np.nan),
+                   s=-(qq[2:] - qq[:-2]) / (lnL[2:] - lnL[:-2]))
+        last = -1.0
+        for k in range(loc["L"].size):
+            if loc["L"][k] >= L.max() / 10.0 and loc["L"][k] >= 1.15 * last:
+                last = loc["L"][k]
+                print(f"| {loc['L'][k]:.4g} | {qq[k + 1]:.7f} | {-loc['r'][k]:.3f} "
+                      f"| {-1.0 / loc['r'][k]:.4f} | {loc['m'][k]:.3f} | {loc['s'][k]:.2e} |")
+
     if a.compare:
         branches = compare_marches(*a.compare)
         print("\nFits on the three branches (steps from τ_d/τ_min ≈ 1.0123 down):\n")
@@ -338,6 +372,32 @@ def main(argv=None):
                      "joint fit to the pulses with L ≥ 100 m", fontsize=9)
         fig.tight_layout()
         fig.savefig(os.path.join(a.outdir, "divergence_deep.png"), dpi=130)
+    if loc is not None:
+        fig = Figure(figsize=(9, 3.6))
+        ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+        ok = loc["L"] >= 30.0
+        ax1.semilogx(loc["L"][ok], -loc["r"][ok], "o", ms=3, mfc="none",
+                     label="d ln L/d ln(1 − β)")
+        ax1.semilogx(loc["L"][ok], -1.0 / loc["r"][ok], "s", ms=3, mfc="none",
+                     label="d ln(1 − β)/d ln L")
+        ax1.axhline(0.5, color="C0", ls="--", lw=1, label="paper's asymptote of d ln L/d ln(1 − β): 1/2")
+        ax1.axhline(2.0, color="C1", ls="--", lw=1, label="and of d ln(1 − β)/d ln L: 2")
+        ax1.set_xlabel("L (m)"), ax1.set_ylabel("local exponent"), ax1.legend(fontsize=7)
+        ax2.semilogx(loc["L"][ok], loc["m"][ok], "o", ms=3, mfc="none",
+                     label=f"τ̃* = {tau_deep:.5f} (joint fit, deepest decade)")
+        dpap = q[np.argsort(L)] - PAPER_SCALING["tau_star"]
+        lnLs = np.log(np.sort(L))
+        mp = np.where((dpap[2:] > 0) & (dpap[:-2] > 0),
+                      -(lnLs[2:] - lnLs[:-2]) / np.log(np.abs(dpap[2:] / dpap[:-2])), np.nan)
+        ax2.semilogx(loc["L"][ok], mp[ok], "^", ms=3, mfc="none", color="r",
+                     label="τ̃* = 1.0087 (paper)")
+        ax2.axhline(1.0, color="r", ls="--", lw=1, label="paper's asymptote m_L = 1")
+        ax2.set_xlabel("L (m)"), ax2.set_ylabel("d ln L/d ln(τ_d/τ_min − τ̃*)")
+        ax2.legend(fontsize=7)
+        fig.suptitle(f"Local exponents along the family (deepest pulse L = {L.max():.4g} m at "
+                     f"τ_d/τ_min = {q.min():.6f})", fontsize=9)
+        fig.tight_layout()
+        fig.savefig(os.path.join(a.outdir, "local_exponents_deep.png"), dpi=130)
     fig = Figure(figsize=(11, 3.4))
     axs = [fig.add_subplot(1, 3, k) for k in (1, 2, 3)]
     Ls = np.array([e["L"] for _, e in rows])

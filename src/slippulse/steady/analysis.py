@@ -12,12 +12,12 @@ import numpy as np
 from ..core import h5io
 from .analysis_store import FAMILY_ARRAYS, FAMILY_LONG_NAMES, PULSE_ATTRS, write_family
 from .analysis_table import format_table
-from .fits import (GC_TOL, GC_WINDOW, SCALING_WINDOW, beta_parametrised_fit, divergence_fit,
+from .fits import (GC_SLOPE, GC_WINDOW, SCALING_WINDOW, beta_parametrised_fit, divergence_fit,
                    fracture_energy, scaling_fit, scaling_law)
 from .measures import (breakdown_energy, edge_singularity, edge_structure, ln_one_minus_g,
                        profile_distance, pulse_length, slip_profile)
 
-__all__ = ["FAMILY_ARRAYS", "FAMILY_LONG_NAMES", "GC_TOL", "GC_WINDOW", "PULSE_ATTRS",
+__all__ = ["FAMILY_ARRAYS", "FAMILY_LONG_NAMES", "GC_SLOPE", "GC_WINDOW", "PULSE_ATTRS",
            "SCALING_WINDOW", "SUPPORT_DEPTH", "SUPPORT_MIN", "analyse_family", "analyse_pulse",
            "beta_parametrised_fit", "breakdown_energy", "divergence_fit", "edge_singularity",
            "edge_structure", "format_table", "fracture_energy", "ln_one_minus_g",
@@ -99,7 +99,7 @@ def support(ratios, window, what, need_min) -> str | None:
 
 
 def analyse_family(path, write=True, scaling_window=SCALING_WINDOW, gc_window=GC_WINDOW,
-                   skip=(), gc_tol=GC_TOL, cd_over_cs=None):
+                   skip=(), gc_slope=GC_SLOPE, cd_over_cs=None):
     """Analyse every pulse of a family file (but the labels ``skip``); optionally store the
     results in it. The scaling fit and G_c are left out, with the reason, where the family cannot
     support them (:func:`support`).
@@ -113,8 +113,8 @@ def analyse_family(path, write=True, scaling_window=SCALING_WINDOW, gc_window=GC
         a temporary file in the same directory, modify, ``os.replace``).
     scaling_window, gc_window : (float, float)
         τ_d/τ_min windows of the scaling fit and of the G_c/δ_c analysis.
-    gc_tol : float
-        Fan-out tolerance of :func:`fracture_energy`.
+    gc_slope : float
+        The local slope of the median Ḡ(δ) in log-log that marks its bend (:func:`fracture_energy`).
     cd_over_cs : sequence of float, optional
         c_d/c_s values of the mode-II mapping (default ``modeii.CD_OVER_CS``).
 
@@ -173,11 +173,11 @@ def analyse_family(path, write=True, scaling_window=SCALING_WINDOW, gc_window=GC
     try:
         curves = [breakdown_energy(p.xi, p.v, p.tau, p.v_stick, p.beta, params.c_s, tau_m)
                   for p in sel]
-        fam["fracture"] = fracture_energy(curves, tol=gc_tol)
+        fam["fracture"] = fracture_energy(curves, slope=gc_slope)
     except ValueError as exc:
         fam["fracture_error"] = str(exc)
     for key, what, window in (("scaling", "the scaling fit (Eqs. 3-4)", scaling_window),
-                              ("fracture", "G_c (fan-out of the G-bar curves)", gc_window)):
+                              ("fracture", "G_c (the bend of the G-bar curves)", gc_window)):
         why = support(x[conv], window, what, SUPPORT_MIN[key])
         if why:
             for k in ((key, "scaling_beta", "scaling_L") if key == "scaling" else (key,)):

@@ -85,11 +85,14 @@ def write_family(path, rows, fam, scaling_window, gc_window):
             f = fam["fracture"]
             g.attrs["G_c"] = f["G_c"]
             g.attrs["G_c_err"] = f["G_c_err"]
-            g.attrs["G_c_threshold"] = f["G_c_threshold"]
+            g.attrs["G_c_lo"] = f["G_c_lo"]
+            g.attrs["G_c_hi"] = f["G_c_hi"]
             g.attrs["G_c_units"] = "J/m^2"
             g.attrs["delta_c"] = f["delta_c"]
             g.attrs["delta_c_units"] = "m"
-            g.attrs["G_c_tol"] = f["tol"]
+            g.attrs["G_c_rule"] = (f"the bend of the median G-bar(delta) in log-log: local slope "
+                                   f"{f['slope']} (G_c_lo, G_c_hi: slopes {f['band'][0]}, "
+                                   f"{f['band'][1]}; G_c_err half their range)")
             g.attrs["G_c_n_curves"] = f["n_curves"]
         else:
             g.attrs["fracture_error"] = fam["fracture_error"]

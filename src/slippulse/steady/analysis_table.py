@@ -40,9 +40,11 @@ def format_table(rows):
             lines.append(f"scaling fit: not done ({fam['scaling_error']})")
         if "fracture" in fam:
             f = fam["fracture"]
-            lines.append(f"G_c = {f['G_c']:.4g} ± {f['G_c_err']:.2g} J/m^2 (paper ~0.6; bare threshold "
-                         f"{f['G_c_threshold']:.4g}), delta_c = {f['delta_c']:.4g} m "
-                         f"({f['n_curves']} curves, tol {f['tol']})")
+            lines.append(f"G_c = {f['G_c']:.3g} ± {f['G_c_err']:.2g} J/m^2 (paper ~0.6), "
+                         f"delta_c = {f['delta_c']:.3g} m: the bend of the median G-bar(delta) "
+                         f"curve of {f['n_curves']} pulses, local log-slope {f['slope']} "
+                         f"(± : from slopes {f['band'][0]} to {f['band'][1]}, "
+                         f"{f['G_c_lo']:.3g}-{f['G_c_hi']:.3g} J/m^2)")
         else:
             lines.append(f"G_c: not done ({fam['fracture_error']})")
     return "\n".join(lines)

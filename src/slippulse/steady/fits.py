@@ -15,52 +15,83 @@ from .measures import _as_arrays
 SCALING_WINDOW = (1.0, 1.05)
 #: Pulses whose Ḡ(δ) curves enter the G_c / δ_c analysis (Fig. 4: τ_d close to τ_*), inclusive.
 GC_WINDOW = (1.0, 1.05)
-#: Relative spread of the Ḡ curves that counts as "fanned out".
-GC_TOL = 0.02
+#: Local log-slope d ln Ḡ_med/d ln δ that marks the bend of the median Ḡ(δ) curve (δ_c, G_c), and
+#: the two slopes whose bend points bound its uncertainty (docs/analysis.md, "G_c and δ_c").
+GC_SLOPE = 0.5
+GC_SLOPE_BAND = (0.7, 0.3)
+#: The ∝δ head: the slope must first reach this before a bend is looked for.
+GC_HEAD_SLOPE = 0.8
+#: Half-width in ln δ of the centred difference that gives the slope.
+GC_SLOPE_STEP = 0.02
+#: The head is looked for below this fraction of the largest Ḡ_med of the shared δ range.
+GC_HEAD_FRACTION = 0.1
 
 
 # --------------------------------------------------------------------------- family quantities
-def fracture_energy(family, tol=GC_TOL, n_grid=20000):
+
+def _slope_crossing(lg, slope, level, start):
+    """ln δ where ``slope`` first falls below ``level`` at or after index ``start`` (linear in
+    ln δ between the two grid points around the crossing); None if it never does."""
+    below = np.nonzero(slope[start:] < level)[0]
+    if below.size == 0:
+        return None
+    j = start + int(below[0])
+    if j == 0 or j == start:
+        return float(lg[j])
+    t = (slope[j - 1] - level) / (slope[j - 1] - slope[j])
+    return float(lg[j - 1] + t * (lg[j] - lg[j - 1]))
+
+
+def fracture_energy(family, n_grid=20000, slope=GC_SLOPE, band=GC_SLOPE_BAND,
+                    head=GC_HEAD_SLOPE):
     """Effective fracture energy G_c and cohesive slip δ_c from a set of Ḡ(δ) curves (Figs. 4, S3).
 
     Parameters
     ----------
     family : sequence of (delta, G_bar)
         One pair of arrays per pulse (any order along δ), δ in m, Ḡ in J/m².
-    tol : float
-        Relative spread of the curves that counts as "fanned out".
     n_grid : int
         Points of the common log-spaced δ grid.
+    slope : float
+        The local slope p = d ln Ḡ_med/d ln δ that marks the bend (default 1/2, halfway between
+        the ∝δ head, p = 1, and a flat tail, p = 0).
+    band : (float, float)
+        Two slopes, before and after ``slope``, whose bend points bound G_c (its uncertainty).
+    head : float
+        The slope the median curve must first reach (its ∝δ head) before a bend is looked for.
 
     Returns
     -------
     dict
-        G_c (J/m²), G_c_err (J/m², half the range of G_c over tol/2, tol, 2 tol), G_c_threshold
-        (the bare-threshold value Ḡ_med(δ_1), for comparison), delta_c (m), delta_fan (m),
-        spread_min (relative), tol, n_curves, and the common grid ``delta_grid``, the median curve
-        ``G_median`` and the relative spread ``spread``.
+        G_c (J/m²), G_c_err (J/m², half the range of Ḡ_med between the bend points of the two
+        slopes of ``band``), G_c_lo and G_c_hi (Ḡ_med at them), delta_c (m), slope, band,
+        n_curves, and the common grid ``delta_grid``, the median curve ``G_median`` and its local
+        slope ``slope_median``.
 
     Notes
     -----
-    Rule (stated, reproducible):
+    The paper's definition (SM, "The fracture energy G_c"): Ḡ ∝ δ below δ_c, and G_c = Ḡ(δ_c);
+    Fig. 4 reads G_c where the curves, which overlap at small δ, bend and fan out. Rule (stated,
+    reproducible):
 
     1. Each curve is interpolated (linear in Ḡ vs ln δ) on a common grid of ``n_grid`` log-spaced δ
-       covering the range shared by all curves (δ > 0).
-    2. Relative spread s(δ) = (max_k Ḡ_k − min_k Ḡ_k)/median_k Ḡ_k; absolute spread ΔḠ(δ).
-    3. Best overlap: s_0 = min s, at δ_0 (first minimiser). Curves whose ∝δ heads have slightly
-       different slopes (different peak stresses) overlap only up to this constant relative
-       spread, so the fan-out is measured by the *excess* spread E(δ) = ΔḠ(δ) − s_0 Ḡ_med(δ).
-    4. Fan-out: beyond δ_0 the spread first exceeds s_0 + tol at δ_1 and s_0 + 3 tol at δ_3. A
-       straight line fitted to E(δ) on [δ_1, δ_3] is extrapolated back to E = 0; its crossing
-       (clipped to [δ_0, δ_1]) is the fan-out point δ_f. (If [δ_1, δ_3] holds < 2 grid points,
-       δ_f = δ_1.) This removes the O(tol) bias a bare threshold leaves and makes the result
-       nearly independent of tol.
-    5. G_c = Ḡ_med(δ_f); δ_c is the first δ where the median curve reaches G_c, i.e. the paper's
-       definition Ḡ(δ_c) = G_c (SM, "The fracture energy G_c ..."): δ_c = δ_f when Ḡ_med is
-       monotone, the end of the ∝δ-then-bending head shared by all curves.
+       covering the range shared by all curves (δ > 0); Ḡ_med is the median curve.
+    2. p(δ) = d ln Ḡ_med/d ln δ, by centred differences over ±0.02 in ln δ
+       (``GC_SLOPE_STEP``).
+    3. The head: the last point where p ≥ ``head`` before Ḡ_med first reaches 0.1 of its largest
+       value (``GC_HEAD_FRACTION``; below, the creeping start, at Ḡ ≈ 1e-6 J/m², bumps and dips
+       in slope). From there, δ_c is the first δ where p falls below ``slope``;
+       G_c = Ḡ_med(δ_c).
+    4. The same for the two slopes of ``band``: G_c_err is half the range of Ḡ_med between them.
 
-    For curves that coincide up to δ_c and then separate linearly (linear slip weakening to τ_c,
-    then constant stresses τ_m + a_k), steps 4–5 return G_c and δ_c exactly (up to interpolation).
+    For linear slip weakening from τ_0 to τ_c over δ_w, then constant stress (any level ≥ τ_m),
+    Ḡ = k δ − K δ²/(2 δ_w) with k = τ_0 − τ_m, K = τ_0 − τ_c, so p = (k − K x)/(k − K x/2),
+    x = δ/δ_w, and the bend at slope p lies at x = k (1 − p)/(K (1 − p/2)) while x < 1 (at δ_w,
+    where p drops to ≈ 0, otherwise): the tests check this. The relative spread of the curves is
+    not used: on the computed families the curves differ by 5–15 % from their creeping start on
+    (different peak stresses and v_stick), and a rule that measured the fan-out by the spread's
+    excess over its minimum (used before 2026-11-24) found that minimum at nanometre slips and
+    returned G_c ≈ 0.002 J/m² where the curves bend at ≈ 0.6 J/m².
     """
     curves = []
     for delta, G in family:
@@ -72,7 +103,7 @@ def fracture_energy(family, tol=GC_TOL, n_grid=20000):
         keep = np.concatenate([[True], np.diff(d) > 0])
         curves.append((d[keep], g[keep]))
     if len(curves) < 2:
-        raise ValueError("need at least two Ḡ(δ) curves to see them fan out")
+        raise ValueError("need at least two Ḡ(δ) curves for a family G_c")
     lo = max(c[0][0] for c in curves)
     hi = min(c[0][-1] for c in curves)
     if not hi > lo:
@@ -81,47 +112,37 @@ def fracture_energy(family, tol=GC_TOL, n_grid=20000):
     lg = np.log(grid)
     Gs = np.array([np.interp(lg, np.log(d), g) for d, g in curves])
     Gmed = np.median(Gs, axis=0)
-    dG = Gs.max(axis=0) - Gs.min(axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(Gmed > 0, dG / Gmed, np.inf)
-    i0 = int(np.argmin(s))
-    s0 = float(s[i0])
-    excess = dG - s0 * Gmed          # spread beyond the best-overlap relative spread
+        lnG = np.log(np.where(Gmed > 0, Gmed, np.nan))
+    # centred differences over ±GC_SLOPE_STEP in ln δ, not over one cell of the grid: the
+    # curves are interpolated between their pulses' nodes, and a one-cell slope would turn an
+    # interpolation error of 1e-5 in Ḡ into 1e-2 in p
+    h = GC_SLOPE_STEP
+    inside = (lg - h >= lg[0]) & (lg + h <= lg[-1])
+    p = np.full(lg.size, np.nan)
+    p[inside] = (np.interp(lg[inside] + h, lg, lnG) - np.interp(lg[inside] - h, lg, lnG)) / (2 * h)
+    # the head: the last point of slope >= head before Ḡ_med reaches GC_HEAD_FRACTION of its
+    # largest value (the creeping start, at Ḡ ~ 1e-6 of G_c, dips and bumps in slope)
+    i_ref = int(np.argmax(Gmed >= GC_HEAD_FRACTION * np.nanmax(Gmed)))
+    in_head = np.nonzero(p[:i_ref + 1] >= head)[0]
+    if in_head.size == 0:
+        raise ValueError(f"the median Ḡ(δ) curve has no head of slope >= {head} (Ḡ ∝ δ) "
+                         f"below {GC_HEAD_FRACTION:g} of its largest value")
+    i_head = int(in_head[-1])
 
-    def fan_out(t):
-        above1 = np.nonzero(s[i0:] > s0 + t)[0]
-        if above1.size == 0:
-            raise ValueError(f"the Ḡ curves never fan out by more than tol={t} over the shared "
-                             "δ range")
-        i1 = i0 + int(above1[0])
-        above3 = np.nonzero(s[i1:] > s0 + 3 * t)[0]
-        i3 = i1 + int(above3[0]) if above3.size else n_grid - 1
-        if i3 - i1 >= 1:
-            p = np.polyfit(grid[i1:i3 + 1], excess[i1:i3 + 1], 1)
-            d = -p[1] / p[0] if p[0] > 0 else grid[i1]
-            d = float(np.clip(d, grid[i0], grid[i1]))
-        else:
-            d = float(grid[i1])
-        return d, float(np.interp(math.log(d), lg, Gmed)), float(Gmed[i1])
+    def level_at(s_):
+        x = _slope_crossing(lg, p, s_, i_head)
+        if x is None:
+            raise ValueError(f"the median Ḡ(δ) curve does not bend to slope {s_} within the "
+                             f"shared δ range (up to {hi:.3g} m)")
+        return x, float(np.interp(x, lg, Gmed))
 
-    d_f, G_c, G_thr = fan_out(tol)
-    G_var = [G_c]
-    for t in (0.5 * tol, 2.0 * tol):
-        try:
-            G_var.append(fan_out(t)[1])
-        except ValueError:
-            pass
-    G_c_err = 0.5 * (max(G_var) - min(G_var))
-    reach = np.nonzero(Gmed >= G_c)[0]
-    j = int(reach[0])
-    if j == 0:
-        delta_c = float(grid[0])
-    else:   # linear root between grid[j-1] and grid[j] in ln δ
-        t = (G_c - Gmed[j - 1]) / (Gmed[j] - Gmed[j - 1])
-        delta_c = float(math.exp(lg[j - 1] + t * (lg[j] - lg[j - 1])))
-    return {"G_c": G_c, "G_c_err": float(G_c_err), "G_c_threshold": G_thr, "delta_c": delta_c,
-            "delta_fan": d_f, "spread_min": s0, "tol": tol, "n_curves": len(curves),
-            "delta_grid": grid, "G_median": Gmed, "spread": s}
+    x_c, G_c = level_at(slope)
+    G_band = [level_at(s_)[1] for s_ in band]
+    return {"G_c": G_c, "G_c_err": 0.5 * abs(G_band[1] - G_band[0]),
+            "G_c_lo": min(G_band), "G_c_hi": max(G_band), "delta_c": math.exp(x_c),
+            "slope": slope, "band": tuple(band), "n_curves": len(curves),
+            "delta_grid": grid, "G_median": Gmed, "slope_median": p}
 
 
 def _scaling_C(params):
@@ -256,8 +277,9 @@ def divergence_fit(tau_d_ratio, beta, L, window=(1.0, 1.02), quantities="both"):
 
         L = A d^(−m_L),        1 − β = B d^(m_β).
 
-    The paper's theory (Eqs. 3–4) has, as β → 1, √(1−β²) ≈ √(2(1−β)) = a_v C/d, i.e. m_β = 2,
-    and L̃ = a_G √(1−β²)/(π d²) ∝ d^(−3), i.e. m_L = 3. Residuals in logarithms (the data span
+    The paper's theory (Eqs. 3–4) has, as β → 1, √(1−β²) = β d/(a_v C) ≈ √(2(1−β)), i.e.
+    m_β = 2, and L̃ = a_G √(1−β²)/(π d²) ≈ a_G/(π a_v C d), i.e. m_L = 1 (docs/analysis.md,
+    "The divergence law on the deep family"). Residuals in logarithms (the data span
     decades), equal weights; ``scipy.optimize.least_squares`` with τ̃* bounded below min τ_d/τ_min;
     covariance s² (JᵀJ)⁻¹, s² = RSS/(m − k). The statistical error ignores the correlated
     discretisation error of the pulses; the fit-window study and the N-comparison carry that.
