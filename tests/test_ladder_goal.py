@@ -89,3 +89,45 @@ def test_cli_ladder_options_out_of_range_are_one_line(tmp_path, pulse12, params,
                         *args], capture_output=True, text=True)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.strip().count("\n") == 0 and name in r.stderr, r.stderr
+
+
+def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, pulse12, params,
+                                                                    monkeypatch):
+    """Deep pulses beyond L ≈ 2.5 km do not re-solve on N = 2828 (the default clip) but do on
+    their own N = 3542. Here the re-solve is made to fail below the pulse's own N (700): level 0
+    then uses N = 700, and says nothing failed; where the own N fails too, the message names both."""
+    from slippulse.core.h5io import write_pulse
+    from slippulse.stability import spectrum_family as sf
+    path = str(tmp_path / "td12.h5")
+    write_pulse(path, pulse12.to_pulse(), params)
+    tried = []
+    real = sf._level0
+
+    def level0(pulse, prm, gmap, n0):
+        tried.append(n0)
+        if n0 < 700:
+            return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
+        return real(pulse, prm, gmap, n0)
+
+    monkeypatch.setattr(sf, "_level0", level0)
+    rep = sf.run_spectrum(path, extra=False, levels=0, min_points=0, max_points=500)
+    assert tried == [500, 700]
+    res = rep.results[0]
+    assert res.status == "converged" and res.n_points == 700 and not rep.failed
+    assert res.leading.real / res.rate_unit == pytest.approx(22.65, rel=0.02)
+
+    def never(pulse, prm, gmap, n0):
+        tried.append(n0)
+        return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
+
+    monkeypatch.setattr(sf, "_level0", never)
+    tried.clear()
+    rep = sf.run_spectrum(path, extra=False, levels=0, min_points=0, max_points=500,
+                          overwrite=True)
+    assert tried == [500, 700] and rep.failed == ["td1.2000"]
+    assert "(N = 500)" in rep.results[0].message
+    assert "on the pulse's own N = 700 too" in rep.results[0].message
+    # --points (an explicit level 0) is not overridden
+    tried.clear()
+    sf.run_spectrum(path, extra=False, levels=0, level0_points=500, overwrite=True)
+    assert tried == [500]

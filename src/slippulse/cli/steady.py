@@ -286,7 +286,9 @@ def spectrum_line(label, res) -> str:
         return f"{label}: FAILED ({res.message}); nothing stored"
     if res.sigmas.size == 0:
         return (f"{label}: no eigenvalue with Re sigma > 0.001 c_p/L found (stable or below "
-                f"resolution); N={res.n_points}, {res.wall_time:.1f} s")
+                f"resolution: a smaller rate, as at L > 200 m, is found only by tracking from a "
+                f"pulse above it with a spectrum in the file: include labels from 1.0125 tau_min "
+                f"down); N={res.n_points}, {res.wall_time:.1f} s")
     s = res.leading
     kind = "real" if abs(s.imag) <= 1e-8 * abs(s) else f"complex, Im {s.imag / res.rate_unit:.4g}"
     ref = res.refined
@@ -624,8 +626,8 @@ def register(sub) -> None:
                    help="level 0 has N_0 = N clipped to [MIN_POINTS, MAX_POINTS] (default 1000)")
     p.add_argument("--max-points", type=int, default=None,
                    help="the upper end of that clip (default 2828, or MIN_POINTS where larger: "
-                        "enough at the deepest pulses of the family, 1.009 tau_min, where "
-                        "N = 2000 is not)")
+                        "enough down to L = 2 km, 1.0089 tau_min, where N = 2000 is not; a "
+                        "pulse whose re-solve on the clipped N fails gets level 0 on its own N)")
     p.add_argument("--target", type=float, default=None, metavar="S_ERR",
                    help="add levels beyond --levels (up to N = 8000) until s_err L/c_p <= "
                         "max(S_ERR, REL |s L/c_p|) (default 1e-4)")
