@@ -57,7 +57,9 @@ def test_deep_march_object_status_and_counters(params):
                   stop=1.195, on_attempt=lambda r, p, msg: seen.append(p is not None))
     assert m.status == "running" and m.n_steps == 0 and m.q == 1.2
     qs = [m.q]
+    m_prev_beta = m.beta
     while m.status == "running":
+        m_prev_beta = m.beta
         assert m.step() is None
         qs.append(m.q)
         assert m.sol.problem.free == "both" and m.sol.xi.size == 500
@@ -66,6 +68,15 @@ def test_deep_march_object_status_and_counters(params):
     assert m.n_iterations > 0 and m.fold is None and m.tangent[1] < 0
     with pytest.raises(RuntimeError):
         m.step()
+    # a resumed march goes on at the pace of the last step, measured in its own plane
+    mr = DeepMarch(params, m.sol, settings=DeepSettings(ds=0.1, ds_max=0.4, ds_min=1e-5))
+    ds = mr.resume_step(m_prev_beta, qs[-2])
+    assert ds == pytest.approx(math.hypot(math.log((1 - m.beta) / (1 - m_prev_beta)),
+                                          (m.q - qs[-2]) / mr.kappa), rel=1e-12)
+    assert 1e-5 < ds < 0.1 and mr.ds == ds
+    assert mr.resume_step(m.beta, m.q) == ds            # no step: ds left as it was
+    tight = DeepMarch(params, m.sol, settings=DeepSettings(ds=0.1, ds_max=0.4, ds_min=0.05))
+    assert tight.resume_step(m_prev_beta, qs[-2]) == 0.05          # clipped to ds_min
     m2 = DeepMarch(params, m.sol, settings=DeepSettings(ds=0.004, ds_max=0.004, max_iter=20,
                                                         stretch=True), max_length=m.L * 1.001)
     m2.step()
@@ -210,3 +221,21 @@ def test_ds_min_reaches_the_auto_deep_march(tmp_path, monkeypatch):
     assert (s.stretch, s.ds_max, s.max_iter) == (family.AUTO_DEEP.stretch, family.AUTO_DEEP.ds_max,
                                                  family.AUTO_DEEP.max_iter)
     assert family.auto_deep_settings(None) is family.AUTO_DEEP
+
+
+def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, params):
+    """`_previous_arclength`: the deepest converged arclength pulse above the one the march
+    resumes from (its (β, q) set the first step, `DeepMarch.resume_step`); None without one."""
+    import dataclasses
+    from slippulse.core.h5io import write_pulse
+    from slippulse.steady.continuation.family import _previous_arclength
+    out = str(tmp_path / "fam.h5")
+    assert _previous_arclength(out, 1.0) is None                  # no file
+    base = pulse12.to_pulse()
+    for q, b, method, ok in [(1.2, 0.01, "tau_d", True), (1.19, 0.02, "arclength", True),
+                             (1.18, 0.03, "arclength", True), (1.175, 0.035, "arclength", False),
+                             (1.17, 0.04, "arclength", True)]:
+        write_pulse(out, dataclasses.replace(base, tau_d_ratio=q, beta=b, converged=ok,
+                                             extra={"continuation": method}), params)
+    assert _previous_arclength(out, 1.17) == (0.03, 1.18)         # not the unconverged 1.175
+    assert _previous_arclength(out, 1.19) is None                 # above it: a tau_d pulse only

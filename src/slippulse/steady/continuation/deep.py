@@ -81,6 +81,19 @@ class DeepMarch:
         self.message = ""
         self.n_steps = self.n_attempts = self.n_failed = self.n_iterations = 0
 
+    def resume_step(self, beta_prev, q_prev):
+        """Set ds to the step from the pulse before the start, (β_prev, τ_d/τ_min = q_prev), to
+        the start, measured in this march's plane (ln(1−β), q/κ) and clipped to
+        [ds_min, ds_max]: a march that resumes from a file goes on at the pace it had, instead
+        of from ``settings.ds`` (which fails and halves several times deep in the family)."""
+        s = self.settings
+        da = math.log(1.0 - self.beta) - math.log(1.0 - beta_prev)
+        dq = (self.q - q_prev) / self.kappa
+        ds = math.hypot(da, dq)
+        if math.isfinite(ds) and ds > 0:
+            self.ds = min(max(ds, s.ds_min), s.ds_max)
+        return self.ds
+
     def _n_now(self):
         return self.n_points if self._n_of is None else self._n_of()
 

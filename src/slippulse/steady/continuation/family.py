@@ -95,10 +95,10 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     write = (_CheckedWriter(params, out, rep, tolerance, n_max, log) if auto else
              (lambda sol, pulse, method: _write(params, out, pulse, rep)))
 
-    def go_deep(start_sol, resolve):
+    def go_deep(start_sol, resolve, previous=None):
         _auto_deep(params, out, start_sol, stop, rep, progress, write, deep_points if resolve
                    else None, max_length, n_max, tolerance, spec,
-                   settings=auto_deep_settings(deep_settings))
+                   settings=auto_deep_settings(deep_settings), previous=previous)
         rep.wall_time = time.perf_counter() - t0
         return rep
 
@@ -108,7 +108,8 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
                                       or base.beta >= DEEP_BETA):
         if base.q > stop + 1e-12 and rep.reached_L < max_length:
             return go_deep((base.xi, base.y, base.beta, base.q),
-                           resolve=rep.resumed_method != "arclength")
+                           resolve=rep.resumed_method != "arclength",
+                           previous=_previous_arclength(out, base.q))
         rep.wall_time = time.perf_counter() - t0
         return rep
     targets = [t for t in _targets(start, stop, step) if base is None or t < base.q - 1e-12]
@@ -218,6 +219,21 @@ def _resume(params, out, rep: FamilyReport):
     rep.resumed_method = str(last.extra.get("continuation", ""))
     rep.reached, rep.reached_beta, rep.reached_L = last.tau_d_ratio, last.beta, last.L
     return _Base(last.xi, np.log(last.v), last.beta, last.tau_d_ratio)
+
+
+def _previous_arclength(out, q_last):
+    """(β, τ_d/τ_min) of the deepest converged arclength pulse of ``out`` above ``q_last`` (the
+    step before the one a resumed march starts from), or None."""
+    if not os.path.exists(out):
+        return None
+    best = None
+    for label in list_pulses(out):
+        pu, _ = read_pulse(out, label)
+        if (pu.converged and pu.extra.get("continuation") == "arclength"
+                and pu.tau_d_ratio > q_last + 1e-12
+                and (best is None or pu.tau_d_ratio < best[1])):
+            best = (pu.beta, pu.tau_d_ratio)
+    return best
 
 
 def _attempt(params, tau_d_ratio, rep: FamilyReport, progress, **solve_args):
@@ -393,13 +409,14 @@ class _CheckedWriter:
 
 
 def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_length, n_max,
-               tol, spec, settings=AUTO_DEEP):
+               tol, spec, settings=AUTO_DEEP, previous=None):
     """The deep part of the "auto" family: from ``start`` = (xi, y, β, q) — re-solved at its τ_d
     on ``resolve_n`` adapted points unless None (then taken on its own grid) — the
     pseudo-arclength march on the deformed grid (:class:`DeepMarch`, :data:`AUTO_DEEP`), every
     accepted pulse grid-checked and written by ``write``; the march goes on from the checked
     (refined) pulse. Ends at ``stop``, at ``max_length`` (clean: ``rep.limit_reached``), or where
-    the march fails (``rep.stop``)."""
+    the march fails (``rep.stop``). ``previous`` = (β, q) of the step before ``start`` (a resumed
+    march): the first ds is that step's (:meth:`DeepMarch.resume_step`)."""
     xi, y, beta, q = start
     if resolve_n is not None:
         sol = solve_pulse(params, q, n_points=resolve_n, guess=(xi, y, beta), passes=0,
@@ -412,6 +429,8 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
     march = DeepMarch(params, start, settings=settings, stop=stop, max_length=max_length,
                       on_attempt=lambda r, p, m: (rep.record(r, p is not None, m),
                                                   progress and progress(r, p, m)))
+    if previous is not None:              # a resumed march: go on at the pace it had
+        march.resume_step(*previous)
     while march.status == "running":
         if march.step() is not None:
             break
