@@ -286,9 +286,10 @@ def spectrum_line(label, res) -> str:
         return f"{label}: FAILED ({res.message}); nothing stored"
     if res.sigmas.size == 0:
         return (f"{label}: no eigenvalue with Re sigma > 0.001 c_p/L found (stable or below "
-                f"resolution: a smaller rate, as at L > 200 m, is found only by tracking from a "
-                f"pulse above it with a spectrum in the file: include labels from 1.0125 tau_min "
-                f"down); N={res.n_points}, {res.wall_time:.1f} s")
+                f"resolution: the rates near tau_min, below ~0.002 c_p/L at L > 100 m, are found "
+                f"only by tracking from the pulses above: run it on the family from the top, or "
+                f"from a label just below one with a stored spectrum); N={res.n_points}, "
+                f"{res.wall_time:.1f} s")
     s = res.leading
     kind = "real" if abs(s.imag) <= 1e-8 * abs(s) else f"complex, Im {s.imag / res.rate_unit:.4g}"
     ref = res.refined
