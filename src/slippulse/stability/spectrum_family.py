@@ -13,11 +13,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.errors import UsageError
 from ..core.h5io import label_ratio
-from ..steady import solver
 from ..steady.grid import GridMap
 from .count import count_unstable
-from .refine import check_refinable, level0_size, level_points, mapped_pulse, refine_leading
+from .refine import check_refinable, level0_size, mapped_pulse, refine_leading
 from .spectrum import (MIN_RE, NEWTON_TOL, PulseSpectrum, order4_pulse, pulse_spectrum,
                        read_spectrum, write_spectrum)
 
@@ -211,9 +211,10 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
             if why and level0_points is None and n0 < n_own:
                 # the clip to max_points is too coarse for this pulse (the deep pulses beyond
                 # L ≈ 2.5 km need their own N = 3542): level 0 on the pulse's own N instead
-                if levels and level_points(n_own, levels)[-1] > solver.MAX_POINTS:
-                    why += (f"; its own N = {n_own} refined {levels} time(s) exceeds "
-                            f"{solver.MAX_POINTS} points: try fewer --levels")
+                try:
+                    check_refinable(source, levels, level0_points=n_own)
+                except UsageError as exc:
+                    why += f"; on its own N instead: {exc}"
                 else:
                     pulse, why_own = _level0(source, params, gmap, n_own)
                     why = f"{why}; on the pulse's own N = {n_own} too: {why_own}" if why_own else ""
