@@ -225,17 +225,23 @@ def test_ds_min_reaches_the_auto_deep_march(tmp_path, monkeypatch):
 
 def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, params):
     """`_previous_arclength`: the deepest converged arclength pulse above the one the march
-    resumes from (its (β, q) set the first step, `DeepMarch.resume_step`); None without one."""
+    resumes from (its (β, q) set the first step, `DeepMarch.resume_step`); None without one.
+    `_resume` puts it on the report."""
     import dataclasses
     from slippulse.core.h5io import write_pulse
-    from slippulse.steady.continuation.family import _previous_arclength
+    from slippulse.steady.continuation.family import _previous_arclength, _resume
+    from slippulse.steady.continuation.report import FamilyReport
     out = str(tmp_path / "fam.h5")
-    assert _previous_arclength(out, 1.0) is None                  # no file
+    assert _previous_arclength([], 1.0) is None                   # no pulses
     base = pulse12.to_pulse()
     for q, b, method, ok in [(1.2, 0.01, "tau_d", True), (1.19, 0.02, "arclength", True),
                              (1.18, 0.03, "arclength", True), (1.175, 0.035, "arclength", False),
                              (1.17, 0.04, "arclength", True)]:
         write_pulse(out, dataclasses.replace(base, tau_d_ratio=q, beta=b, converged=ok,
                                              extra={"continuation": method}), params)
-    assert _previous_arclength(out, 1.17) == (0.03, 1.18)         # not the unconverged 1.175
-    assert _previous_arclength(out, 1.19) is None                 # above it: a tau_d pulse only
+    pulses = [read_pulse(out, lab)[0] for lab in list_pulses(out)]
+    assert _previous_arclength(pulses, 1.17) == (0.03, 1.18)      # not the unconverged 1.175
+    assert _previous_arclength(pulses, 1.19) is None              # above it: a tau_d pulse only
+    rep = FamilyReport()
+    assert _resume(params, out, rep).q == 1.17
+    assert rep.resumed_previous == (0.03, 1.18) and rep.resumed_method == "arclength"

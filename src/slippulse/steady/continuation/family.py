@@ -109,7 +109,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         if base.q > stop + 1e-12 and rep.reached_L < max_length:
             return go_deep((base.xi, base.y, base.beta, base.q),
                            resolve=rep.resumed_method != "arclength",
-                           previous=_previous_arclength(out, base.q))
+                           previous=rep.resumed_previous)
         rep.wall_time = time.perf_counter() - t0
         return rep
     targets = [t for t in _targets(start, stop, step) if base is None or t < base.q - 1e-12]
@@ -217,23 +217,20 @@ def _resume(params, out, rep: FamilyReport):
     last = min(done, key=lambda p: p.tau_d_ratio)
     rep.resumed_from = last.label
     rep.resumed_method = str(last.extra.get("continuation", ""))
+    rep.resumed_previous = _previous_arclength(done, last.tau_d_ratio)
     rep.reached, rep.reached_beta, rep.reached_L = last.tau_d_ratio, last.beta, last.L
     return _Base(last.xi, np.log(last.v), last.beta, last.tau_d_ratio)
 
 
-def _previous_arclength(out, q_last):
-    """(β, τ_d/τ_min) of the deepest converged arclength pulse of ``out`` above ``q_last`` (the
-    step before the one a resumed march starts from), or None."""
-    if not os.path.exists(out):
+def _previous_arclength(pulses, q_last):
+    """(β, τ_d/τ_min) of the deepest converged arclength pulse of ``pulses`` above ``q_last``
+    (the step before the one a resumed march starts from), or None."""
+    above = [p for p in pulses if p.converged and p.extra.get("continuation") == "arclength"
+             and p.tau_d_ratio > q_last + 1e-12]
+    if not above:
         return None
-    best = None
-    for label in list_pulses(out):
-        pu, _ = read_pulse(out, label)
-        if (pu.converged and pu.extra.get("continuation") == "arclength"
-                and pu.tau_d_ratio > q_last + 1e-12
-                and (best is None or pu.tau_d_ratio < best[1])):
-            best = (pu.beta, pu.tau_d_ratio)
-    return best
+    p = min(above, key=lambda p: p.tau_d_ratio)
+    return p.beta, p.tau_d_ratio
 
 
 def _attempt(params, tau_d_ratio, rep: FamilyReport, progress, **solve_args):
