@@ -144,6 +144,15 @@ def compare_marches(dir_a, dir_b):
                                                                      Lr[inside])}
 
 
+def _local_m(lnL, q, tau_star):
+    """Centred local exponent d ln L/d ln(q − τ̃*) at the inner points of pulses sorted by L
+    (NaN where a neighbour lies at or below τ̃*)."""
+    d = q - tau_star
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where((d[2:] > 0) & (d[:-2] > 0),
+                        -(lnL[2:] - lnL[:-2]) / np.log(np.abs(d[2:] / d[:-2])), np.nan)
+
+
 def fit_row(name, f):
     return (f"| {name} | {f['n']} | {f['tau_star']:.5f} ± {f['tau_star_err']:.5f}"
             f"{' (at bound)' if f.get('at_bound') else ''} | {f['m_L']:.3f} ± {f['m_L_err']:.3f} "
@@ -248,11 +257,9 @@ def main(argv=None):
         print("|---|---|---|---|---|---|")
         order = np.argsort(L)
         lnL, lnb, qq = np.log(L[order]), np.log(1 - b[order]), q[order]
-        dd_ = qq - tau_deep
         loc = dict(L=L[order][1:-1],
                    r=((lnL[2:] - lnL[:-2]) / (lnb[2:] - lnb[:-2])),
-                   m=np.where((dd_[2:] > 0) & (dd_[:-2] > 0),
-                              -(lnL[2:] - lnL[:-2]) / np.log(np.abs(dd_[2:] / dd_[:-2])), np.nan),
+                   m=_local_m(lnL, qq, tau_deep),
                    s=-(qq[2:] - qq[:-2]) / (lnL[2:] - lnL[:-2]))
         last = -1.0
         for k in range(loc["L"].size):
@@ -385,10 +392,7 @@ def main(argv=None):
         ax1.set_xlabel("L (m)"), ax1.set_ylabel("local exponent"), ax1.legend(fontsize=7)
         ax2.semilogx(loc["L"][ok], loc["m"][ok], "o", ms=3, mfc="none",
                      label=f"τ̃* = {tau_deep:.5f} (joint fit, deepest decade)")
-        dpap = q[np.argsort(L)] - PAPER_SCALING["tau_star"]
-        lnLs = np.log(np.sort(L))
-        mp = np.where((dpap[2:] > 0) & (dpap[:-2] > 0),
-                      -(lnLs[2:] - lnLs[:-2]) / np.log(np.abs(dpap[2:] / dpap[:-2])), np.nan)
+        mp = _local_m(np.log(np.sort(L)), q[np.argsort(L)], PAPER_SCALING["tau_star"])
         ax2.semilogx(loc["L"][ok], mp[ok], "^", ms=3, mfc="none", color="r",
                      label="τ̃* = 1.0087 (paper)")
         ax2.axhline(1.0, color="r", ls="--", lw=1, label="paper's asymptote m_L = 1")
