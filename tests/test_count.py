@@ -153,3 +153,88 @@ def test_cli_count_budget_bad_input_and_documented_default(tmp_path, pulse12, pa
                        capture_output=True, text=True).stdout
     m = re.search(r"--count-evals N\s+budget of det M evaluations per count \(default (\d+)", h)
     assert m and int(m.group(1)) == COUNT_EVALS
+
+
+class _Counted(_Diag):
+    """_Diag that counts its evaluations (what a checkpoint must save)."""
+
+    def __init__(self, *a, **k):
+        super().__init__(*a, **k)
+        self.calls = 0
+
+    def matrices(self, z, deriv=False):
+        self.calls += 1
+        return super().matrices(z, deriv)
+
+
+def test_count_checkpoint_resumes_an_exhausted_walk_without_evaluating_again(tmp_path):
+    """A walk that runs out of budget leaves its evaluations; the rerun with a larger budget reads
+    them back, evaluates only the rest, and ends exactly as one uninterrupted walk does."""
+    lams = np.array([0.0102 + 1.0j, 0.0102 + 1.0001j, 0.5], complex)
+    ref_op = _Counted(lams)
+    ref = count_unstable(ref_op, (0.01, 4.0, 4.0), max_evals=2000)
+    assert ref.status == "converged" and ref.count == 3 and ref.resumed == 0
+    ck = str(tmp_path / "walk.npz")
+    first_op = _Counted(lams)
+    first = count_unstable(first_op, (0.01, 4.0, 4.0), max_evals=60, checkpoint=ck,
+                           checkpoint_every=0.0)
+    assert first.status == "failed" and first.count is None
+    with np.load(ck) as f:
+        assert f["z"].size == first_op.calls == first.n_evals
+    again_op = _Counted(lams)
+    again = count_unstable(again_op, (0.01, 4.0, 4.0), max_evals=2000, checkpoint=ck,
+                           checkpoint_every=1e9)           # written only at the end
+    assert again.status == "converged" and again.count == ref.count
+    assert again.n_evals == ref.n_evals and again.resumed == first.n_evals
+    assert again_op.calls == ref.n_evals - first.n_evals
+    assert np.array_equal(again.points, ref.points) and np.allclose(again.args, ref.args)
+    with np.load(ck) as f:
+        assert f["z"].size == ref.n_evals
+    # a checkpoint of another operator is not used, and says so
+    other = _Counted(lams)
+    other.key = "another pulse"
+    res = count_unstable(other, (0.01, 4.0, 4.0), max_evals=2000, checkpoint=ck)
+    assert res.resumed == 0 and other.calls == ref.n_evals
+    assert "another operator" in res.checkpoint_note
+
+
+def test_count_checkpoint_write_is_atomic(tmp_path, monkeypatch):
+    """A write interrupted after the temporary file is opened leaves the previous checkpoint."""
+    from slippulse.stability import count as cmod
+    ck = str(tmp_path / "walk.npz")
+    op = _Diag(np.array([0.5], complex))
+    cmod._write_checkpoint(ck, cmod.operator_key(op), {0.5 + 1j: (0.25, 2.0 + 0j)})
+
+    def broken(fh, **kw):
+        fh.write(b"partial")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cmod.np, "savez", broken)
+    with pytest.raises(KeyboardInterrupt):
+        cmod._write_checkpoint(ck, cmod.operator_key(op), {0.1 + 0j: (0.0, 1.0 + 0j)})
+    monkeypatch.undo()
+    cache, note = cmod._read_checkpoint(ck, cmod.operator_key(op))
+    assert note == "" and cache == {0.5 + 1j: (0.25, 2.0 + 0j)}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["walk.npz"]     # no temporary left
+
+
+def test_count_checkpoint_in_the_product(tmp_path, pulse12, params):
+    """run_spectrum keeps an out-of-budget count's evaluations beside the file and says where;
+    the rerun with a larger budget goes on from them, converges as a fresh count does, and
+    removes the file."""
+    import os
+    from slippulse.core.h5io import write_pulse
+    from slippulse.stability.spectrum import read_spectrum
+    from slippulse.stability.spectrum_family import count_checkpoint_path, run_spectrum
+    f = str(tmp_path / "one.h5")
+    write_pulse(f, pulse12.to_pulse(), params)
+    ck = count_checkpoint_path(f, "td1.2000")
+    kw = dict(extra=False, levels=0, level0_points=300, count_box=(0.5, 4.0, 4.0))
+    rep = run_spectrum(f, count_evals=30, **kw)
+    cnt = rep.results[0].count
+    assert cnt.status == "failed" and os.path.exists(ck) and ck in cnt.message
+    rep = run_spectrum(f, overwrite=True, **kw)
+    cnt = rep.results[0].count
+    assert cnt.status == "converged" and cnt.count == 1
+    assert 0 < cnt.resumed <= 30 and not os.path.exists(ck)
+    assert read_spectrum(f, "td1.2000")["count"] == 1

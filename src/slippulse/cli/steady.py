@@ -319,7 +319,9 @@ def spectrum_line(label, res) -> str:
     if res.count is not None:
         c = res.count
         line += (f"; count: {c.count} in Re in [{c.box[0]:g}, {c.box[1]:.3g}], |Im| <= "
-                 f"{c.box[2]:.3g} c_p/L ({c.n_evals} det, {c.wall_time:.0f} s)"
+                 f"{c.box[2]:.3g} c_p/L ({c.n_evals} det"
+                 + (f", {c.resumed} read back from its checkpoint" if c.resumed else "")
+                 + f", {c.wall_time:.0f} s)"
                  if c.count is not None
                  else f"; count FAILED: {c.message}")
         if c.count is not None and s.real / res.rate_unit < c.box[0]:
@@ -646,7 +648,9 @@ def register(sub) -> None:
     p.add_argument("--count", type=float, nargs=3, default=None, metavar=("X0", "X1", "Y1"),
                    help="also count the eigenvalues with X0 <= Re sigma L/c_p <= X1, "
                         "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "
-                        "times the leading rate), e.g. --count 0.01 4 4")
+                        "times the leading rate), e.g. --count 0.01 4 4; its det M "
+                        "evaluations are kept in FILE.count-LABEL.npz until it converges, so an "
+                        "interrupted or out-of-budget count goes on from them when rerun")
     p.add_argument("--count-evals", type=int, default=None, metavar="N",
                    help="budget of det M evaluations per count (default 400; a walk "
                         "that needs more is reported failed, with no count; near the "

@@ -28,10 +28,18 @@ change, the trapezoid of the derivative does not. The sum of the changes must be
 ``integer_tol`` of an integer multiple of 2π. A walk that does not meet the conditions within
 ``max_evals`` evaluations reports status 'failed' and no count. An operator whose ``matrices``
 gives no M′ is walked with the first condition only (``reach`` then nan).
+
+A walk at the deep pulses costs hours (one evaluation assembles an N × N kernel matrix: 10–40 s
+at N = 2828). With a ``checkpoint`` file the evaluations survive an interruption or an exhausted
+budget: each (σ, arg det M, g) is kept, the file is rewritten atomically as the walk goes, and a
+rerun on the same operator (:func:`operator_key`) reads them back instead of evaluating again.
+The walk is deterministic, so the resumed walk visits the same points and ends as an
+uninterrupted one would; evaluations at σ on another box of the same operator are reused too.
 """
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -77,6 +85,64 @@ class ContourCount:
     points: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))   # σ L/c_p walked
     args: np.ndarray = field(default_factory=lambda: np.zeros(0))              # unwrapped arg det
     reach: float = float("nan")      # largest derivative criterion between neighbours (nan: none)
+    resumed: int = 0                 # evaluations of this walk read from the checkpoint
+    checkpoint_note: str = ""        # why a checkpoint file present was not used ('' otherwise)
+
+
+def operator_key(op) -> str:
+    """What identifies the operator of a count checkpoint: its size, pulse and parameters.
+
+    β, L and τ_d to 12 significant digits (a pulse re-solved with another thread count differs
+    in the last bits; two pulses of a family differ far above 1e-12), the translation pin, and the
+    friction and elastic parameters. An operator without a pulse (a test matrix) gives its class
+    name and any ``key`` attribute.
+    """
+    pulse = getattr(op, "pulse", None)
+    if pulse is None:
+        return f"{type(op).__name__}:{getattr(op, 'key', '')}"
+    params = getattr(op, "params", None)
+    pdict = params.as_dict() if params is not None else {}
+    ptext = ",".join(f"{k}={float(v):.12g}" for k, v in sorted(pdict.items())
+                     if isinstance(v, (int, float)))
+    return (f"N={int(pulse.n_points)} beta={float(pulse.beta):.12g} L={float(pulse.L):.12g} "
+            f"tau_d={float(pulse.tau_d):.12g} pin={int(getattr(op, 'pin', None) is not None)} "
+            f"{ptext}")
+
+
+def _read_checkpoint(path, key):
+    """({σ: (arg, g or None)}, note) from a checkpoint file; an absent file gives ({}, ''), one
+    written for another operator or unreadable gives ({}, why) and is overwritten later."""
+    if not path or not os.path.exists(path):
+        return {}, ""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            stored = str(f["key"])
+            z, a, g = f["z"], f["arg"], f["g"]
+    except Exception as exc:               # a foreign or damaged file: not ours to trust
+        return {}, f"checkpoint {path} unreadable ({type(exc).__name__}); starting afresh"
+    if stored != key:
+        return {}, f"checkpoint {path} is for another operator ({stored}); starting afresh"
+    return ({complex(zk): (float(ak), None if np.isnan(gk) else complex(gk))
+             for zk, ak, gk in zip(z, a, g)}, "")
+
+
+def _write_checkpoint(path, key, cache):
+    """Every evaluation in `cache`, written to a temporary file and renamed over `path` (an
+    interrupted write leaves the previous checkpoint)."""
+    z = np.array(list(cache), complex)
+    a = np.array([v[0] for v in cache.values()], float)
+    g = np.array([np.nan if v[1] is None else v[1] for v in cache.values()], complex)
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, key=np.array(key), z=z, arg=a, g=g)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
 
 
 def _rectangle(x0, x1, y1, per_side):
@@ -91,7 +157,7 @@ def _rectangle(x0, x1, y1, per_side):
 
 
 def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, integer_tol=0.05,
-                   progress=None, derivative=True):
+                   progress=None, derivative=True, checkpoint=None, checkpoint_every=60.0):
     """Count the eigenvalues of M(σ) in the box x0 ≤ Re σ L/c ≤ x1, |Im σ L/c| ≤ y1.
 
     Parameters
@@ -106,20 +172,36 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     derivative : also bound the change of g = d ln det M/dσ between neighbours, |Δg| |Δσ|, and
         the gap between the wrapped change of arg det and the trapezoid of Im(g dσ) (one more
         solve with N right-hand sides per evaluation).
+    checkpoint : path of a file that keeps the evaluations (module notes), or None. Read at the
+        start if it was written for this operator, rewritten at most every `checkpoint_every`
+        seconds and at the end of the walk. Left in place: the caller removes it when done.
+        ``max_evals`` counts the walk's points, read back or new.
     """
     t0 = time.perf_counter()
     x0, x1, y1 = (float(b) for b in box)
     if not (0.0 < x0 < x1 and y1 > 0.0):
         raise ValueError(f"box={box!r}: need 0 < x0 < x1 and y1 > 0 (units of c_p/L)")
     unit = op.rate_unit
-    cache = {}
-
+    key = operator_key(op) if checkpoint else ""
+    cache, note = _read_checkpoint(checkpoint, key)
     checked = bool(derivative)
+    used = set()                            # the points of this walk
+    resumed = 0
+    unsaved = [0, time.perf_counter()]      # new evaluations since the last write, its time
+
+    def save(force=False):
+        if checkpoint and unsaved[0] and (
+                force or time.perf_counter() - unsaved[1] >= checkpoint_every):
+            _write_checkpoint(checkpoint, key, cache)
+            unsaved[:] = [0, time.perf_counter()]
 
     def arg_at(z):
         """(arg det M, d ln det M/dz or None) at z (units of c_p/L)."""
-        nonlocal checked
-        if z not in cache:
+        nonlocal checked, resumed
+        hit = cache.get(z)
+        if hit is not None and (hit[1] is not None or not checked):
+            resumed += z not in used
+        else:
             M, dM = op.matrices(z * unit, deriv=checked)
             if checked and dM is None:
                 checked = False
@@ -128,8 +210,12 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
                 cache[z] = (a, g * unit)
             else:
                 cache[z] = (arg_det(M)[1], None)
+            unsaved[0] += 1
+            save()
+        if z not in used:
+            used.add(z)
             if progress:
-                progress(len(cache))
+                progress(len(used))
         return cache[z]
 
     def gaps(pts, vals):
@@ -152,16 +238,17 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
                if steps[k] > max_step or gap[k] > max_step]
         if not bad:
             break
-        if len(cache) + len(bad) > max_evals:
+        if len(used) + len(bad) > max_evals:
             status = "failed"
             msg = (f"arg det M still changes by {steps.max():.2f} rad between neighbours"
                    + (f" (derivative criterion {gap.max():.2f})" if checked else "")
-                   + f" after {len(cache)} evaluations (budget {max_evals})")
+                   + f" after {len(used)} evaluations (budget {max_evals})")
             break
         for k in reversed(bad):
             zm = 0.5 * (pts[k] + pts[k + 1])
             pts.insert(k + 1, zm)
             vals.insert(k + 1, arg_at(zm))
+    save(force=True)
     unwrapped = np.concatenate([[vals[0][0]], vals[0][0] + np.cumsum(dargs)])
     winding = float(np.sum(dargs) / (2.0 * math.pi))
     count = None
@@ -173,7 +260,8 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
             count = int(round(winding))
             msg = (f"{count} eigenvalue(s) in {x0:g} <= Re sigma L/c <= {x1:g}, "
                    f"|Im sigma L/c| <= {y1:g}")
-    return ContourCount(count, winding, (x0, x1, y1), len(cache),
+    return ContourCount(count, winding, (x0, x1, y1), len(used),
                         float(np.max(np.abs(dargs))) if dargs.size else 0.0, status, msg,
                         time.perf_counter() - t0, np.array(pts), unwrapped,
-                        float(gap.max()) if checked and gap.size else float("nan"))
+                        float(gap.max()) if checked and gap.size else float("nan"),
+                        resumed, note)

@@ -8,6 +8,7 @@ its neighbour), :func:`slippulse.stability.refine.refine_leading` on a ladder of
 """
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -22,6 +23,11 @@ from .spectrum import (MIN_RE, NEWTON_TOL, PulseSpectrum, order4_pulse, pulse_sp
                        read_spectrum, write_spectrum)
 
 COUNT_EVALS = 400           # default budget of det M evaluations per count (docs/spectrum.md §6)
+
+
+def count_checkpoint_path(path, label):
+    """The file beside the family file that keeps a count's evaluations until it converges."""
+    return f"{path}.count-{label}.npz"
 
 
 @dataclass
@@ -156,7 +162,10 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
         s_err stored).
     count_box : (x0, x1, y1) in c_p/L, or None: also count the eigenvalues in that box by the
         argument principle (:func:`slippulse.stability.count.count_unstable`), on the pulse's grid.
-        x1 and y1 are raised to 1.5 times the leading s L/c_p where that is larger.
+        x1 and y1 are raised to 1.5 times the leading s L/c_p where that is larger. Its
+        evaluations are kept in :func:`count_checkpoint_path` as it goes and read back by a
+        rerun on the same operator (an interrupted or out-of-budget count goes on from them);
+        the file is removed once the count converges.
     level_progress : callable(str) or None, told about each refinement level / count evaluation.
     target, rel_target : the goal s_err L/c_p <= max(target, rel_target |s L/c_p|); levels
         are added beyond `levels` until it is met (or the next level would exceed
@@ -248,9 +257,16 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
         if res.status == "converged" and count_box is not None:
             lead = res.leading.real / res.rate_unit if res.sigmas.size else 0.0
             box = (count_box[0], max(count_box[1], 1.5 * lead), max(count_box[2], 1.5 * lead))
+            ckpt = count_checkpoint_path(path, lab)
             res.count = count_unstable(res.operator, box, max_evals=count_evals,
                                        progress=(lambda k: level_progress(f"count: {k} det"))
-                                       if level_progress else None)
+                                       if level_progress else None, checkpoint=ckpt)
+            if res.count.status == "converged":
+                if os.path.exists(ckpt):
+                    os.remove(ckpt)
+            elif os.path.exists(ckpt):
+                res.count.message += (f"; its evaluations are kept in {ckpt}: the same count "
+                                      "with a larger budget goes on from them")
         res.operator = None                             # N×N matrices: not kept per pulse
         if res.status != "converged":                   # a failure stores no eigenvalue
             res.sigmas = np.zeros(0, complex)
