@@ -83,6 +83,37 @@ def test_count_is_not_fooled_by_a_continuum_just_outside_the_edge():
     assert blind.count != 1
 
 
+class _Drift(_Diag):
+    """_Diag times e^{Tσ} per row: det M gains e^{nTσ}, a smooth phase drift of nT rad per unit
+    of Im σ along the contour, as the N far zeros give the pulse operators at depth."""
+
+    def __init__(self, lams, T, **k):
+        super().__init__(lams, **k)
+        self.T = T
+
+    def matrices(self, z, deriv=False):
+        M, _ = super().matrices(z, False)
+        e = np.exp(self.T * z)
+        dM = (np.eye(self.lams.size) + self.T * M) * e if deriv else None
+        return M * e, dM
+
+
+@pytest.mark.parametrize("lams, expected", [
+    ([0.5, 2 + 1j, 2 - 1j, -1.0], 3),
+    ([0.0102 + 1.0j, 0.0102 + 1.0001j, 3.9], 3),          # a close pair under the drift
+])
+def test_count_follows_a_large_smooth_phase_drift_with_few_points(lams, expected):
+    """|g| ≈ 60 everywhere: the wrapped rule needs a point per 0.01 of contour, the trapezoid rule
+    counts the same zeros with a fraction of the evaluations."""
+    op = _Drift(np.array(lams, complex), T=5.0)            # n T = 60
+    new = count_unstable(op, (0.01, 4.0, 4.0), max_evals=6000)
+    old = count_unstable(op, (0.01, 4.0, 4.0), max_evals=6000, phase_rule="wrapped")
+    assert new.status == old.status == "converged", (new.message, old.message)
+    assert new.count == old.count == expected
+    assert new.reach <= 0.6 and old.max_step <= 0.6
+    assert new.n_evals < old.n_evals / 4
+
+
 def test_arg_det_derivative_is_jacobi_formula():
     from slippulse.stability.count import log_det_derivative
     rng = np.random.default_rng(5)
@@ -133,7 +164,7 @@ def test_count_of_the_1p2_pulse_in_the_product(tmp_path, pulse12, params):
     assert list(st["count_box_c_over_L"]) == pytest.approx([0.5, 1.5 * st["leading_s_per_L"],
                                                            1.5 * st["leading_s_per_L"]])
     assert st["count"] == 1 and abs(st["count_winding"] - 1.0) < 0.05
-    assert st["count_max_step_rad"] <= 0.6 and st["count_max_reach_rad"] <= 0.6
+    assert st["count_max_reach_rad"] <= 0.6      # the trapezoid rule's criteria, all pairs
 
 
 def test_cli_count_budget_bad_input_and_documented_default(tmp_path, pulse12, params):
@@ -203,7 +234,7 @@ def test_count_checkpoint_write_is_atomic(tmp_path, monkeypatch):
     from slippulse.stability import count as cmod
     ck = str(tmp_path / "walk.npz")
     op = _Diag(np.array([0.5], complex))
-    cmod._write_checkpoint(ck, cmod.operator_key(op), {0.5 + 1j: (0.25, 2.0 + 0j)})
+    cmod._write_checkpoint(ck, cmod.operator_key(op), {0.5 + 1j: (0.25, 2.0 + 0j, -3.5)})
 
     def broken(fh, **kw):
         fh.write(b"partial")
@@ -211,10 +242,10 @@ def test_count_checkpoint_write_is_atomic(tmp_path, monkeypatch):
 
     monkeypatch.setattr(cmod.np, "savez", broken)
     with pytest.raises(KeyboardInterrupt):
-        cmod._write_checkpoint(ck, cmod.operator_key(op), {0.1 + 0j: (0.0, 1.0 + 0j)})
+        cmod._write_checkpoint(ck, cmod.operator_key(op), {0.1 + 0j: (0.0, 1.0 + 0j, 0.0)})
     monkeypatch.undo()
     cache, note = cmod._read_checkpoint(ck, cmod.operator_key(op))
-    assert note == "" and cache == {0.5 + 1j: (0.25, 2.0 + 0j)}
+    assert note == "" and cache == {0.5 + 1j: (0.25, 2.0 + 0j, -3.5)}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["walk.npz"]     # no temporary left
 
 

@@ -326,6 +326,8 @@ def spectrum_line(label, res) -> str:
                  else f"; count FAILED: {c.message}")
         if c.count is not None and s.real / res.rate_unit < c.box[0]:
             line += " (the leading eigenvalue lies left of the box: not in this count)"
+        if c.checkpoint_note:
+            line += f" ({c.checkpoint_note})"
     return line + f"; {res.wall_time + (ref.wall_time if ref else 0.0):.1f} s"
 
 

@@ -6,32 +6,43 @@ winding number of det M along C:
 
     Z = (1/2π) Δ_C arg det M(σ).
 
-arg det M comes from the LU factors (Σ arg u_ii plus π per row interchange). The contour is the
-rectangle x0 ≤ Re σ ≤ x1, |Im σ| ≤ y1 (in units of c_p/L), walked counter-clockwise. Points are
-inserted between neighbours until, for every pair a, b,
+arg det M and ln|det M| come from the LU factors (Σ arg u_ii plus π per row interchange,
+Σ ln|u_ii|). The contour is the rectangle x0 ≤ Re σ ≤ x1, |Im σ| ≤ y1 (in units of c_p/L), walked
+counter-clockwise. With g = d ln det M/dσ = tr(M⁻¹ M′(σ)) (Jacobi's formula) at every point,
+the change of ln det M between neighbours a, b is predicted by the trapezoid
+T = ½ (g_a + g_b)(σ_b − σ_a). The change of arg det is read as the wrapped difference of the two
+arguments plus the multiple of 2π nearest to Im T (the branch). Points are inserted between
+neighbours until, for every pair,
 
-- the wrapped change of arg det between them is below ``max_step`` radians, and
-- the change of the logarithmic derivative g = d ln det M/dσ = tr(M⁻¹ M′(σ)) (Jacobi's
-  formula) across the segment, |g_b − g_a| |σ_b − σ_a|, is below ``max_step`` too, and so is
-  the gap between the wrapped change and the trapezoidal integral of Im(g dσ).
+- the change of g across the segment, |g_b − g_a| |σ_b − σ_a|, is below ``max_step``, and
+- the change of arg det so read agrees with Im T within ``max_step`` radians, and
+- the change of ln|det M| (which has no branch) agrees with Re T within ``max_step``.
 
-The first condition alone cannot see a zero that lies closer to the contour than the spacing: the
-phase then jumps by about π within a distance of the zero's own distance, and two such zeros, or
-one jump read against the wrong branch, hide a turn of 2π between two evaluations. The change of
-g can. The zeros far from the segment add to g a large (N of them) but smooth part, which
-changes little across it; a zero at a distance d from the segment adds 1/(σ − λ), whose change
-across a segment of length h ≫ d is about 4/h at least (h/d when it is near an end), so the
-segment is halved until h is of the order of d. Nor can the first condition see a steady drift
-of the phase faster than 2π per spacing (the discrete continuum just left of the left edge
-drives one; at 1.025 τ_min, −4.5 rad per unit of Im σ L/c_p): it aliases to a small wrapped
-change, the trapezoid of the derivative does not. The sum of the changes must be within
-``integer_tol`` of an integer multiple of 2π. A walk that does not meet the conditions within
-``max_evals`` evaluations reports status 'failed' and no count. An operator whose ``matrices``
-gives no M′ is walked with the first condition only (``reach`` then nan).
+A zero at a distance d from a segment of length h ≫ d adds 1/(σ − λ) to g, whose change across
+the segment is about 4/h at least (h/d when it is near an end): the segment is halved until h is
+of the order of d, where the trapezoid follows the zero's turn. The zeros far from the segment
+add to g a large (N of them) but smooth part, which the trapezoid integrates: at the deep pulses
+(N = 2828, L = 1.8 km) |g| ≈ 60–650 (c_p/L)⁻¹ along the whole contour, so the phase turns by
+≈ 60 rad per unit of σ L/c_p, smoothly. The rule before stop 31 also required the wrapped change
+itself to be below ``max_step`` (``phase_rule='wrapped'``): one point per 0.01 c_p/L of contour
+there, ≈ 2400 evaluations for a box of ±4 c_p/L, against ≈ 300 for the rule above. Every pair the
+old rule accepts, the new one accepts with the same change (|Im T| < 2 max_step < π picks the
+branch 0), save for the ln|det M| check, which the old rule did not make.
+
+Without M′ (``derivative=False``, or an operator whose ``matrices`` gives none) the walk can only
+require the wrapped change to be below ``max_step``. That alone cannot see a zero closer to the
+contour than the spacing (the phase jumps by about π within the zero's own distance, and two
+such jumps hide a turn of 2π between two evaluations), nor a steady drift faster than 2π per
+spacing (the discrete continuum just left of the left edge drives one; at 1.025 τ_min, −4.5 rad
+per unit of Im σ L/c_p): both alias to small wrapped changes (``reach`` is then nan).
+
+The sum of the changes must be within ``integer_tol`` of an integer multiple of 2π. A walk that
+does not meet the conditions within ``max_evals`` evaluations reports status 'failed' and no
+count.
 
 A walk at the deep pulses costs hours (one evaluation assembles an N × N kernel matrix: 10–40 s
 at N = 2828). With a ``checkpoint`` file the evaluations survive an interruption or an exhausted
-budget: each (σ, arg det M, g) is kept, the file is rewritten atomically as the walk goes, and a
+budget: each (σ, arg det M, ln|det M|, g) is kept, the file is rewritten atomically as the walk goes, and a
 rerun on the same operator (:func:`operator_key`) reads them back instead of evaluating again.
 The walk is deterministic, so the resumed walk visits the same points and ends as an
 uninterrupted one would; evaluations at σ on another box of the same operator are reused too.
@@ -59,11 +70,13 @@ def arg_det(M) -> tuple[float, float]:
     return _lu_log_det(*lu_factor(M, check_finite=False))
 
 
-def log_det_derivative(M, dM) -> tuple[float, complex]:
-    """(arg det M, d ln det M/dσ = tr(M⁻¹ M′)) from one LU factorisation of M (Jacobi's formula)."""
+def log_det_derivative(M, dM, with_abs=False):
+    """(arg det M, d ln det M/dσ = tr(M⁻¹ M′)) from one LU factorisation of M (Jacobi's formula);
+    with_abs: (arg, g, ln|det M|)."""
     lu = lu_factor(M, check_finite=False)
-    arg = _lu_log_det(*lu)[1]
-    return arg, complex(np.trace(lu_solve(lu, dM, check_finite=False)))
+    la, arg = _lu_log_det(*lu)
+    g = complex(np.trace(lu_solve(lu, dM, check_finite=False)))
+    return (arg, g, la) if with_abs else (arg, g)
 
 
 def _wrap(x):
@@ -110,20 +123,20 @@ def operator_key(op) -> str:
 
 
 def _read_checkpoint(path, key):
-    """({σ: (arg, g or None)}, note) from a checkpoint file; an absent file gives ({}, ''), one
-    written for another operator or unreadable gives ({}, why) and is overwritten later."""
+    """({σ: (arg, g or None, ln|det|)}, note) from a checkpoint file; an absent file gives ({}, ''),
+    one written for another operator or unreadable gives ({}, why) and is overwritten later."""
     if not path or not os.path.exists(path):
         return {}, ""
     try:
         with np.load(path, allow_pickle=False) as f:
             stored = str(f["key"])
-            z, a, g = f["z"], f["arg"], f["g"]
+            z, a, g, la = f["z"], f["arg"], f["g"], f["logabs"]
     except Exception as exc:               # a foreign or damaged file: not ours to trust
         return {}, f"checkpoint {path} unreadable ({type(exc).__name__}); starting afresh"
     if stored != key:
         return {}, f"checkpoint {path} is for another operator ({stored}); starting afresh"
-    return ({complex(zk): (float(ak), None if np.isnan(gk) else complex(gk))
-             for zk, ak, gk in zip(z, a, g)}, "")
+    return ({complex(zk): (float(ak), None if np.isnan(gk) else complex(gk), float(lk))
+             for zk, ak, gk, lk in zip(z, a, g, la)}, "")
 
 
 def _write_checkpoint(path, key, cache):
@@ -132,10 +145,11 @@ def _write_checkpoint(path, key, cache):
     z = np.array(list(cache), complex)
     a = np.array([v[0] for v in cache.values()], float)
     g = np.array([np.nan if v[1] is None else v[1] for v in cache.values()], complex)
+    la = np.array([v[2] for v in cache.values()], float)
     tmp = f"{path}.tmp{os.getpid()}"
     try:
         with open(tmp, "wb") as fh:
-            np.savez(fh, key=np.array(key), z=z, arg=a, g=g)
+            np.savez(fh, key=np.array(key), z=z, arg=a, g=g, logabs=la)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
@@ -157,7 +171,8 @@ def _rectangle(x0, x1, y1, per_side):
 
 
 def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, integer_tol=0.05,
-                   progress=None, derivative=True, checkpoint=None, checkpoint_every=60.0):
+                   progress=None, derivative=True, checkpoint=None, checkpoint_every=60.0,
+                   phase_rule="trapezoid"):
     """Count the eigenvalues of M(σ) in the box x0 ≤ Re σ L/c ≤ x1, |Im σ L/c| ≤ y1.
 
     Parameters
@@ -169,15 +184,19 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     max_evals : budget of determinant evaluations (one LU of an N×N complex matrix each).
     integer_tol : largest accepted distance of the winding number from an integer.
     progress : callable(n_evals) or None.
-    derivative : also bound the change of g = d ln det M/dσ between neighbours, |Δg| |Δσ|, and
-        the gap between the wrapped change of arg det and the trapezoid of Im(g dσ) (one more
-        solve with N right-hand sides per evaluation).
+    derivative : use g = d ln det M/dσ (module notes; one more solve with N right-hand sides per
+        evaluation). False: the wrapped change alone.
+    phase_rule : 'trapezoid' (default): the branch of each change from the trapezoid of g, no
+        bound on the change itself; 'wrapped': the rule before stop 31, which also bounds the
+        wrapped change by `max_step` (for comparisons).
     checkpoint : path of a file that keeps the evaluations (module notes), or None. Read at the
         start if it was written for this operator, rewritten at most every `checkpoint_every`
         seconds and at the end of the walk. Left in place: the caller removes it when done.
         ``max_evals`` counts the walk's points, read back or new.
     """
     t0 = time.perf_counter()
+    if phase_rule not in ("trapezoid", "wrapped"):
+        raise ValueError(f"phase_rule={phase_rule!r}: 'trapezoid' or 'wrapped'")
     x0, x1, y1 = (float(b) for b in box)
     if not (0.0 < x0 < x1 and y1 > 0.0):
         raise ValueError(f"box={box!r}: need 0 < x0 < x1 and y1 > 0 (units of c_p/L)")
@@ -206,10 +225,11 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
             if checked and dM is None:
                 checked = False
             if checked:
-                a, g = log_det_derivative(M, dM)
-                cache[z] = (a, g * unit)
+                a, g, la = log_det_derivative(M, dM, with_abs=True)
+                cache[z] = (a, g * unit, la)
             else:
-                cache[z] = (arg_det(M)[1], None)
+                la, a = arg_det(M)
+                cache[z] = (a, None, la)
             unsaved[0] += 1
             save()
         if z not in used:
@@ -219,14 +239,21 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
         return cache[z]
 
     def gaps(pts, vals):
-        """Wrapped Δarg and max(|g_b − g_a| |Δσ|, |Δarg − trapezoid of Im g dσ|) per pair."""
+        """(change of arg det, criterion) per pair of neighbours: the change is the wrapped
+        difference on the branch nearest Im T (trapezoid of g) under the 'trapezoid' rule, and
+        the criterion max(|g_b − g_a| |Δσ|, |change − Im T|, |Δ ln|det| − Re T|) (0 unchecked)."""
         w = np.array([_wrap(b[0] - a[0]) for a, b in zip(vals, vals[1:])])
         if not checked:
             return w, np.zeros(w.size)
-        r = [max(abs(b[1] - a[1]) * abs(zb - za),                     # change of g
-                 abs(wk - (0.5 * (a[1] + b[1]) * (zb - za)).imag))       # trapezoid of arg′
-             for wk, a, b, za, zb in zip(w, vals, vals[1:], pts, pts[1:])]
-        return w, np.array(r)
+        d = w.copy()
+        r = np.empty(w.size)
+        for k, (a, b, za, zb) in enumerate(zip(vals, vals[1:], pts, pts[1:])):
+            trap = 0.5 * (a[1] + b[1]) * (zb - za)
+            if phase_rule == "trapezoid":
+                d[k] = w[k] + 2.0 * math.pi * round((trap.imag - w[k]) / (2.0 * math.pi))
+            r[k] = max(abs(b[1] - a[1]) * abs(zb - za), abs(d[k] - trap.imag),
+                       abs((b[2] - a[2]) - trap.real))
+        return d, r
 
     pts = _rectangle(x0, x1, y1, per_side)
     vals = [arg_at(z) for z in pts]
@@ -234,14 +261,18 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     while True:            # leaves with dargs, gap of the final points (the walk or its budget)
         dargs, gap = gaps(pts, vals)
         steps = np.abs(dargs)
+        bound = not checked or phase_rule == "wrapped"   # the change itself below max_step
         bad = [k for k in range(len(steps))
-               if steps[k] > max_step or gap[k] > max_step]
+               if (bound and steps[k] > max_step) or gap[k] > max_step]
         if not bad:
             break
         if len(used) + len(bad) > max_evals:
             status = "failed"
-            msg = (f"arg det M still changes by {steps.max():.2f} rad between neighbours"
-                   + (f" (derivative criterion {gap.max():.2f})" if checked else "")
+            msg = ((f"the trapezoid of d ln det M/dsigma still misses the change between "
+                    f"neighbours by up to {gap.max():.2f} (criterion {max_step})"
+                    if checked and not bound else
+                    f"arg det M still changes by {steps.max():.2f} rad between neighbours"
+                    + (f" (derivative criterion {gap.max():.2f})" if checked else ""))
                    + f" after {len(used)} evaluations (budget {max_evals})")
             break
         for k in reversed(bad):
