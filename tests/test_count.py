@@ -261,11 +261,52 @@ def test_count_checkpoint_in_the_product(tmp_path, pulse12, params):
     write_pulse(f, pulse12.to_pulse(), params)
     ck = count_checkpoint_path(f, "td1.2000")
     kw = dict(extra=False, levels=0, level0_points=300, count_box=(0.5, 4.0, 4.0))
-    rep = run_spectrum(f, count_evals=30, **kw)
+    rep = run_spectrum(f, count_evals=16, **kw)
     cnt = rep.results[0].count
     assert cnt.status == "failed" and os.path.exists(ck) and ck in cnt.message
     rep = run_spectrum(f, overwrite=True, **kw)
     cnt = rep.results[0].count
     assert cnt.status == "converged" and cnt.count == 1
-    assert 0 < cnt.resumed <= 30 and not os.path.exists(ck)
+    assert 0 < cnt.resumed <= 16 and not os.path.exists(ck)
     assert read_spectrum(f, "td1.2000")["count"] == 1
+
+
+class _RealDiag(_Diag):
+    """A real Q and zeros closed under conjugation: M(σ̄) = conj M(σ)."""
+
+    def __init__(self, lams, symmetric, n=12, seed=0):
+        rng = np.random.default_rng(seed)
+        self.lams = np.concatenate([lams, 50.0 + rng.uniform(1, 5, n - len(lams))])
+        self.Q = rng.normal(size=(n, n))
+        self.Qi = np.linalg.inv(self.Q)
+        self.conjugate_symmetric = symmetric
+
+
+def test_count_of_a_conjugate_symmetric_operator_evaluates_one_half():
+    lams = np.array([0.5, 2 + 1j, 2 - 1j, 0.0102 + 1.5j, 0.0102 - 1.5j, 6.0, -0.3 + 2j,
+                     -0.3 - 2j], complex)
+    full = count_unstable(_RealDiag(lams, False), (0.01, 4.0, 4.0))
+    half_op = _RealDiag(lams, True)
+    calls = []
+    orig = half_op.matrices
+    half_op.matrices = lambda z, deriv=False: (calls.append(z), orig(z, deriv))[1]
+    half = count_unstable(half_op, (0.01, 4.0, 4.0))
+    assert full.status == half.status == "converged"
+    assert full.count == half.count == 5
+    assert np.allclose(full.points, half.points, rtol=0, atol=1e-12)
+    assert np.allclose(full.args, half.args)
+    assert min(z.imag for z in calls) >= 0.0 and len(calls) == half.n_evals
+    assert half.n_evals <= full.n_evals // 2 + 8        # the real-axis points are shared
+
+
+def test_pulse_operator_is_conjugate_symmetric(pulse12, params):
+    from slippulse.stability.operators import StabilityOperator
+    from slippulse.stability.spectrum import order4_pulse
+    op = StabilityOperator(order4_pulse(pulse12.to_pulse(), params), params,
+                           pin_translation=True)
+    assert op.conjugate_symmetric
+    z = complex(0.3, 2.0) * op.rate_unit
+    M, dM = op.matrices(z)
+    Mc, dMc = op.matrices(z.conjugate())
+    assert np.abs(Mc - M.conj()).max() <= 1e-10 * np.abs(M).max()
+    assert np.abs(dMc - dM.conj()).max() <= 1e-10 * np.abs(dM).max()

@@ -40,6 +40,10 @@ The sum of the changes must be within ``integer_tol`` of an integer multiple of 
 does not meet the conditions within ``max_evals`` evaluations reports status 'failed' and no
 count.
 
+The pulse operators have real coefficients, M(σ̄) = conj M(σ): arg det M(σ̄) = −arg det M(σ),
+g(σ̄) = conj g(σ), and the box is symmetric about the real axis, so one determinant on Im σ ≥ 0
+serves both halves (``conjugate_symmetric`` on the operator), half the cost.
+
 A walk at the deep pulses costs hours (one evaluation assembles an N × N kernel matrix: 10–40 s
 at N = 2828). With a ``checkpoint`` file the evaluations survive an interruption or an exhausted
 budget: each (σ, arg det M, ln|det M|, g) is kept, the file is rewritten atomically as the walk goes, and a
@@ -159,14 +163,22 @@ def _write_checkpoint(path, key, cache):
         raise
 
 
-def _rectangle(x0, x1, y1, per_side):
-    """Counter-clockwise corners-and-edges of the box, closed (last point = first)."""
+def _rectangle(x0, x1, y1, per_side, symmetric=False):
+    """Counter-clockwise corners-and-edges of the box, closed (last point = first).
+
+    symmetric: each point below the real axis is replaced by the exact conjugate of its partner
+    above (the two differ in the last bits otherwise), so that the midpoints of mirrored pairs
+    are exact conjugates too; the points above are those of the plain rectangle."""
     corners = [complex(x0, -y1), complex(x1, -y1), complex(x1, y1), complex(x0, y1)]
     pts = []
     for a, b in zip(corners, corners[1:] + corners[:1]):
         t = np.linspace(0.0, 1.0, per_side, endpoint=False)
-        pts.extend(a + (b - a) * t)
+        pts.extend(complex(p) for p in a + (b - a) * t)
     pts.append(corners[0])
+    if symmetric:
+        upper = [p for p in pts if p.imag > 0.0]
+        pts = [min(upper, key=lambda u: abs(u - p.conjugate())).conjugate() if p.imag < 0.0
+               else p for p in pts]
     return pts
 
 
@@ -181,7 +193,10 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     box : (x0, x1, y1) in units of c_p/L; x0 > 0 (the analytic half-plane).
     max_step : largest accepted change of arg det M between neighbouring points, rad.
     per_side : starting points per side of the rectangle.
-    max_evals : budget of determinant evaluations (one LU of an N×N complex matrix each).
+    max_evals : budget of determinant evaluations (one LU of an N×N complex matrix each), new or
+        read back. An operator with ``conjugate_symmetric`` true (real coefficients:
+        M(σ̄) = conj M(σ), as the pulse operators) is evaluated on Im σ ≥ 0 only; the lower half
+        of the box follows by conjugation.
     integer_tol : largest accepted distance of the winding number from an integer.
     progress : callable(n_evals) or None.
     derivative : use g = d ln det M/dσ (module notes; one more solve with N right-hand sides per
@@ -204,9 +219,14 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     key = operator_key(op) if checkpoint else ""
     cache, note = _read_checkpoint(checkpoint, key)
     checked = bool(derivative)
-    used = set()                            # the points of this walk
+    # M(σ̄) = conj M(σ) for an operator with real coefficients: one determinant serves σ and σ̄
+    mirror = bool(getattr(op, "conjugate_symmetric", False))
+    used = set()                    # the determinants of this walk (points with Im σ ≥ 0 if mirror)
     resumed = 0
     unsaved = [0, time.perf_counter()]      # new evaluations since the last write, its time
+
+    def canon(z):
+        return z.conjugate() if mirror and z.imag < 0.0 else z
 
     def save(force=False):
         if checkpoint and unsaved[0] and (
@@ -214,8 +234,9 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
             _write_checkpoint(checkpoint, key, cache)
             unsaved[:] = [0, time.perf_counter()]
 
-    def arg_at(z):
-        """(arg det M, d ln det M/dz or None) at z (units of c_p/L)."""
+    def value(z):
+        """(arg det M, d ln det M/dz or None, ln|det M|) at z (units of c_p/L), evaluated or
+        read back."""
         nonlocal checked, resumed
         hit = cache.get(z)
         if hit is not None and (hit[1] is not None or not checked):
@@ -238,6 +259,13 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
                 progress(len(used))
         return cache[z]
 
+    def arg_at(z):
+        zc = canon(z)
+        a, g, la = value(zc)
+        if zc == z:
+            return a, g, la
+        return -a, (None if g is None else g.conjugate()), la
+
     def gaps(pts, vals):
         """(change of arg det, criterion) per pair of neighbours: the change is the wrapped
         difference on the branch nearest Im T (trapezoid of g) under the 'trapezoid' rule, and
@@ -255,7 +283,7 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
                        abs((b[2] - a[2]) - trap.real))
         return d, r
 
-    pts = _rectangle(x0, x1, y1, per_side)
+    pts = _rectangle(x0, x1, y1, per_side, symmetric=mirror)
     vals = [arg_at(z) for z in pts]
     status, msg = "converged", ""
     while True:            # leaves with dargs, gap of the final points (the walk or its budget)
@@ -266,7 +294,8 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
                if (bound and steps[k] > max_step) or gap[k] > max_step]
         if not bad:
             break
-        if len(used) + len(bad) > max_evals:
+        need = {canon(0.5 * (pts[k] + pts[k + 1])) for k in bad} - used
+        if len(used) + len(need) > max_evals:
             status = "failed"
             msg = ((f"the trapezoid of d ln det M/dsigma still misses the change between "
                     f"neighbours by up to {gap.max():.2f} (criterion {max_step})"

@@ -131,6 +131,11 @@ class StabilityOperator:
     re-solves an older (order-2) pulse on its own grid first.
     """
 
+    #: M(σ̄) = conj M(σ): the linearised equations have real coefficients (the steady pulse and
+    #: the kernels are real at real σ), so the contour count evaluates Im σ ≥ 0 only
+    #: (tests/test_count.py checks the identity on a pulse).
+    conjugate_symmetric = True
+
     def __init__(self, pulse, params, pin_translation=False):
         p = params
         self.params = p
