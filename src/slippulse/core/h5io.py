@@ -35,6 +35,7 @@ import h5py
 import numpy as np
 
 from .. import __version__
+from .atomic import replacing
 from .params import Parameters
 
 #: Version of the file layouts written by this code (root attribute ``format_version``).
@@ -235,9 +236,7 @@ def atomic_update(path: str, fill, replace: bool = False) -> None:
     if os.path.exists(path) and not replace:
         with open_h5(shown, "output"):         # an existing target must be a readable HDF5 file
             pass
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".h5", dir=d)
-    os.close(fd)
-    try:
+    with replacing(path, suffix=".h5") as tmp:
         if os.path.exists(path) and not replace:
             shutil.copyfile(path, tmp)
             mode = "r+"
@@ -249,25 +248,6 @@ def atomic_update(path: str, fill, replace: bool = False) -> None:
                 h5.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat()
             fill(h5)
             h5.flush()
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.chmod(tmp, _output_mode(path))
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
-
-
-def _output_mode(path: str) -> int:
-    """Permission bits of a file written to ``path``: those of the file it replaces, else what
-    ``open`` would give a new file (0o666 less the umask; ``mkstemp`` alone gives 0o600)."""
-    try:
-        return os.stat(path).st_mode & 0o7777
-    except OSError:
-        mask = os.umask(0)
-        os.umask(mask)
-        return 0o666 & ~mask
 
 
 def write_parameters(h5: h5py.File, params: Parameters) -> None:

@@ -24,6 +24,8 @@ import warnings
 
 import numpy as np
 
+from ..core.atomic import replacing_open
+
 try:
     import pyfftw
     import pyfftw.builders
@@ -57,10 +59,8 @@ def _save_wisdom() -> None:
     path = wisdom_path()
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
-        tmp = f"{path}.{os.getpid()}.tmp"
-        with open(tmp, "wb") as fh:
+        with replacing_open(path, "wb") as fh:
             pickle.dump(pyfftw.export_wisdom(), fh)
-        os.replace(tmp, path)
     except OSError:
         pass
 

@@ -61,6 +61,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
+from ..core.atomic import replacing_open
+
 
 def _lu_log_det(lu, piv) -> tuple[float, float]:
     d = np.diag(lu)
@@ -144,23 +146,14 @@ def _read_checkpoint(path, key):
 
 
 def _write_checkpoint(path, key, cache):
-    """Every evaluation in `cache`, written to a temporary file and renamed over `path` (an
-    interrupted write leaves the previous checkpoint)."""
+    """Every evaluation in `cache`, written atomically (:func:`slippulse.core.atomic.replacing`:
+    an interrupted write leaves the previous checkpoint)."""
     z = np.array(list(cache), complex)
     a = np.array([v[0] for v in cache.values()], float)
     g = np.array([np.nan if v[1] is None else v[1] for v in cache.values()], complex)
     la = np.array([v[2] for v in cache.values()], float)
-    tmp = f"{path}.tmp{os.getpid()}"
-    try:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, key=np.array(key), z=z, arg=a, g=g, logabs=la)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+    with replacing_open(path, "wb") as fh:
+        np.savez(fh, key=np.array(key), z=z, arg=a, g=g, logabs=la)
 
 
 def _rectangle(x0, x1, y1, per_side, symmetric=False):

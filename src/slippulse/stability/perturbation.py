@@ -29,6 +29,7 @@ import time
 
 import numpy as np
 
+from ..core.atomic import replacing, replacing_open
 from ..core.params import ParameterError
 
 #: Keys of a scan case (run_case) with their defaults and meaning.
@@ -461,16 +462,15 @@ def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
     pulse, params, res, row = run_perturbation(c, progress=progress)
     row["file"] = os.path.abspath(out_path)
     os.makedirs(os.path.dirname(os.path.abspath(out_path)), exist_ok=True)
-    tmp = out_path + ".part"
-    write_result(tmp, res, params, source=os.path.abspath(c["steady"]), label=c["label"])
-    with h5py.File(tmp, "a") as h5:
-        for k, v in row.items():
-            h5.attrs[k] = v
-        h5.attrs["case_json"] = case_json(case)
-        h5.attrs["case_resolved_json"] = case_json(c)
-        h5.attrs["run_wall_time"] = time.perf_counter() - wall0
-        h5.attrs["complete"] = True
-    os.replace(tmp, out_path)
+    with replacing(out_path, suffix=".h5") as tmp:
+        write_result(tmp, res, params, source=os.path.abspath(c["steady"]), label=c["label"])
+        with h5py.File(tmp, "a") as h5:
+            for k, v in row.items():
+                h5.attrs[k] = v
+            h5.attrs["case_json"] = case_json(case)
+            h5.attrs["case_resolved_json"] = case_json(c)
+            h5.attrs["run_wall_time"] = time.perf_counter() - wall0
+            h5.attrs["complete"] = True
     return row
 
 
@@ -574,12 +574,11 @@ def write_pair_table(rows: list[dict], out_dir: str) -> list[str]:
     if not pairs:
         return []
     path = os.path.join(out_dir, "growth_pairs.csv")
-    with open(path + ".part", "w", newline="") as fh:
+    with replacing_open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(PAIR_COLUMNS), extrasaction="ignore")
         w.writeheader()
         for r in pairs:
             w.writerow(r)
-    os.replace(path + ".part", path)
     return [path]
 
 

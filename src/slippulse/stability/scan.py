@@ -98,6 +98,7 @@ import time
 import tomllib
 from dataclasses import dataclass, field
 
+from ..core.atomic import replacing_open
 from ..core.errors import UsageError
 
 DEFAULT_RUNNER = "slippulse.stability.perturbation:run_case"
@@ -534,13 +535,11 @@ def _columns(rows: list[dict]) -> list[str]:
 def write_csv(path: str, rows: list[dict]) -> None:
     """``rows`` as CSV (union of the columns, empty cells for missing values), atomically."""
     cols = _columns(rows)
-    tmp = path + ".tmp"
-    with open(tmp, "w", newline="") as fh:
+    with replacing_open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=cols, restval="")
         w.writeheader()
         for r in rows:
             w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
-    os.replace(tmp, path)
 
 
 def _column_array(values: list):

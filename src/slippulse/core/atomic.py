@@ -1,0 +1,60 @@
+"""Atomic replacement of an output file: write beside it, flush to disk, rename over it.
+
+Every writer of the package that replaces a file whole (the HDF5 writers of :mod:`.h5io`, the
+count checkpoint, the scan tables, the perturbation results, the FFTW wisdom) goes through
+:func:`replacing`: the content goes to a temporary file in the target's directory (so that the
+rename stays on one file system), which is fsync'ed and then renamed over the target with
+``os.replace`` (atomic on POSIX). A writer that raises, or is interrupted by Ctrl-C, leaves the
+previous file as it was and removes its temporary file; after a kill -9 a hidden ``.tmp-*`` file
+may remain beside the target, and nothing reads it.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from contextlib import contextmanager
+
+
+def output_mode(path: str) -> int:
+    """Permission bits of a file written to ``path``: those of the file it replaces, else what
+    ``open`` would give a new file (0o666 less the umask; ``mkstemp`` alone gives 0o600)."""
+    try:
+        return os.stat(path).st_mode & 0o7777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
+
+
+@contextmanager
+def replacing(path: str, suffix: str = ""):
+    """Yield the path of a new, empty temporary file beside `path`; on a clean exit its content
+    replaces `path` (fsync, permissions of the file replaced, ``os.replace``); on an exception
+    the temporary file is removed and `path` is left as it was.
+
+    `suffix` ends the temporary name (e.g. ``.h5``, for libraries that look at it).
+    """
+    path = os.path.abspath(path)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=suffix, dir=os.path.dirname(path))
+    os.close(fd)
+    try:
+        yield tmp
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.chmod(tmp, output_mode(path))
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+
+
+@contextmanager
+def replacing_open(path: str, mode: str = "w", **kwargs):
+    """``open`` on a temporary file that replaces `path` when the block ends without an
+    exception (:func:`replacing`); `mode` is a writing mode ('w', 'wb')."""
+    if not mode.startswith("w"):
+        raise ValueError(f"mode={mode!r}: replacing_open writes a new file ('w' or 'wb')")
+    with replacing(path) as tmp:
+        with open(tmp, mode, **kwargs) as fh:
+            yield fh
