@@ -180,6 +180,11 @@ def test_cli_count_budget_bad_input_and_documented_default(tmp_path, pulse12, pa
                        capture_output=True, text=True)
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0 and "count_evals=5" in r.stderr
+    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f,
+                        "--count", "0.5", "4", "4", "--count-workers", "0"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.strip().count("\n") == 0 and "count_workers=0" in r.stderr
     h = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", "--help"],
                        capture_output=True, text=True).stdout
     m = re.search(r"--count-evals N\s+budget of det M evaluations per count \(default (\d+)", h)
@@ -310,3 +315,40 @@ def test_pulse_operator_is_conjugate_symmetric(pulse12, params):
     Mc, dMc = op.matrices(z.conjugate())
     assert np.abs(Mc - M.conj()).max() <= 1e-10 * np.abs(M).max()
     assert np.abs(dMc - dM.conj()).max() <= 1e-10 * np.abs(dM).max()
+
+
+def test_count_on_worker_processes_walks_the_same_points(tmp_path):
+    """workers=2: each round's points evaluated at once by two spawned processes; the walk visits
+    the same points, reads the same arguments and counts the same as the serial walk, and
+    evaluates each point once (the checkpoint holds exactly its points)."""
+    lams = np.array([0.5, 2 + 1j, 2 - 1j, -1.0], complex)
+    serial = count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), max_evals=2000)
+    ck = str(tmp_path / "walk.npz")
+    seen = []
+    par = count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), max_evals=2000, workers=2,
+                         checkpoint=ck, progress=seen.append)
+    assert serial.status == par.status == "converged"
+    assert par.count == serial.count == 3
+    assert par.n_evals == serial.n_evals and par.resumed == 0
+    assert np.array_equal(par.points, serial.points) and np.allclose(par.args, serial.args)
+    with np.load(ck) as f:
+        assert f["z"].size == par.n_evals
+    assert seen == sorted(seen) and seen[-1] == par.n_evals      # progress only moves forward
+    with pytest.raises(ValueError, match="workers=0"):
+        count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), workers=0)
+
+
+def test_count_of_the_pulse_operator_on_workers(pulse12, params):
+    """The pulse operator survives the trip to the workers (pickled once per worker): the same
+    count and arguments as the serial walk on the 1.2 τ_min pulse."""
+    from slippulse.stability.operators import StabilityOperator
+    from slippulse.stability.spectrum import order4_pulse
+    op = StabilityOperator(order4_pulse(pulse12.to_pulse(), params), params,
+                           pin_translation=True)
+    box = (5.0, 34.0, 34.0)
+    serial = count_unstable(op, box, max_evals=400)
+    par = count_unstable(op, box, max_evals=400, workers=2)
+    assert serial.status == par.status == "converged", (serial.message, par.message)
+    assert par.count == serial.count == 1
+    assert np.array_equal(par.points, serial.points)
+    assert np.allclose(par.args, serial.args, rtol=0, atol=1e-8)

@@ -377,6 +377,9 @@ def cmd_stability(args) -> int:
         if not (all(math.isfinite(b) for b in box) and 0.0 < box[0] < box[1] and box[2] > 0.0):
             raise ParameterError(f"count={list(box)!r} is invalid: need X0 X1 Y1 with "
                                  "0 < X0 < X1 and Y1 > 0 (units of c_p/L)")
+    if not (isinstance(args.count_workers, int) and 1 <= args.count_workers <= 256):
+        raise ParameterError(f"count_workers={args.count_workers!r} is invalid: must be an "
+                             "integer in [1, 256] (worker processes of the count)")
     if not (isinstance(args.count_evals, int) and 24 <= args.count_evals <= 20000):
         raise ParameterError(f"count_evals={args.count_evals!r} is invalid: must be an integer "
                              "in [24, 20000] (det M evaluations of the count)")
@@ -406,7 +409,7 @@ def cmd_stability(args) -> int:
 
     rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
                        progress=progress, levels=args.levels, count_box=box,
-                       count_evals=args.count_evals,
+                       count_evals=args.count_evals, count_workers=args.count_workers,
                        level_progress=level_progress, min_points=args.min_points,
                        target=args.target, pin_translation=args.pin_translation,
                        level0_points=args.points, rel_target=args.rel_target,
@@ -657,6 +660,10 @@ def register(sub) -> None:
                    help="budget of det M evaluations per count (default 400; a walk "
                         "that needs more is reported failed, with no count; near the "
                         "imaginary axis one evaluation takes 5-25 s at N = 1000-2000)")
+    p.add_argument("--count-workers", type=int, default=1, metavar="K",
+                   help="evaluate each round of the count's walk on K worker processes at once "
+                        "(default 1; each worker holds its own copy of the operator, about "
+                        "10 N x N complex matrices, 2 GB at N = 3500)")
     p.add_argument("--figure", default=None, metavar="PNG",
                    help="also draw s(tau_d) and the leading modes into this file")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
