@@ -185,6 +185,11 @@ def test_cli_count_budget_bad_input_and_documented_default(tmp_path, pulse12, pa
                        capture_output=True, text=True)
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0 and "count_workers=0" in r.stderr
+    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f,
+                        "--count", "0.5", "4", "4", "--count-threads", "-2"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.strip().count("\n") == 0 and "count_threads=-2" in r.stderr
     h = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", "--help"],
                        capture_output=True, text=True).stdout
     m = re.search(r"--count-evals N\s+budget of det M evaluations per count \(default (\d+)", h)

@@ -380,6 +380,9 @@ def cmd_stability(args) -> int:
     if not (isinstance(args.count_workers, int) and 1 <= args.count_workers <= 256):
         raise ParameterError(f"count_workers={args.count_workers!r} is invalid: must be an "
                              "integer in [1, 256] (worker processes of the count)")
+    if not (isinstance(args.count_threads, int) and 1 <= args.count_threads <= 256):
+        raise ParameterError(f"count_threads={args.count_threads!r} is invalid: must be an "
+                             "integer in [1, 256] (threads of each count worker)")
     if not (isinstance(args.count_evals, int) and 24 <= args.count_evals <= 20000):
         raise ParameterError(f"count_evals={args.count_evals!r} is invalid: must be an integer "
                              "in [24, 20000] (det M evaluations of the count)")
@@ -410,6 +413,7 @@ def cmd_stability(args) -> int:
     rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
                        progress=progress, levels=args.levels, count_box=box,
                        count_evals=args.count_evals, count_workers=args.count_workers,
+                       count_threads=args.count_threads,
                        level_progress=level_progress, min_points=args.min_points,
                        target=args.target, pin_translation=args.pin_translation,
                        level0_points=args.points, rel_target=args.rel_target,
@@ -664,6 +668,9 @@ def register(sub) -> None:
                    help="evaluate each round of the count's walk on K worker processes at once "
                         "(default 1; each worker holds its own copy of the operator, about "
                         "10 N x N complex matrices, 2 GB at N = 3500)")
+    p.add_argument("--count-threads", type=int, default=1, metavar="T",
+                   help="BLAS, OpenMP and numba threads of each count worker (default 1; "
+                        "used with --count-workers K > 1)")
     p.add_argument("--figure", default=None, metavar="PNG",
                    help="also draw s(tau_d) and the leading modes into this file")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
