@@ -14,8 +14,7 @@ import sys
 import time
 
 from deep_march import load_pulse
-from slippulse.steady.continuation import grid_change
-from slippulse.steady.continuation.gridcheck import regions
+from slippulse.steady.continuation.gridcheck import AHEAD, INNER, TAIL, locate_error
 
 
 def main(argv=None):
@@ -29,14 +28,14 @@ def main(argv=None):
           f"N={sol.xi.size} order {sol.problem.state_order}")
     print("| region | cells | Δβ at fixed τ_d | ΔL/L at fixed τ_d | Newton it. |")
     print("|---|---|---|---|---|")
-    for name, sel in regions(sol, p0.L).items():
-        t0 = time.perf_counter()
-        fine, db, dl = grid_change(P, sol, sol.xi.size, nested=True, cells=sel, max_iter=15)
+    t0 = time.perf_counter()
+    shares = locate_error(P, sol, names=(AHEAD,) + INNER + (TAIL,))
+    for name, (db, dl, cells, fine) in shares.items():
         if not fine.stats.converged:
-            print(f"| {name} | {int(sel.sum())} | – | – | {fine.stats.message} |")
+            print(f"| {name} | {cells} | – | – | {fine.stats.message} |")
             continue
-        print(f"| {name} | {int(sel.sum())} | {db:+.2e} | {dl:+.2e} | {fine.stats.iterations} "
-              f"({time.perf_counter() - t0:.0f} s) |", flush=True)
+        print(f"| {name} | {cells} | {db:+.2e} | {dl:+.2e} | {fine.stats.iterations} |")
+    print(f"({time.perf_counter() - t0:.0f} s)")
     return 0
 
 

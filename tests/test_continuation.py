@@ -1,4 +1,6 @@
 """Continuation of the family on a short coarse range, and resume after interruption."""
+import math
+
 import numpy as np
 import pytest
 
@@ -428,3 +430,60 @@ def test_deep_march_script_writes_steps_and_resumes(params, tmp_path):
     z3 = np.load(os.path.join(out, "arc_003.npz"))
     assert float(z3["x"][-1]) < float(z2["x"][-1])
     assert np.array_equal(z3["xi"][-1], z2["xi"][-1])        # the same (deformed) grid family
+
+
+def test_to_refine_picks_the_fewest_regions_that_leave_the_rest_within_tolerance():
+    """The located shares are signed and add up: refine the largest until the rest (which may
+    cancel) is within 0.8 of the tolerance; a region whose re-solve failed comes first."""
+    from slippulse.steady.continuation.gridcheck import BODY, HEALING, LEADING, _to_refine
+    from slippulse.steady.continuation.tolerance import GridTolerance
+    tol = GridTolerance(beta=1e-5, L=1e-4)
+    # stop 32, 2.43 km: the leading edge alone; body and healing front cancel to -4.5e-5
+    assert _to_refine({LEADING: (-7.8e-8, -1.26e-4), BODY: (-4.6e-8, -8.6e-5),
+                       HEALING: (4.1e-8, 4.1e-5)}, tol) == [LEADING]
+    assert _to_refine({LEADING: (0.0, -2e-5), BODY: (0.0, -1.6e-4), HEALING: (0.0, 1e-5)},
+                      tol) == [BODY]
+    assert _to_refine({LEADING: (0.0, -9e-5), BODY: (0.0, -9e-5), HEALING: (0.0, 1e-6)},
+                      tol) == [LEADING, BODY] or _to_refine(
+        {LEADING: (0.0, -9e-5), BODY: (0.0, -9e-5), HEALING: (0.0, 1e-6)}, tol) == [BODY, LEADING]
+    assert _to_refine({LEADING: (0.0, math.inf), BODY: (0.0, -1.6e-4), HEALING: (0.0, 1e-5)},
+                      tol)[0] == LEADING
+    # β decides as well as L
+    assert _to_refine({LEADING: (0.0, 0.0), BODY: (0.0, 0.0), HEALING: (2e-5, 0.0)},
+                      tol) == [HEALING]
+
+
+def test_check_pulse_locates_the_error_before_refining(params):
+    """locate=True on a marched pulse with a tolerance it misses: the shares of the three inner
+    regions add up to about the full nested check's change, and the refined pulse has exactly
+    the chosen regions' midpoints inserted (its old nodes kept)."""
+    from slippulse.steady.continuation import DeepSettings, grid_change, march_arclength
+    from slippulse.steady.continuation.gridcheck import (INNER, check_pulse, locate_error,
+                                                         regions)
+    from slippulse.steady.continuation.tolerance import GridTolerance
+    from slippulse.steady.solver import solve_pulse
+    a = solve_pulse(params, 1.2, n_points=500)
+    deep = DeepSettings(ds=0.004, ds_max=0.004, max_iter=20, stretch=True)
+    sol = next(iter(march_arclength(params, (a.xi, a.x[:-1], a.beta, 1.2), 400, deep=deep,
+                                    handoff={})))[0]
+    _, db, dl = grid_change(params, sol, 500, nested=True, stages=4)       # signed
+    shares = locate_error(params, sol)
+    assert list(shares) == list(INNER)
+    sum_b = sum(v[0] for v in shares.values())
+    sum_l = sum(v[1] for v in shares.values())
+    # additive to first order only: here (N = 500, 4 cells in the leading edge) the located sum
+    # of ΔL/L is 1.6 times the full change; at 2.43 km (N = 5325) it was within 7 %
+    assert np.sign(sum_l) == np.sign(dl) and 0.5 <= sum_l / dl <= 2.0
+    tol = GridTolerance(beta=0.3 * abs(db), L=0.3 * abs(dl))      # the N check fails
+    lines = []
+    res = check_pulse(params, sol, tol, n_max=4000, body_levels=1, locate=True, log=lines.append)
+    assert "dL/L by region" in res.message and any("refining" in s for s in lines)
+    steps = res.message.split("; ")
+    assert steps[1].startswith("dL/L by region")
+    where, added = steps[2].rsplit(" +", 1)
+    masks = regions(sol, sol.to_pulse().L)
+    chosen = [n for n in INNER if n.split(" (")[0] in where.split("+")]
+    assert chosen and int(added) == sum(int(masks[n].sum()) for n in chosen)
+    assert steps[3].startswith(f"N={500 + int(added)} vs")
+    if res.passed:
+        assert res.n == 500 + int(added) and np.isin(sol.xi, res.sol.xi).all()

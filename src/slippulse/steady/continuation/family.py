@@ -380,10 +380,13 @@ class _CheckedWriter:
                 self.taken[label] = read_pulse(out, label)[0].tau_d_ratio
 
     def __call__(self, sol, pulse, method):
-        # the body refinement is for the deformed grids of the deep march (where the error sits
-        # in the stretched body); adapted grids are refined everywhere (N doubled)
+        # the local refinements are for the deformed grids of the deep march (the error sits in
+        # the stretched body, or, beyond 2 km, at the leading edge, which the deformation moves
+        # rigidly while it steepens: located before refining); adapted grids are refined
+        # everywhere (N doubled)
         res = check_pulse(self.params, sol, self.tol, self.n_max, log=self.log,
-                          body_levels=2 if method == "arclength" else 0)
+                          body_levels=2 if method == "arclength" else 0,
+                          locate=method == "arclength")
         p = res.sol.to_pulse()
         p.extra.update(res.attrs(self.tol))
         p.extra["continuation"] = method

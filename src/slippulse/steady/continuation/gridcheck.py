@@ -113,9 +113,18 @@ def as_both(params, sol: SteadySolution) -> SteadySolution:
     return SteadySolution(both, x, sol.stats, sol.wall_time, sol.passes)
 
 
-#: Where the N-dependence of a deep pulse sits, refined one at a time by ``steady/locate_error.py``;
-#: the body holds most of it on the deformed grid (docs/analysis.md: 1.67e-4 of 1.78e-4 at 602 m).
+#: The regions of :func:`regions`. The body held most of the N-dependence on the deformed grid
+#: at 600 m (docs/analysis.md: 1.67e-4 of 1.78e-4 at 602 m); beyond 2 km the leading edge, which
+#: the deformation moves rigidly while it steepens, holds the largest part (stop 32: −1.26e-4
+#: of ≈ −1.7e-4 at 2.43 km, :func:`locate_error`).
+AHEAD = "ahead (> +0.01 L)"
+LEADING = "leading edge (±0.01 L)"
 BODY = "body (−0.9 L, −0.01 L]"
+HEALING = "healing front (−1.1 L, −0.9 L]"
+TAIL = "tail (< −1.1 L)"
+#: the regions whose share of the error :func:`check_pulse` measures before refining (ahead of
+#: the front and in the tail the share is ~1e-10: measured at 2.43 km)
+INNER = (LEADING, BODY, HEALING)
 
 
 def regions(sol: SteadySolution, L: float) -> dict:
@@ -124,20 +133,65 @@ def regions(sol: SteadySolution, L: float) -> dict:
     xi = sol.xi
     xf = xi[sol.problem.pin_index]
     mid = 0.5 * (xi[1:] + xi[:-1])
-    return {"ahead (> +0.01 L)": mid > xf + 0.01 * L,
-            "leading edge (±0.01 L)": (mid > xf - 0.01 * L) & (mid <= xf + 0.01 * L),
+    return {AHEAD: mid > xf + 0.01 * L,
+            LEADING: (mid > xf - 0.01 * L) & (mid <= xf + 0.01 * L),
             BODY: (mid > xf - 0.9 * L) & (mid <= xf - 0.01 * L),
-            "healing front (−1.1 L, −0.9 L]": (mid > xf - 1.1 * L) & (mid <= xf - 0.9 * L),
-            "tail (< −1.1 L)": mid <= xf - 1.1 * L}
+            HEALING: (mid > xf - 1.1 * L) & (mid <= xf - 0.9 * L),
+            TAIL: mid <= xf - 1.1 * L}
+
+
+def refine_regions(params, sol: SteadySolution, names, max_iter=20, stages=0):
+    """``sol`` (x = (y, β, q)) re-solved with the midpoints of the cells of the named regions
+    (:func:`regions`) inserted, on the line normal to the family tangent. Returns (refined
+    SteadySolution, cells added)."""
+    masks = regions(sol, sol.to_pulse().L)
+    sel = np.zeros(sol.xi.size - 1, bool)
+    for name in names:
+        sel |= masks[name]
+    fine, _, _ = check_grid_2n(params, sol, sol.xi.size, nested=True, cells=sel,
+                               max_iter=max_iter, stages=stages)
+    return fine, int(sel.sum())
 
 
 def refine_body(params, sol: SteadySolution, max_iter=20, stages=0):
-    """``sol`` (x = (y, β, q)) re-solved with the midpoints of its body cells inserted, on the line
-    normal to the family tangent. Returns (refined SteadySolution, cells added)."""
-    body = regions(sol, sol.to_pulse().L)[BODY]
-    fine, _, _ = check_grid_2n(params, sol, sol.xi.size, nested=True, cells=body,
-                               max_iter=max_iter, stages=stages)
-    return fine, int(body.sum())
+    """:func:`refine_regions` of the body alone."""
+    return refine_regions(params, sol, (BODY,), max_iter=max_iter, stages=stages)
+
+
+def locate_error(params, sol: SteadySolution, names=INNER, max_iter=15, stages=0):
+    """Where the N-dependence of a pulse sits: each named region refined alone (its cells'
+    midpoints inserted), the pulse re-solved, the change at fixed τ_d.
+
+    Returns {region: (Δβ, ΔL/L, cells, SteadySolution)}, Δ = inf where the re-solve fails. The
+    shares add up, to first order, to the full nested check's change (at 2.43 km, N = 5325:
+    −1.26e-4 leading edge, −8.6e-5 body, +4.1e-5 healing front, sum −1.71e-4 against −1.6e-4
+    all together); where a region has few cells the grid's jumps in spacing at its borders
+    spoil that (1.6 times the full change at N = 500, 4 cells in the leading edge).
+    """
+    masks = regions(sol, sol.to_pulse().L)
+    out = {}
+    for name in names:
+        fine, db, dl = grid_change(params, sol, sol.xi.size, nested=True, cells=masks[name],
+                                   max_iter=max_iter, stages=stages)
+        ok = bool(fine.stats.converged) and math.isfinite(db)
+        out[name] = (db if ok else math.inf, dl if ok else math.inf, int(masks[name].sum()), fine)
+    return out
+
+
+def _to_refine(shares, tol, margin=0.8):
+    """The regions to refine after a failed check: the fewest, largest shares first, whose
+    removal leaves the sum of the other shares within `margin` × the tolerance (the shares are
+    signed and add up to first order, so the rest may cancel)."""
+    def weight(v):
+        return max(abs(v[0]) / tol.beta, abs(v[1]) / tol.L)
+    chosen = []
+    for name in sorted(shares, key=lambda k: weight(shares[k]), reverse=True):
+        chosen.append(name)
+        rest = [v for k, v in shares.items() if k not in chosen]
+        if (abs(sum(v[0] for v in rest)) <= margin * tol.beta
+                and abs(sum(v[1] for v in rest)) <= margin * tol.L):
+            break
+    return chosen
 
 
 @dataclass
@@ -178,7 +232,7 @@ class GridCheck:
 
 
 def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINTS, body_levels=2,
-                max_iter=15, stages=4, log=None) -> GridCheck:
+                max_iter=15, stages=4, log=None, locate=False) -> GridCheck:
     """Grid-check a pulse and refine it until it passes: N, or the body refinement, per pulse.
 
     Parameters
@@ -186,8 +240,13 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
     sol : a converged pulse (any ``free``; converted with :func:`as_both`).
     tol : :class:`GridTolerance` (β and L between N and 2N − 1 at fixed τ_d).
     n_max : largest grid a check may use (the 2N − 1 grid).
-    body_levels : body refinements (:func:`refine_body`) tried before doubling N.
+    body_levels : local refinements tried before doubling N.
     log : callable(str), optional; one line per check.
+    locate : False: each local refinement is of the body (:func:`refine_body`). True: after a
+        failed check the error is located first (:func:`locate_error` over the leading edge,
+        the body and the healing front: one re-solve each, cheaper than the check) and the
+        fewest regions whose shares leave the rest within 0.8 of the tolerance are refined
+        together (:func:`_to_refine`).
 
     Notes
     -----
@@ -217,12 +276,23 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
         if res.passed or not ok:
             break
         if levels < body_levels:
-            nxt, added = refine_body(params, cur, max_iter=max_iter + 5, stages=stages)
+            names, where = (BODY,), "body"
+            if locate:
+                shares = locate_error(params, cur, max_iter=max_iter, stages=stages)
+                names = tuple(_to_refine(shares, tol))
+                where = "+".join(n.split(" (")[0] for n in names)
+                located = ", ".join(f"{n.split(' (')[0]} {v[1]:+.1e}"
+                                    for n, v in shares.items())
+                steps.append(f"dL/L by region: {located}")
+                if log:
+                    log(f"grid check at tau_d/tau_min={float(cur.x[-1]):.7f}: dL/L by region "
+                        f"{located}; refining {where}")
+            nxt, added = refine_regions(params, cur, names, max_iter=max_iter + 5, stages=stages)
             if nxt.stats.converged and 2 * nxt.xi.size - 1 <= n_max:
                 cur, levels = nxt, levels + 1
-                steps.append(f"body +{added}")
+                steps.append(f"{where} +{added}")
                 continue
-            levels = body_levels            # the body refinement does not help: double N
+            levels = body_levels            # the local refinement does not help: double N
         if 2 * fine.xi.size - 1 > n_max:
             steps.append(f"N={fine.xi.size} would need {2 * fine.xi.size - 1} > max points {n_max}")
             break
