@@ -1,6 +1,7 @@
 """The contour count's two phase rules side by side: evaluations, wall time and count.
 
     python benchmarks/bench_count.py [FAMILY.h5 LABEL X0 X1 Y1 [N0]]
+    OMP_NUM_THREADS=S python benchmarks/bench_count.py --workers K T FAMILY.h5 LABEL X0 X1 Y1 [N0]
 
 Without arguments: operators with known zeros (tests/test_count.py's kind), with and without a
 large smooth phase drift (det M × e^{60σ}, as the N far zeros give the deep pulses), and the
@@ -13,6 +14,10 @@ the box [X0, X1] × ±Y1 c_p/L on level 0 (its own grid, or N0 points on its map
 (M(σ̄) = conj M(σ): the pulse operators), on Im σ ≥ 0 only (the product since stop 31). Each
 line is three walks: stop 30 (wrapped, both halves), the trapezoid rule on both halves, and the
 product (trapezoid, mirrored halves); the ratio is the first's evaluations over the last's.
+
+--workers: the product's walk on one pulse serially (S threads, from OMP_NUM_THREADS) and on K
+worker processes of T threads each (``--count-workers``), side by side: evaluations (the same
+points), wall times and their ratio.
 """
 from __future__ import annotations
 
@@ -85,8 +90,35 @@ def row(name, op, box):
           f"{out[0][0].n_evals / out[-1][0].n_evals:.1f} |")
 
 
+def workers_row(path, label, box, n0, workers, threads, serial_threads):
+    """The product's walk on one pulse, serially (`serial_threads` threads in BLAS and numba,
+    as the process was started) and on `workers` processes of `threads` threads each."""
+    op = pulse_operator(path, label, n0)
+    out = []
+    for k, t in ((1, serial_threads), (workers, threads)):
+        t0 = time.perf_counter()
+        r = count_unstable(op, box, max_evals=20000, workers=k, threads_per_worker=t)
+        out.append((r, time.perf_counter() - t0))
+    (a, ta), (b, tb) = out
+    same = np.array_equal(a.points, b.points)
+    print(f"| {label}, N = {op.n} | {box} | {a.count} / {b.count} | {a.n_evals} / {b.n_evals} "
+          f"(same points: {same}) | {ta:.0f} / {tb:.0f} | 1 x {serial_threads} / {workers} x "
+          f"{threads} | {ta / tb:.2f} |")
+
+
 def main(argv):
     print(f"load average at start: {os.getloadavg()}")
+    if argv and argv[0] == "--workers":
+        # --workers K T FAMILY.h5 LABEL X0 X1 Y1 [N0]: serial against K workers of T threads
+        k, t = int(argv[1]), int(argv[2])
+        path, label, x0, x1, y1 = argv[3:8]
+        n0 = int(argv[8]) if len(argv) > 8 else 0
+        serial = int(os.environ.get("OMP_NUM_THREADS", "0") or 0)
+        print("| pulse | box (c_p/L) | count (serial / workers) | evaluations | wall (s) | "
+              "processes x threads | ratio |")
+        print("|---|---|---|---|---|---|---|")
+        workers_row(path, label, (float(x0), float(x1), float(y1)), n0, k, t, serial)
+        return
     print("| operator | box (c_p/L) | count (stop 30 / trapezoid / product) | evaluations | "
           "wall (s) | ratio |")
     print("|---|---|---|---|---|---|")
