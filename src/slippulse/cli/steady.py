@@ -383,6 +383,14 @@ def cmd_stability(args) -> int:
     if not (isinstance(args.count_threads, int) and 1 <= args.count_threads <= 256):
         raise ParameterError(f"count_threads={args.count_threads!r} is invalid: must be an "
                              "integer in [1, 256] (threads of each count worker)")
+    if args.count_device == "cuda" and args.count is not None:
+        try:
+            import cupy
+            cupy.cuda.runtime.getDeviceCount()
+        except Exception as exc:          # no CuPy, no driver or no GPU: one line, no traceback
+            raise ParameterError(f"count_device='cuda' needs CuPy and a CUDA GPU "
+                                 f"({type(exc).__name__}: {str(exc).splitlines()[0][:80]}); "
+                                 "valid: cpu, or cuda where CuPy sees a GPU") from None
     if not (isinstance(args.count_evals, int) and 24 <= args.count_evals <= 20000):
         raise ParameterError(f"count_evals={args.count_evals!r} is invalid: must be an integer "
                              "in [24, 20000] (det M evaluations of the count)")
@@ -413,7 +421,7 @@ def cmd_stability(args) -> int:
     rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
                        progress=progress, levels=args.levels, count_box=box,
                        count_evals=args.count_evals, count_workers=args.count_workers,
-                       count_threads=args.count_threads,
+                       count_threads=args.count_threads, count_device=args.count_device,
                        level_progress=level_progress, min_points=args.min_points,
                        target=args.target, pin_translation=args.pin_translation,
                        level0_points=args.points, rel_target=args.rel_target,
@@ -671,6 +679,9 @@ def register(sub) -> None:
     p.add_argument("--count-threads", type=int, default=1, metavar="T",
                    help="BLAS, OpenMP and numba threads of each count worker (default 1; "
                         "used with --count-workers K > 1)")
+    p.add_argument("--count-device", choices=("cpu", "cuda"), default="cpu",
+                   help="where the LU and the N-right-hand-side solve of each det M "
+                        "evaluation run: cpu (default), or cuda (a CUDA GPU through CuPy)")
     p.add_argument("--figure", default=None, metavar="PNG",
                    help="also draw s(tau_d) and the leading modes into this file")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

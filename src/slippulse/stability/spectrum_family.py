@@ -147,7 +147,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
                  levels=DEFAULT_LEVELS, count_box=None, level_progress=None,
                  min_points=MIN_SPECTRUM_POINTS, target=DEFAULT_TARGET, pin_translation=True,
                  level0_points=None, count_evals=COUNT_EVALS, rel_target=DEFAULT_REL_TARGET,
-                 count_workers=1, count_threads=1,
+                 count_workers=1, count_threads=1, count_device="cpu",
                  max_points=MAX_SPECTRUM_POINTS):
     """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
 
@@ -177,8 +177,9 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
         own grid); a re-solve that fails marks the pulse failed. max_points None: no bound.
     pin_translation : solve with translation pinned (default; docs/spectrum.md §5).
     count_evals : budget of determinant evaluations of the count (reported failed beyond it).
-    count_workers, count_threads : worker processes of the count and threads of each
-        (:func:`count_unstable`'s ``workers``, ``threads_per_worker``).
+    count_workers, count_threads, count_device : worker processes of the count, threads of
+        each, and where the LU runs (:func:`count_unstable`'s ``workers``,
+        ``threads_per_worker``, ``device``).
     level0_points : level 0 has exactly this many points on the map, fewer than the pulse's
         own N included (overrides `min_points`); with `pin_translation` the deep pulses need
         no more than the shallow ones (docs/spectrum.md §5).
@@ -264,6 +265,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
             res.count = count_unstable(res.operator, box, max_evals=count_evals,
                                        workers=count_workers,
                                        threads_per_worker=count_threads,
+                                       device=count_device,
                                        progress=(lambda k: level_progress(f"count: {k} det"))
                                        if level_progress else None, checkpoint=ckpt)
             if res.count.status == "converged":
