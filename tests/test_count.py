@@ -398,3 +398,28 @@ def test_log_det_derivative_on_cuda_matches_the_cpu():
     cpu = count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), max_evals=2000)
     gpu = count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), max_evals=2000, device="cuda")
     assert gpu.count == cpu.count == 3 and np.array_equal(gpu.points, cpu.points)
+
+
+def test_guess_starts_the_search_where_the_default_shifts_find_nothing(tmp_path, pulse12, params,
+                                                                      monkeypatch):
+    """run_spectrum(guess=S): the first pulse's search starts at s L/c_p = S. With the default
+    shifts removed the search finds nothing; from the guess it finds the 1.2 τ_min pulse's mode
+    (≈ 22.65 c_p/L). The CLI refuses a guess outside (0, 100] in one line."""
+    import subprocess
+    import sys
+    from slippulse.core.h5io import write_pulse
+    from slippulse.stability import spectrum
+    from slippulse.stability.spectrum_family import run_spectrum
+    f = str(tmp_path / "one.h5")
+    write_pulse(f, pulse12.to_pulse(), params)
+    monkeypatch.setattr(spectrum, "DEFAULT_SHIFTS", ())
+    kw = dict(extra=False, levels=0, level0_points=300, overwrite=True)
+    blind = run_spectrum(f, **kw).results[0]
+    assert blind.sigmas.size == 0
+    found = run_spectrum(f, guess=20.0, **kw).results[0]
+    assert found.status == "converged" and found.sigmas.size == 1
+    assert abs(found.leading / found.rate_unit - 22.65) < 0.1
+    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f,
+                        "--guess", "-1"], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.strip().count("\n") == 0 and "guess=-1.0" in r.stderr

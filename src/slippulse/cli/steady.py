@@ -383,6 +383,8 @@ def cmd_stability(args) -> int:
     if not (isinstance(args.count_threads, int) and 1 <= args.count_threads <= 256):
         raise ParameterError(f"count_threads={args.count_threads!r} is invalid: must be an "
                              "integer in [1, 256] (threads of each count worker)")
+    if args.guess is not None and not (math.isfinite(args.guess) and 0 < args.guess <= 100):
+        raise ParameterError(f"guess={args.guess!r} is invalid: must be an s L/c_p in (0, 100]")
     if args.count_device == "cuda" and args.count is not None:
         try:
             import cupy
@@ -422,6 +424,7 @@ def cmd_stability(args) -> int:
                        progress=progress, levels=args.levels, count_box=box,
                        count_evals=args.count_evals, count_workers=args.count_workers,
                        count_threads=args.count_threads, count_device=args.count_device,
+                       guess=args.guess,
                        level_progress=level_progress, min_points=args.min_points,
                        target=args.target, pin_translation=args.pin_translation,
                        level0_points=args.points, rel_target=args.rel_target,
@@ -679,6 +682,11 @@ def register(sub) -> None:
     p.add_argument("--count-threads", type=int, default=1, metavar="T",
                    help="BLAS, OpenMP and numba threads of each count worker (default 1; "
                         "used with --count-workers K > 1)")
+    p.add_argument("--guess", type=float, default=None, metavar="S",
+                   help="start the first pulse's eigenvalue search at s L/c_p = S instead of "
+                        "from the spectrum stored above it (deep pulses, whose rates are below "
+                        "the search's 0.001 c_p/L, with none computed above; e.g. the law of "
+                        "`slippulse steady rates`); the pulses after it track from it")
     p.add_argument("--count-device", choices=("cpu", "cuda"), default="cpu",
                    help="where the LU and the N-right-hand-side solve of each det M "
                         "evaluation run: cpu (default), or cuda (a CUDA GPU through CuPy)")

@@ -147,7 +147,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
                  levels=DEFAULT_LEVELS, count_box=None, level_progress=None,
                  min_points=MIN_SPECTRUM_POINTS, target=DEFAULT_TARGET, pin_translation=True,
                  level0_points=None, count_evals=COUNT_EVALS, rel_target=DEFAULT_REL_TARGET,
-                 count_workers=1, count_threads=1, count_device="cpu",
+                 count_workers=1, count_threads=1, count_device="cpu", guess=None,
                  max_points=MAX_SPECTRUM_POINTS):
     """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
 
@@ -177,6 +177,9 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
         own grid); a re-solve that fails marks the pulse failed. max_points None: no bound.
     pin_translation : solve with translation pinned (default; docs/spectrum.md §5).
     count_evals : budget of determinant evaluations of the count (reported failed beyond it).
+    guess : s L/c_p (> 0) to start the first chosen pulse's search from, instead of the
+        spectrum stored above it: a deep pulse (rates below the search's MIN_RE c_p/L) with no
+        computed spectrum above. The pulses after it track from it as usual.
     count_workers, count_threads, count_device : worker processes of the count, threads of
         each, and where the LU runs (:func:`count_unstable`'s ``workers``,
         ``threads_per_worker``, ``device``).
@@ -202,6 +205,8 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
     # tracking starts from the nearest pulse above the first one that has a stored spectrum
     # (any settings): the deep pulses' rates are below the default search's MIN_RE
     prev, prev_mode = _seed(path, chosen)
+    if guess is not None:
+        prev, prev_mode = (np.array([complex(guess)]), 1.0), None
     for lab in chosen:
         stored = None if overwrite else read_spectrum(path, lab)
         if stored is not None and stored.get("status") == "converged" and all(
