@@ -359,47 +359,6 @@ def test_count_of_the_pulse_operator_on_workers(pulse12, params):
     assert np.allclose(par.args, serial.args, rtol=0, atol=1e-8)
 
 
-def _cuda_available():
-    try:
-        import cupy
-        return cupy.cuda.runtime.getDeviceCount() > 0
-    except Exception:
-        return False
-
-
-def test_count_device_cuda_is_refused_in_one_line_without_a_gpu(tmp_path, pulse12, params):
-    import subprocess
-    import sys
-    if _cuda_available():
-        pytest.skip("CuPy sees a GPU here: the refusal is for machines without one")
-    from slippulse.core.h5io import write_pulse
-    f = str(tmp_path / "one.h5")
-    write_pulse(f, pulse12.to_pulse(), params)
-    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f,
-                        "--count", "0.5", "4", "4", "--count-device", "cuda"],
-                       capture_output=True, text=True)
-    assert r.returncode == 2
-    assert r.stderr.strip().count("\n") == 0 and "count_device='cuda'" in r.stderr
-
-
-@pytest.mark.skipif(not _cuda_available(), reason="needs CuPy and a CUDA GPU")
-def test_log_det_derivative_on_cuda_matches_the_cpu():
-    """The GPU's LU and solve give arg det, ln|det| and tr(M⁻¹M′) of the CPU's, and the same
-    walk (on a lent GPU machine; skipped elsewhere)."""
-    from slippulse.stability.count import log_det_derivative
-    rng = np.random.default_rng(7)
-    for n in (9, 400):
-        A, B = (rng.normal(size=(n, n)) + 1j * rng.normal(size=(n, n)) for _ in range(2))
-        a0, g0, l0 = log_det_derivative(A.copy(), B.copy(), with_abs=True)
-        a1, g1, l1 = log_det_derivative(A.copy(), B.copy(), with_abs=True, device="cuda")
-        assert abs(math.remainder(a1 - a0, 2 * math.pi)) < 1e-9
-        assert abs(l1 - l0) < 1e-9 * max(1.0, abs(l0)) and abs(g1 - g0) < 1e-9 * abs(g0)
-    lams = np.array([0.5, 2 + 1j, 2 - 1j, -1.0], complex)
-    cpu = count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), max_evals=2000)
-    gpu = count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), max_evals=2000, device="cuda")
-    assert gpu.count == cpu.count == 3 and np.array_equal(gpu.points, cpu.points)
-
-
 def test_guess_starts_the_search_where_the_default_shifts_find_nothing(tmp_path, pulse12, params,
                                                                       monkeypatch):
     """run_spectrum(guess=S): the first pulse's search starts at s L/c_p = S. With the default

@@ -385,14 +385,6 @@ def cmd_stability(args) -> int:
                              "integer in [1, 256] (threads of each count worker)")
     if args.guess is not None and not (math.isfinite(args.guess) and 0 < args.guess <= 100):
         raise ParameterError(f"guess={args.guess!r} is invalid: must be an s L/c_p in (0, 100]")
-    if args.count_device == "cuda" and args.count is not None:
-        try:
-            import cupy
-            cupy.cuda.runtime.getDeviceCount()
-        except Exception as exc:          # no CuPy, no driver or no GPU: one line, no traceback
-            raise ParameterError(f"count_device='cuda' needs CuPy and a CUDA GPU "
-                                 f"({type(exc).__name__}: {str(exc).splitlines()[0][:80]}); "
-                                 "valid: cpu, or cuda where CuPy sees a GPU") from None
     if not (isinstance(args.count_evals, int) and 24 <= args.count_evals <= 20000):
         raise ParameterError(f"count_evals={args.count_evals!r} is invalid: must be an integer "
                              "in [24, 20000] (det M evaluations of the count)")
@@ -423,7 +415,7 @@ def cmd_stability(args) -> int:
     rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
                        progress=progress, levels=args.levels, count_box=box,
                        count_evals=args.count_evals, count_workers=args.count_workers,
-                       count_threads=args.count_threads, count_device=args.count_device,
+                       count_threads=args.count_threads,
                        guess=args.guess,
                        level_progress=level_progress, min_points=args.min_points,
                        target=args.target, pin_translation=args.pin_translation,
@@ -687,9 +679,6 @@ def register(sub) -> None:
                         "from the spectrum stored above it (deep pulses, whose rates are below "
                         "the search's 0.001 c_p/L, with none computed above; e.g. the law of "
                         "`slippulse steady rates`); the pulses after it track from it")
-    p.add_argument("--count-device", choices=("cpu", "cuda"), default="cpu",
-                   help="where the LU and the N-right-hand-side solve of each det M "
-                        "evaluation run: cpu (default), or cuda (a CUDA GPU through CuPy)")
     p.add_argument("--figure", default=None, metavar="PNG",
                    help="also draw s(tau_d) and the leading modes into this file")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

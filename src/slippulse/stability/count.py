@@ -78,37 +78,12 @@ def arg_det(M) -> tuple[float, float]:
     return _lu_log_det(*lu_factor(M, check_finite=False))
 
 
-DEVICES = ("cpu", "cuda")
-
-
-def _log_det_derivative_cuda(M, dM):
-    """(arg, g, ln|det M|) with the LU and the solve on a CUDA GPU (CuPy's getrf/getrs)."""
-    try:
-        import cupy as cp
-        from cupyx.scipy.linalg import lu_factor as gpu_lu_factor
-        from cupyx.scipy.linalg import lu_solve as gpu_lu_solve
-    except ImportError as exc:            # reported by the caller as a usage error
-        raise RuntimeError(f"device 'cuda' needs CuPy and a CUDA GPU ({exc})") from None
-    lu, piv = gpu_lu_factor(cp.asarray(M), overwrite_a=True, check_finite=False)
-    d = cp.diag(lu)
-    swaps = int(cp.count_nonzero(piv != cp.arange(piv.size)))
-    arg = math.remainder(float(cp.sum(cp.angle(d))) + math.pi * swaps, 2.0 * math.pi)
-    la = float(cp.sum(cp.log(cp.abs(d))))
-    g = complex(cp.trace(gpu_lu_solve((lu, piv), cp.asarray(dM), overwrite_b=True,
-                                      check_finite=False)))
-    return arg, g, la
-
-
-def log_det_derivative(M, dM, with_abs=False, device="cpu"):
+def log_det_derivative(M, dM, with_abs=False):
     """(arg det M, d ln det M/dσ = tr(M⁻¹ M′)) from one LU factorisation of M (Jacobi's formula);
-    with_abs: (arg, g, ln|det M|). device 'cuda': the LU and the solve with N right-hand sides
-    on a CUDA GPU (CuPy), the part of an evaluation that grows as N³."""
-    if device == "cuda":
-        arg, g, la = _log_det_derivative_cuda(M, dM)
-    else:
-        lu = lu_factor(M, check_finite=False)
-        la, arg = _lu_log_det(*lu)
-        g = complex(np.trace(lu_solve(lu, dM, check_finite=False)))
+    with_abs: (arg, g, ln|det M|)."""
+    lu = lu_factor(M, check_finite=False)
+    la, arg = _lu_log_det(*lu)
+    g = complex(np.trace(lu_solve(lu, dM, check_finite=False)))
     return (arg, g, la) if with_abs else (arg, g)
 
 
@@ -203,21 +178,21 @@ def _thread_env(threads):
                 os.environ[k] = v
 
 
-def _worker_init(op_bytes, device):
+def _worker_init(op_bytes):
     global _WORKER_OP
-    _WORKER_OP = (pickle.loads(op_bytes), device)
+    _WORKER_OP = pickle.loads(op_bytes)
 
 
 def _worker_value(task):
     """(arg det M, g in units of (c_p/L)⁻¹, ln|det M|) at z (units of c_p/L) on the worker's
     operator."""
     z = task
-    op, device = _WORKER_OP
+    op = _WORKER_OP
     M, dM = op.matrices(z * op.rate_unit, deriv=True)
     if dM is None:
         la, a = arg_det(M)
         return z, (a, None, la)
-    a, g, la = log_det_derivative(M, dM, with_abs=True, device=device)
+    a, g, la = log_det_derivative(M, dM, with_abs=True)
     return z, (a, g * op.rate_unit, la)
 
 
@@ -229,13 +204,12 @@ class _EvalPool:
     parent has used it. Each receives the pickled operator once (≈ 0.1 GB per N×N real matrix at
     N = 3500)."""
 
-    def __init__(self, op, workers, threads=1, device="cpu"):
+    def __init__(self, op, workers, threads=1):
         import multiprocessing
         ctx = multiprocessing.get_context("spawn")
         with _thread_env(threads):
             self.pool = ctx.Pool(int(workers), initializer=_worker_init,
-                                 initargs=(pickle.dumps(op, protocol=pickle.HIGHEST_PROTOCOL),
-                                           device))
+                                 initargs=(pickle.dumps(op, protocol=pickle.HIGHEST_PROTOCOL),))
 
     def imap(self, zs):
         return self.pool.imap_unordered(_worker_value, list(zs), chunksize=1)
@@ -266,7 +240,7 @@ def _rectangle(x0, x1, y1, per_side, symmetric=False):
 
 def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, integer_tol=0.05,
                    progress=None, derivative=True, checkpoint=None, checkpoint_every=60.0,
-                   phase_rule="trapezoid", workers=1, threads_per_worker=1, device="cpu"):
+                   phase_rule="trapezoid", workers=1, threads_per_worker=1):
     """Count the eigenvalues of M(σ) in the box x0 ≤ Re σ L/c ≤ x1, |Im σ L/c| ≤ y1.
 
     Parameters
@@ -295,8 +269,6 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
         evaluated at once by that many spawned worker processes with `threads_per_worker`
         threads each; the walk visits the same points and ends as with 1 (the rounds are the
         same), in about (evaluations / workers + rounds) evaluation times.
-    device : 'cpu', or 'cuda': the LU and the solve of each evaluation on a CUDA GPU (CuPy;
-        the workers share it). The assembly of M(σ) stays on the CPU.
     """
     t0 = time.perf_counter()
     if phase_rule not in ("trapezoid", "wrapped"):
@@ -315,8 +287,6 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     unsaved = [0, time.perf_counter()]      # new evaluations since the last write, its time
     if not (isinstance(workers, int) and workers >= 1):
         raise ValueError(f"workers={workers!r}: a positive integer")
-    if device not in DEVICES:
-        raise ValueError(f"device={device!r}: one of {DEVICES}")
     pool = None
     fetched = set()                 # points evaluated this run by the workers
     shown = [0]                     # the largest count passed to progress
@@ -347,7 +317,7 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
             if checked and dM is None:
                 checked = False
             if checked:
-                a, g, la = log_det_derivative(M, dM, with_abs=True, device=device)
+                a, g, la = log_det_derivative(M, dM, with_abs=True)
                 cache[z] = (a, g * unit, la)
             else:
                 la, a = arg_det(M)
@@ -369,7 +339,7 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
         if len(todo) < 2:
             return
         if pool is None:
-            pool = _EvalPool(op, workers, threads_per_worker, device)
+            pool = _EvalPool(op, workers, threads_per_worker)
         for k, (z, val) in enumerate(pool.imap(todo), 1):
             cache[z] = val
             fetched.add(z)

@@ -147,7 +147,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
                  levels=DEFAULT_LEVELS, count_box=None, level_progress=None,
                  min_points=MIN_SPECTRUM_POINTS, target=DEFAULT_TARGET, pin_translation=True,
                  level0_points=None, count_evals=COUNT_EVALS, rel_target=DEFAULT_REL_TARGET,
-                 count_workers=1, count_threads=1, count_device="cpu", guess=None,
+                 count_workers=1, count_threads=1, guess=None,
                  max_points=MAX_SPECTRUM_POINTS):
     """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
 
@@ -180,9 +180,8 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
     guess : s L/c_p (> 0) to start the first chosen pulse's search from, instead of the
         spectrum stored above it: a deep pulse (rates below the search's MIN_RE c_p/L) with no
         computed spectrum above. The pulses after it track from it as usual.
-    count_workers, count_threads, count_device : worker processes of the count, threads of
-        each, and where the LU runs (:func:`count_unstable`'s ``workers``,
-        ``threads_per_worker``, ``device``).
+    count_workers, count_threads : worker processes of the count and threads of each
+        (:func:`count_unstable`'s ``workers``, ``threads_per_worker``).
     level0_points : level 0 has exactly this many points on the map, fewer than the pulse's
         own N included (overrides `min_points`); with `pin_translation` the deep pulses need
         no more than the shallow ones (docs/spectrum.md §5).
@@ -270,7 +269,6 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
             res.count = count_unstable(res.operator, box, max_evals=count_evals,
                                        workers=count_workers,
                                        threads_per_worker=count_threads,
-                                       device=count_device,
                                        progress=(lambda k: level_progress(f"count: {k} det"))
                                        if level_progress else None, checkpoint=ckpt)
             if res.count.status == "converged":
