@@ -487,3 +487,18 @@ def test_check_pulse_locates_the_error_before_refining(params):
     assert steps[3].startswith(f"N={500 + int(added)} vs")
     if res.passed:
         assert res.n == 500 + int(added) and np.isin(sol.xi, res.sol.xi).all()
+
+
+def test_to_refine_keeps_the_refined_check_within_the_largest_grid():
+    """Stop 32, 4.19 km: the rule asked for the healing front and the body, whose cells would have
+    made the refined pulse's check larger than --max-points; within a cell budget it keeps the
+    largest share alone (refined next, the rest located again at the next level)."""
+    from slippulse.steady.continuation.gridcheck import BODY, HEALING, LEADING, _to_refine
+    from slippulse.steady.continuation.tolerance import GridTolerance
+    tol = GridTolerance(beta=1e-5, L=1e-4)
+    shares = {LEADING: (0.0, -5.8e-5), BODY: (0.0, -7.1e-5), HEALING: (0.0, -1.8e-4)}
+    cells = {LEADING: 1393, BODY: 3000, HEALING: 650}
+    assert _to_refine(shares, tol) == [HEALING, BODY]
+    assert _to_refine(shares, tol, cells=cells, budget=10000) == [HEALING, BODY]
+    assert _to_refine(shares, tol, cells=cells, budget=2369) == [HEALING]
+    assert _to_refine(shares, tol, cells=cells, budget=100) == [HEALING]   # kept: N doubles next

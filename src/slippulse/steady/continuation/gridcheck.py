@@ -178,19 +178,28 @@ def locate_error(params, sol: SteadySolution, names=INNER, max_iter=15, stages=0
     return out
 
 
-def _to_refine(shares, tol, margin=0.8):
+def _to_refine(shares, tol, margin=0.8, cells=None, budget=None):
     """The regions to refine after a failed check: the fewest, largest shares first, whose
-    removal leaves the sum of the other shares within `margin` × the tolerance (the shares are
-    signed and add up to first order, so the rest may cancel)."""
+    removal leaves the sum of the others within `margin` × the tolerance (the shares are
+    signed and add up to first order, so the rest may cancel).
+
+    cells, budget: the cells of each region and the most cells the refinement may add (the
+    refined pulse's check must fit in the largest grid). Regions beyond the budget are dropped,
+    smallest share first, down to the largest share alone; that one is kept even beyond the
+    budget (the caller then doubles N instead, or stops)."""
     def weight(v):
         return max(abs(v[0]) / tol.beta, abs(v[1]) / tol.L)
+    order = sorted(shares, key=lambda k: weight(shares[k]), reverse=True)
     chosen = []
-    for name in sorted(shares, key=lambda k: weight(shares[k]), reverse=True):
+    for name in order:
         chosen.append(name)
         rest = [v for k, v in shares.items() if k not in chosen]
         if (abs(sum(v[0] for v in rest)) <= margin * tol.beta
                 and abs(sum(v[1] for v in rest)) <= margin * tol.L):
             break
+    if cells is not None and budget is not None:
+        while len(chosen) > 1 and sum(cells[k] for k in chosen) > budget:
+            chosen.pop()
     return chosen
 
 
@@ -246,7 +255,8 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
         failed check the error is located first (:func:`locate_error` over the leading edge,
         the body and the healing front: one re-solve each, cheaper than the check) and the
         fewest regions whose shares leave the rest within 0.8 of the tolerance are refined
-        together (:func:`_to_refine`).
+        together (:func:`_to_refine`), as many of them, largest share first, as keep the
+        refined pulse's check within ``n_max``.
 
     Notes
     -----
@@ -279,7 +289,9 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
             names, where = (BODY,), "body"
             if locate:
                 shares = locate_error(params, cur, max_iter=max_iter, stages=stages)
-                names = tuple(_to_refine(shares, tol))
+                n_cur = cur.xi.size
+                names = tuple(_to_refine(shares, tol, cells={k: v[2] for k, v in shares.items()},
+                                         budget=(n_max + 1) // 2 - n_cur))
                 where = "+".join(n.split(" (")[0] for n in names)
                 located = ", ".join(f"{n.split(' (')[0]} {v[1]:+.1e}"
                                     for n, v in shares.items())
