@@ -299,6 +299,11 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     def canon(z):
         return z.conjugate() if mirror and z.imag < 0.0 else z
 
+    def known(z):
+        """Whether the cache holds z with all the walk needs (g too, when checked)."""
+        hit = cache.get(z)
+        return hit is not None and (hit[1] is not None or not checked)
+
     def save(force=False):
         if checkpoint and unsaved[0] and (
                 force or time.perf_counter() - unsaved[1] >= checkpoint_every):
@@ -309,8 +314,7 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
         """(arg det M, d ln det M/dz or None, ln|det M|) at z (units of c_p/L), evaluated or
         read back."""
         nonlocal checked, resumed
-        hit = cache.get(z)
-        if hit is not None and (hit[1] is not None or not checked):
+        if known(z):
             resumed += z not in used and z not in fetched
         else:
             M, dM = op.matrices(z * unit, deriv=checked)
@@ -334,8 +338,7 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
         nonlocal pool
         if workers <= 1 or not checked:
             return
-        todo = [z for z in dict.fromkeys(canon(z) for z in zs) if z not in used and (
-            cache.get(z) is None or cache[z][1] is None)]
+        todo = [z for z in dict.fromkeys(canon(z) for z in zs) if z not in used and not known(z)]
         if len(todo) < 2:
             return
         if pool is None:

@@ -287,19 +287,24 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
             break
         if levels < body_levels:
             names, where = (BODY,), "body"
+            shares = {}
             if locate:
                 shares = locate_error(params, cur, max_iter=max_iter, stages=stages)
-                n_cur = cur.xi.size
                 names = tuple(_to_refine(shares, tol, cells={k: v[2] for k, v in shares.items()},
-                                         budget=(n_max + 1) // 2 - n_cur))
-                where = "+".join(n.split(" (")[0] for n in names)
-                located = ", ".join(f"{n.split(' (')[0]} {v[1]:+.1e}"
-                                    for n, v in shares.items())
+                                         budget=(n_max + 1) // 2 - n))
+                where = "+".join(name.split(" (")[0] for name in names)
+                located = ", ".join(f"{name.split(' (')[0]} {v[1]:+.1e}"
+                                    for name, v in shares.items())
                 steps.append(f"dL/L by region: {located}")
                 if log:
                     log(f"grid check at tau_d/tau_min={float(cur.x[-1]):.7f}: dL/L by region "
                         f"{located}; refining {where}")
-            nxt, added = refine_regions(params, cur, names, max_iter=max_iter + 5, stages=stages)
+            if len(names) == 1 and shares.get(names[0], (math.inf,))[0] != math.inf:
+                # one region: locate_error has already solved the pulse on exactly that grid
+                _, _, added, nxt = shares[names[0]]
+            else:
+                nxt, added = refine_regions(params, cur, names, max_iter=max_iter + 5,
+                                            stages=stages)
             if nxt.stats.converged and 2 * nxt.xi.size - 1 <= n_max:
                 cur, levels = nxt, levels + 1
                 steps.append(f"{where} +{added}")
