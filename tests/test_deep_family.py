@@ -36,6 +36,39 @@ def test_labels_readable_and_unique_off_round_tau_d():
     assert all(abs(label_ratio(lab) - q) <= 5.0001e-7 for lab, q in zip(labels, qs))
 
 
+def test_close_deep_pulses_get_longer_labels_and_read_back_under_them(tmp_path, params):
+    """Stop 32: a pulse 1.5e-7 in τ_d below the one it came from (ds = 2e-4 at 4.17 km) had the
+    same six-decimal label and was not written. It now gets the fewest extra decimals that keep
+    it apart; reading it back keeps that label, so every reader finds it under its name."""
+    from slippulse.core.h5io import unique_label
+    taken = {"td1.008572": 1.0085716}
+    assert unique_label(1.0085716, taken) == "td1.008572"          # the same pulse: rewritten
+    assert unique_label(1.0085716 + 5e-10, taken) == "td1.008572"
+    assert unique_label(1.00857152, taken) == "td1.0085715"        # 8e-8 below: 7 decimals
+    taken["td1.0085715"] = 1.00857152
+    assert unique_label(1.008571524, taken) == "td1.00857152"      # and 4e-9 off that: 8
+    assert unique_label(1.0085, {"td1.0085": 1.00850003}) == "td1.0085000"
+    with pytest.raises(ValueError):
+        unique_label(1.0, {f"td{1.0:.{d}f}": 1.0 + 2e-9 for d in (4, 6, 7, 8, 9, 10)})
+    # the round trip through the file
+    from slippulse.steady.solver import solve_pulse
+    a = solve_pulse(params, 1.2, n_points=300).to_pulse()
+    out = str(tmp_path / "f.h5")
+    write_pulse(out, a, params)
+    b = solve_pulse(params, 1.2 - 2e-7, n_points=300).to_pulse()
+    assert b.label == a.label == "td1.2000"
+    b.name = unique_label(b.tau_d_ratio, {a.label: a.tau_d_ratio})
+    assert b.label == "td1.1999998"
+    write_pulse(out, b, params)
+    assert list_pulses(out) == ["td1.2000", "td1.1999998"]
+    rb = read_pulse(out, "td1.1999998")[0]
+    assert rb.label == "td1.1999998" and rb.tau_d_ratio == b.tau_d_ratio
+    assert read_pulse(out, "td1.2000")[0].tau_d_ratio == a.tau_d_ratio     # not overwritten
+    # a name that no longer names the pulse's τ_d (a copy re-solved elsewhere) is ignored
+    import dataclasses
+    assert dataclasses.replace(rb, tau_d_ratio=1.1).label == "td1.1000"
+
+
 def test_grid_tolerance_is_the_one_place():
     assert GRID_TOLERANCE == GridTolerance(beta=1e-5, L=1e-4)
     assert DeepSettings().tol_beta == GRID_TOLERANCE.beta and DeepSettings().tol_L == GRID_TOLERANCE.L

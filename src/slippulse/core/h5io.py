@@ -178,6 +178,39 @@ def pulse_label(tau_d_ratio: float) -> str:
     return f"td{tau_d_ratio:.6f}"
 
 
+#: Most decimals a label takes (:func:`unique_label`): 1e-10 in τ_d/τ_min, below the τ_d within
+#: which two pulses are the same one (:data:`SAME_PULSE_RATIO`).
+MAX_LABEL_DECIMALS = 10
+#: Two pulses whose τ_d/τ_min differ by no more than this are the same pulse (a re-solve, or a
+#: resumed march writing it again); the deep march's smallest τ_d steps are ~1e-8.
+SAME_PULSE_RATIO = 1e-9
+
+
+def unique_label(tau_d_ratio: float, taken: dict) -> str:
+    """Label of a new pulse at ``tau_d_ratio`` in a file whose labels are ``taken`` (label → τ_d/τ_min
+    of the pulse stored there): :func:`pulse_label` unless a pulse at another τ_d holds it (deep
+    steps closer than 1e-6, issue 18), then the fewest decimals beyond 6 that are free or hold
+    the same τ_d (within :data:`SAME_PULSE_RATIO`). ValueError when none up to
+    :data:`MAX_LABEL_DECIMALS` is."""
+    def free(lab):
+        q = taken.get(lab)
+        return q is None or abs(q - tau_d_ratio) <= SAME_PULSE_RATIO
+    lab = pulse_label(tau_d_ratio)
+    if free(lab):
+        return lab
+    for d in range(7, MAX_LABEL_DECIMALS + 1):
+        lab = f"td{tau_d_ratio:.{d}f}"
+        if free(lab):
+            return lab
+    raise ValueError(f"no free label for tau_d/tau_min={tau_d_ratio!r}: a pulse is stored within "
+                     f"{SAME_PULSE_RATIO:g} of it")
+
+
+def label_decimals(label: str) -> int:
+    """Decimals of a label's number ('td1.2000' → 4, 'td1.0085716' → 7; 0 without a point)."""
+    return len(label.split(".", 1)[1]) if "." in label else 0
+
+
 def label_ratio(label) -> float:
     """τ_d/τ_min of a pulse label, the inverse of :func:`pulse_label` ('td1.2000' → 1.2,
     'td1.009074' → 1.009074); NaN for a name that is not 'td' followed by a number. The one
@@ -214,9 +247,17 @@ class Pulse:
     wall_time: float
     mode: str = "III"
     extra: dict = field(default_factory=dict)
+    #: the group name it is stored (or to be stored) under, when that is not :func:`pulse_label`
+    #: (a longer label that keeps two close deep pulses apart, :func:`unique_label`); set by
+    #: :func:`read_pulse`. Ignored once it no longer names this τ_d (a copy re-solved elsewhere).
+    name: str = ""
 
     @property
     def label(self) -> str:
+        if self.name:
+            q = label_ratio(self.name)
+            if abs(q - self.tau_d_ratio) <= 0.5 * 10.0 ** -label_decimals(self.name) + 5e-7:
+                return self.name
         return pulse_label(self.tau_d_ratio)
 
 
@@ -340,7 +381,7 @@ def _group_to_pulse(grp) -> Pulse:
     except (TypeError, ValueError) as exc:
         raise SchemaError(f"group {grp.name}: attribute of the wrong type ({exc})") from None
     extra = {k: grp.attrs[k] for k in grp.attrs if k not in ATTRS}
-    return Pulse(**arrays, **kw, extra=extra)
+    return Pulse(**arrays, **kw, extra=extra, name=grp.name.rsplit("/", 1)[-1])
 
 
 def open_h5(path: str, what: str = "file") -> h5py.File:

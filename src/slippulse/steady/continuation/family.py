@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from ...core.h5io import list_pulses, read_pulse, write_pulse
+from ...core.h5io import list_pulses, read_pulse, unique_label, write_pulse
 from ...core.params import ParameterError, Parameters
 from ..solver import MAX_POINTS, GridSpec, solve_pulse
 from .arclength import DeepSettings
@@ -368,8 +368,8 @@ def _check_auto_args(params, out, tol, n_max, deep_points, max_length):
 class _CheckedWriter:
     """Write a pulse after :func:`check_pulse`: the checked pulse with the check's figures, or,
     when it cannot pass, the pulse marked failed with the reason. A label already taken by a
-    pulse at another τ_d (closer than the label's digits) is not overwritten. Returns the
-    :class:`GridCheck`."""
+    pulse at another τ_d (closer than the label's six decimals) is never overwritten: the new
+    pulse gets a longer label (:func:`unique_label`). Returns the :class:`GridCheck`."""
 
     def __init__(self, params, out, rep, tol, n_max, log):
         self.params, self.out, self.rep, self.tol, self.n_max, self.log = \
@@ -396,11 +396,10 @@ class _CheckedWriter:
             p.extra["status"] = "failed"
             p.extra["message"] = f"grid check failed: {res.message}"
             self.rep.failed_checks.append((p.tau_d_ratio, res.message))
-        q_old = self.taken.get(p.label)
-        if q_old is not None and abs(q_old - p.tau_d_ratio) > 1e-9:
-            if self.log:
-                self.log(f"{p.label}: taken by the pulse at {q_old:.9f}; not written")
-            return res
+        base = p.label
+        p.name = unique_label(p.tau_d_ratio, self.taken)
+        if p.name != base and self.log:
+            self.log(f"{base}: taken by the pulse at {self.taken[base]:.9f}; written as {p.name}")
         write_pulse(self.out, p, self.params)
         self.taken[p.label] = p.tau_d_ratio
         if res.passed:
