@@ -114,8 +114,8 @@ def operator_key(op) -> str:
     """What identifies the operator of a count checkpoint: its size, pulse and parameters.
 
     β, L and τ_d to 12 significant digits (a pulse re-solved with another thread count differs
-    in the last bits; two pulses of a family differ far above 1e-12), the translation pin, and the
-    friction and elastic parameters. An operator without a pulse (a test matrix) gives its class
+    in the last bits; two pulses of a family differ far above 1e-12), the translation pin, the
+    kernel's sub-panel rule (``split``, stop 33), and the friction and elastic parameters. An operator without a pulse (a test matrix) gives its class
     name and any ``key`` attribute.
     """
     pulse = getattr(op, "pulse", None)
@@ -125,9 +125,10 @@ def operator_key(op) -> str:
     pdict = params.as_dict() if params is not None else {}
     ptext = ",".join(f"{k}={float(v):.12g}" for k, v in sorted(pdict.items())
                      if isinstance(v, (int, float)))
+    split = getattr(getattr(op, "elastic", None), "split_per_side", None)
     return (f"N={int(pulse.n_points)} beta={float(pulse.beta):.12g} L={float(pulse.L):.12g} "
             f"tau_d={float(pulse.tau_d):.12g} pin={int(getattr(op, 'pin', None) is not None)} "
-            f"{ptext}")
+            + ("" if split is None else f"split={int(split)} ") + f"{ptext}")
 
 
 def _read_checkpoint(path, key):

@@ -28,8 +28,8 @@ from ..core import friction as fr
 from ..core.h5io import state_order_of
 from ..steady.equations import RADAU_A, RADAU_C, integrate_state_radau, radau_stage_values
 from ..steady.hilbert import add_times_slopes, hilbert_matrix, tail_columns
-from .spectrum_kernels import (KernelTables, assemble_w, slip_coefficients4, state_rows4,
-                               times_D4)
+from .spectrum_kernels import (SPLIT_PER_SIDE, KernelTables, assemble_w, slip_coefficients4,
+                               state_rows4, times_D4)
 
 
 # ----------------------------------------------------------------------- spline helpers
@@ -67,6 +67,9 @@ class ElasticOperator:
         self.H0[:, 0] -= behind
         self.H0[:, -1] -= ahead
         self.lam = self.mu * math.sqrt(1.0 - self.beta ** 2) / 2.0
+        #: sub-panels of 𝒲̃ by each side's own exponential (:func:`assemble_w`; False: the rule
+        #: before stop 33, for benchmarks)
+        self.split_per_side = SPLIT_PER_SIDE
         h = np.diff(self.xi)
         self.r_min = 0.005 * h.min()
         self.r_max = 1.01 * (self.xi[-1] - self.xi[0])
@@ -105,7 +108,7 @@ class ElasticOperator:
         BW = np.zeros((n, n), complex)
         AS = np.zeros((n, n), complex)
         BS = np.zeros((n, n), complex)
-        assemble_w(self.xi, *tab.args(), AW, BW, AS, BS)
+        assemble_w(self.xi, *tab.args(), AW, BW, AS, BS, self.split_per_side)
         W = add_times_slopes(AW, BW, self.xi, overwrite_b=True)
         dW = add_times_slopes(AS, BS, self.xi, overwrite_b=True) if deriv else None
         return W, dW

@@ -232,14 +232,29 @@ def _hermite(s):
     return 2 * s3 - 3 * s2 + 1.0, -2 * s3 + 3 * s2, s3 - 2 * s2 + s, s3 - s2
 
 
+#: Sub-panel rule of :func:`assemble_w` for segments on one side of their target: True (default)
+#: splits by the exponential of that side, e^{−(1+sβ)κ|r|}; False splits both sides as the fast one
+#: (the rule before stop 33, kept for benchmarks/bench_assembly.py).
+SPLIT_PER_SIDE = True
+
+
 @njit(parallel=True, cache=True)
-def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, AS, BS):
+def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, AS, BS,
+               per_side=SPLIT_PER_SIDE, split_scale=1.0):
     """Product integration of W̃ (into AW, BW) and ∂_σW̃ (into AS, BS) against the cubic spline.
 
     Row i, target ξ_i: ∫ p(z) W̃(ξ_i − z) dz = Σ_j AW[i, j] u_j + BW[i, j] m_j (m: spline slopes).
     Near segments (|2x0 − 1| ≤ 3): λ₀ ln|r| exactly through log moments, the rest with 8-point
-    Gauss–Legendre; far segments: Gauss–Legendre with the order of the Hilbert assembly. Segments
-    longer than 1/|κ| where the exponential part of the kernel is not negligible are split.
+    Gauss–Legendre; far segments: Gauss–Legendre with the order of the Hilbert assembly.
+
+    Segments where the exponential part of the kernel, e^{−(1+sβ)κ|r|} (s = sign r), is not
+    negligible are split into sub-panels of length 1/|κ| on the side r > 0. A segment wholly on
+    one side (|2x0 − 1| > 1) is split by its own side's rate: (1 + sβ)|κ| h/(1 + β) sub-panels
+    while (1 + sβ) Re κ times its distance is below EXP_CUT. On the side r < 0 the rate is
+    (1 − β)|κ|, ≈ 1e-3 |κ| at the deep pulses, so those segments need no split
+    (``per_side=False``: every segment split as the side r > 0 and kept while (1 − β) Re κ times
+    its distance is below EXP_CUT, as before stop 33; 2–3× the evaluations at |σ| ~ c_p/L there).
+    ``split_scale`` multiplies every sub-panel count (> 1: a finer reference, for tests).
     """
     n = xi.size
     ak = abs(kappa)
@@ -253,8 +268,14 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
             rr = abs(2.0 * x0 - 1.0)
             dmin = 0.0 if rr <= 1.0 else 0.5 * h * (rr - 1.0)
             m = 1
-            if ak * h > 1.0 and slow * dmin < EXP_CUT:
-                m = min(int(math.ceil(ak * h)), 512)
+            if not per_side or rr <= 1.0:
+                if ak * h > 1.0 and slow * dmin < EXP_CUT:
+                    m = min(int(math.ceil(split_scale * ak * h)), int(512 * split_scale))
+            else:
+                side = 1.0 + beta if x0 > 0.5 else 1.0 - beta       # 1 + sβ, s = sign r
+                if side * kappa.real * dmin < EXP_CUT:
+                    m = min(int(math.ceil(split_scale * side * ak * h / (1.0 + beta))),
+                            int(512 * split_scale))
             a0 = 0j
             a1 = 0j
             b0 = 0j
