@@ -92,6 +92,55 @@ def test_far_segments_on_both_sides_match_adaptive_quadrature(sigma, rule):
         assert abs(got - ref) <= 1e-8 * abs(ref), (a, deriv, got, ref)
 
 
+def _segment_entries(tab, xt, a, b, pieces):
+    """(W, ∂_σW) entries of one segment [a, b] for the target xt, by composite 16-point
+    Gauss–Legendre on `pieces` equal pieces (each well under 1 rad of phase): the Hermite value
+    basis of the end away from the target (h00 at a when xt lies right of b, h01 at b when it
+    lies left of a), the column no other segment adds to on a three-node grid."""
+    g, w = np.polynomial.legendre.leggauss(16)
+    e = np.linspace(0.0, 1.0, pieces + 1)
+    s = (e[:-1, None] + 0.5 * (g[None, :] + 1.0) * np.diff(e)[:, None]).ravel()
+    ws = (0.5 * w[None, :] * np.diff(e)[:, None]).ravel()
+    h = b - a
+    basis = 2 * s ** 3 - 3 * s ** 2 + 1.0 if xt > b else -2 * s ** 3 + 3 * s ** 2
+    kw, ks = tab.evaluate(xt - (a + h * s))
+    return np.sum(ws * basis * kw) * h, np.sum(ws * basis * ks) * h
+
+
+def test_filon_weights_and_a_tail_segment_past_the_old_cap():
+    """Filon–Gauss (stop 33): the weights integrate t^k e^{−αt} exactly for k < FILON_N; and a
+    segment of the graded tail with |κ| h ≈ 3100 (beyond the 512 sub-panels of the old rule),
+    on each side of its target, matches a composite Gauss–Legendre reference to 5e-10 in W and
+    ∂_σW. The old rule (``per_side=False``) misses ∂_σW behind the target by 23 %."""
+    from slippulse.stability.spectrum_kernels import FILON_N, _FG_T, assemble_w, filon_weights
+    out = np.empty(FILON_N, complex)
+    g, w = np.polynomial.legendre.leggauss(40)
+    for alpha in (24j, 30 + 5j, 400j):
+        filon_weights(alpha, out)
+        e = np.linspace(0.0, 1.0, int(abs(alpha)) + 2)
+        t = (e[:-1, None] + 0.5 * (g[None, :] + 1.0) * np.diff(e)[:, None]).ravel()
+        wt = (0.5 * w[None, :] * np.diff(e)[:, None]).ravel()
+        for k in (0, 3, FILON_N - 1):
+            ref = np.sum(wt * t ** k * np.exp(-alpha * t))
+            assert abs(np.sum(out * _FG_T ** k) - ref) <= 1e-12 * max(abs(ref), 1e-3), (alpha, k)
+    beta, sigma = 0.95, 1e-4 + 3j
+    tab = KernelTables(sigma, beta, CS, 1e-3, 1e3)
+    kappa = sigma / (CS * (1.0 - beta ** 2))
+    errs = {}
+    for rule in (True, False):
+        for xi, ti, col in ((np.array([-400.0, -300.0, 0.0]), 2, 0),      # target behind: r > 0
+                            (np.array([0.0, 300.0, 400.0]), 0, 2)):       # target ahead: r < 0
+            assert abs(kappa) * 100.0 > 3000.0
+            AW, BW, AS, BS = (np.zeros((3, 3), complex) for _ in range(4))
+            assemble_w(xi, *tab.args(), AW, BW, AS, BS, rule)
+            a, b = (xi[0], xi[1]) if ti == 2 else (xi[1], xi[2])
+            rw, rs = _segment_entries(tab, xi[ti], a, b, 4000)
+            errs[rule, ti] = (abs(AW[ti, col] - rw) / abs(rw), abs(AS[ti, col] - rs) / abs(rs))
+    # 5e-10: the kernel tables interpolate in ln|r| to ~1e-10, which the polynomial fit sees
+    assert max(max(v) for k, v in errs.items() if k[0]) < 5e-10, errs
+    assert errs[False, 2][1] > 1e-2, errs             # the old rule, capped behind the target
+
+
 @pytest.mark.parametrize("sigma", [0.5, 0.3 - 0.6j])
 def test_elastic_operator_matches_symbol_lorentzian(sigma):
     # δ = 1/(1+z²) decays slowly: a long graded domain; δ̂ = π e^{−|k|}

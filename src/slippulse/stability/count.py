@@ -115,8 +115,9 @@ def operator_key(op) -> str:
 
     β, L and τ_d to 12 significant digits (a pulse re-solved with another thread count differs
     in the last bits; two pulses of a family differ far above 1e-12), the translation pin, the
-    kernel's sub-panel rule (``split``, stop 33), and the friction and elastic parameters. An operator without a pulse (a test matrix) gives its class
-    name and any ``key`` attribute.
+    kernel's quadrature rule (``kernel``: far segments by Filon–Gauss, or split on both sides as
+    before stop 33), and the friction and elastic parameters. An operator without a pulse (a
+    test matrix) gives its class name and any ``key`` attribute.
     """
     pulse = getattr(op, "pulse", None)
     if pulse is None:
@@ -128,7 +129,8 @@ def operator_key(op) -> str:
     split = getattr(getattr(op, "elastic", None), "split_per_side", None)
     return (f"N={int(pulse.n_points)} beta={float(pulse.beta):.12g} L={float(pulse.L):.12g} "
             f"tau_d={float(pulse.tau_d):.12g} pin={int(getattr(op, 'pin', None) is not None)} "
-            + ("" if split is None else f"split={int(split)} ") + f"{ptext}")
+            + ("" if split is None else f"kernel={'filon' if split else 'split-both'} ")
+            + f"{ptext}")
 
 
 def _read_checkpoint(path, key):

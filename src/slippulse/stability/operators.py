@@ -67,8 +67,8 @@ class ElasticOperator:
         self.H0[:, 0] -= behind
         self.H0[:, -1] -= ahead
         self.lam = self.mu * math.sqrt(1.0 - self.beta ** 2) / 2.0
-        #: sub-panels of 𝒲̃ by each side's own exponential (:func:`assemble_w`; False: the rule
-        #: before stop 33, for benchmarks)
+        #: far segments of 𝒲̃ by each side's own exponential, Filon–Gauss where it turns fast
+        #: (:func:`assemble_w`; False: the rule before stop 33, for benchmarks)
         self.split_per_side = SPLIT_PER_SIDE
         h = np.diff(self.xi)
         self.r_min = 0.005 * h.min()
