@@ -44,8 +44,9 @@ The pulse operators have real coefficients, M(σ̄) = conj M(σ): arg det M(σ̄
 g(σ̄) = conj g(σ), and the box is symmetric about the real axis, so one determinant on Im σ ≥ 0
 serves both halves (``conjugate_symmetric`` on the operator), half the cost.
 
-A walk at the deep pulses costs hours (one evaluation assembles an N × N kernel matrix: 10–40 s
-at N = 2828). With a ``checkpoint`` file the evaluations survive an interruption or an exhausted
+A walk at the deep pulses costs tens of minutes to hours (one evaluation assembles an N × N kernel
+matrix and factors it: ≈ 10 s at N = 2828 since the tail segments go by Filon–Gauss, stop 33;
+10–40 s before; the dense LU and its N right-hand sides grow as N³ beyond). With a ``checkpoint`` file the evaluations survive an interruption or an exhausted
 budget: each (σ, arg det M, ln|det M|, g) is kept, the file is rewritten atomically as the walk goes, and a
 rerun on the same operator (:func:`operator_key`) reads them back instead of evaluating again.
 The walk is deterministic, so the resumed walk visits the same points and ends as an
