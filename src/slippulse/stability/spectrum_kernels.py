@@ -370,15 +370,7 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
                             c1 += h01 * ks
                             d0 += h10 * ks
                             d1 += h11 * ks
-                    AW[i, j] += a0
-                    AW[i, j + 1] += a1
-                    BW[i, j] += h * b0
-                    BW[i, j + 1] += h * b1
-                    AS[i, j] += c0
-                    AS[i, j + 1] += c1
-                    BS[i, j] += h * d0
-                    BS[i, j + 1] += h * d1
-                    continue
+                    m = 0                       # done: no Gauss–Legendre sub-panels below
             if near:
                 # λ₀ ∫ p(s) ln|h (x0 − s)| h ds with exact moments
                 L = _log_moments(x0)
