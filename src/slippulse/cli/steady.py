@@ -287,8 +287,9 @@ def spectrum_line(label, res) -> str:
     if res.sigmas.size == 0:
         return (f"{label}: no eigenvalue with Re sigma > 0.001 c_p/L found (stable or below "
                 f"resolution: the rates near tau_min, below ~0.002 c_p/L at L > 100 m, are found "
-                f"only by tracking from the pulses above: run it on the family from the top, or "
-                f"from a label just below one with a stored spectrum); N={res.n_points}, "
+                f"only by tracking from the pulses above: run it on the family from the top, "
+                f"from a label just below one with a stored spectrum, or with --guess S near "
+                f"the expected s L/c_p); N={res.n_points}, "
                 f"{res.wall_time:.1f} s")
     s = res.leading
     kind = "real" if abs(s.imag) <= 1e-8 * abs(s) else f"complex, Im {s.imag / res.rate_unit:.4g}"
