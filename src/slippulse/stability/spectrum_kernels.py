@@ -173,6 +173,16 @@ def _lagrange4(tab, row, u, u0):
     return w0 * tab[row, k] + w1 * tab[row, k + 1] + w2 * tab[row, k + 2] + w3 * tab[row, k + 3]
 
 
+@njit(cache=True, inline="always")
+def _exp_factors(u, sbx, r2, sigma, ub0, EB):
+    """Region B (|κr| > X_SERIES): the factors of e^{−(1+sβ)κ|r|} in W̃ and ∂_σW̃,
+    E₁/(πr²) and −(sβx E₁ + E₀)/(σπr²), from the tables at u = ln|r| (sbx = sβκ|r|, r2 = πr²).
+    The rest of each, (sβx − 1)/(πr²) and sβx/(σπr²), has no exponential."""
+    e1 = _lagrange4(EB, 0, u, ub0)
+    e0 = _lagrange4(EB, 1, u, ub0)
+    return e1 / r2, -(sbx * e1 + e0) / (sigma * r2)
+
+
 @njit(cache=True)
 def _kernel(r, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB):
     """(W̃(r), ∂_σW̃(r)) for r ≠ 0."""
@@ -192,12 +202,10 @@ def _kernel(r, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB):
     r2 = math.pi * ar * ar
     if dec.real > EXP_CUT:
         return (sbx - 1.0) / r2, sbx / (sigma * r2)
+    bw, bs = _exp_factors(u, sbx, r2, sigma, ub0, EB)
     e = cmath.exp(-dec)
-    e1 = _lagrange4(EB, 0, u, ub0)
-    e0 = _lagrange4(EB, 1, u, ub0)
-    w = (e1 * e - 1.0 + sbx) / r2
-    ws = (sbx - e * (sbx * e1 + e0)) / (sigma * r2)
-    return w, ws
+    return (sbx - 1.0) / r2 + e * bw, sbx / (sigma * r2) + e * bs
+
 
 
 @njit(cache=True)
@@ -279,7 +287,7 @@ SPLIT_PER_SIDE = True
 
 @njit(parallel=True, cache=True)
 def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, AS, BS,
-               per_side=SPLIT_PER_SIDE, split_scale=1.0, filon=True):
+               per_side=SPLIT_PER_SIDE, split_scale=1.0):
     """Product integration of W̃ (into AW, BW) and ∂_σW̃ (into AS, BS) against the cubic spline.
 
     Row i, target ξ_i: ∫ p(z) W̃(ξ_i − z) dz = Σ_j AW[i, j] u_j + BW[i, j] m_j (m: spline slopes).
@@ -295,7 +303,7 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
     its distance is below EXP_CUT, as before stop 33; 2–3× the evaluations at |σ| ~ c_p/L there).
     ``split_scale`` multiplies every sub-panel count (> 1: a finer reference, for tests).
 
-    ``filon`` (with ``per_side``): a far segment (|2x0 − 1| > 3) that the rule above would split,
+    With ``per_side``, a far segment (|2x0 − 1| > 3) that the rule above would split,
     with a phase (1 + sβ)κ h of at least 2·FILON_N over one or two sub-panels, is integrated by
     Filon–Gauss instead (:func:`filon_weights`): W̃ = (sβx − 1)/(πr²) + e^{−(1+sβ)x} E₁(x)/(πr²),
     x = κ|r|; the first part by Gauss–Legendre, the exponential against the smooth rest exactly,
@@ -333,7 +341,7 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
             d0 = 0j
             d1 = 0j
             near = rr <= 3.0
-            if per_side and filon and not near and m > 1:
+            if per_side and not near and m > 1:
                 # far segment, live exponential turning fast: Filon–Gauss on mf ≤ 2 sub-panels,
                 # each at least two of its lengths from the target
                 sgn = 1.0 if x0 > 0.5 else -1.0
@@ -354,13 +362,11 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
                             x = kappa * ar
                             sbx = sgn * beta * x
                             r2 = math.pi * r * r
-                            u = math.log(ar)
-                            e1 = _lagrange4(EB, 0, u, ub0)
-                            e0 = _lagrange4(EB, 1, u, ub0)
+                            bw, bs = _exp_factors(math.log(ar), sbx, r2, sigma, ub0, EB)
                             wq = _FG_W[kq] * hs
                             we = wf[kq] * hs * pref
-                            kw = wq * (sbx - 1.0) / r2 + we * e1 / r2
-                            ks = (wq * sbx - we * (sbx * e1 + e0)) / (sigma * r2)
+                            kw = wq * (sbx - 1.0) / r2 + we * bw
+                            ks = wq * sbx / (sigma * r2) + we * bs
                             h00, h01, h10, h11 = _hermite(sg)
                             a0 += h00 * kw
                             a1 += h01 * kw
