@@ -128,3 +128,68 @@ def test_shifted_fit_gives_a_nonzero_error_when_the_profile_is_narrower_than_its
     sh = fit_shifted_power_law(x, y, 1e-6 * y, lo=1.0)
     assert abs(sh.x_star - 1.0067) < 5 * sh.x_star_err
     assert 0 < sh.x_star_err < 1e-5
+
+
+# ------------------------------------------------------------- the family's slope and folds
+def test_family_slope_recovers_an_exact_law_with_a_covering_error():
+    from slippulse.stability.law import family_slope
+    L = np.geomspace(10.0, 4000.0, 40)
+    tau = 1.0075 + 0.3 * L ** -0.4
+    exact = -0.12 * L ** -0.4                          # dτ/d ln L
+    g, e = family_slope(tau, L)
+    assert np.all(np.abs(g - exact) <= e + 1e-15)
+    assert np.max(np.abs(g / exact - 1.0)) < 1e-5
+    # at lengths between the pulses, and outside the family's range: nan
+    q = np.array([5.0, 123.4, 4000.0, 4001.0])
+    g, e = family_slope(tau, L, at=q)
+    assert np.isnan(g[0]) and np.isnan(g[3]) and np.isnan(e[0])
+    assert np.all(np.abs(g[1:3] - (-0.12 * q[1:3] ** -0.4)) <= e[1:3] + 1e-15)
+    # a slope of the wrong sign or size would not be covered: the bar is small (one-sided at
+    # the last pulse, hence larger there)
+    assert np.all(e[1:3] < 3e-3 * np.abs(g[1:3]))
+
+
+def test_folds_are_found_where_tau_d_turns_and_only_there():
+    from slippulse.stability.law import folds
+    L = np.geomspace(10.0, 4000.0, 40)
+    tau = 1.0075 + 0.3 * L ** -0.4
+    assert folds(tau, L) == []
+    turned = tau.copy()
+    turned[25:] = 2.0 * tau[24] - tau[25:]               # τ_d rises again beyond pulse 24
+    f = folds(turned, L)
+    assert len(f) == 1 and f[0][0] < L[24] < f[0][1]
+    # the order of the pulses in the input does not matter
+    k = np.random.default_rng(1).permutation(L.size)
+    assert folds(turned[k], L[k]) == f
+
+
+def test_fold_ratio_of_rates_proportional_to_the_slope():
+    from slippulse.stability.law import fold_ratio
+    slope = np.array([-2e-3, -5e-4, -1e-4])
+    R, e = fold_ratio(0.3 * np.abs(slope), 0.003 * np.abs(slope), slope, 0.02 * np.abs(slope))
+    assert np.allclose(R, 0.3) and np.allclose(e, 0.3 * np.hypot(0.01, 0.02))
+
+
+def test_rates_command_gives_the_slope_the_ratio_and_no_fold(tmp_path):
+    """The synthetic family has L = 0.2/(τ_d/τ_min − 1.0077), so dτ_d/d ln L = −(τ_d/τ_min −
+    1.0077), and s L/c_p = 8.8e3 (τ_d/τ_min − 1.0077)³: R = 8.8e3 (τ_d/τ_min − 1.0077)²."""
+    import re
+    import subprocess
+    import sys
+    f = str(tmp_path / "fam.h5")
+    ratios = _family_with_rates(f, lambda r: 8.8e3 * (r - 1.0077) ** 3)
+    r = subprocess.run([sys.executable, "-m", "slippulse.cli", "steady", "rates", f],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    seen = 0
+    for q in ratios:
+        m = re.search(rf"td{q:.4f}: .*d tau_d/d ln L = (\S+) ± (\S+), R = (\S+) ± (\S+)",
+                      r.stdout)
+        assert m, r.stdout
+        g, ge, R, Re = (float(v) for v in m.groups())
+        assert abs(g + (q - 1.0077)) <= ge + 1e-4 * abs(g)
+        assert abs(R - 8.8e3 * (q - 1.0077) ** 2) <= Re + 1e-3 * R
+        seen += 1
+    assert seen == len(ratios)
+    assert "family: no fold" in r.stdout and "no fold of tau_d(L)" in r.stdout.splitlines()[-1]
+    assert "R = s L/c_p / |d tau_d/d ln L|" in r.stdout      # its law is fitted

@@ -296,6 +296,31 @@ def test_M0_is_the_linearised_discrete_steady_problem(op12, params):
     assert np.max(np.abs(M0 - Jv)) < 1e-13 * np.max(np.abs(Jv))
 
 
+def _chain_defect(op, params):
+    """max|M′(0) t + ∂F/∂c| / max|∂F/∂c|: t = v₀′ (translation), F the steady equations at fixed
+    v in M's sign (M(0) = −∂Δ/∂v), ∂F/∂c = −(∂Δ/∂β)/c_s. M′ at σ = 1e-6 c_p/L (M is analytic
+    for Re σ > 0; its derivative at 0⁺ differs by O(κ ln κ))."""
+    from slippulse.steady.equations import SteadyProblem
+    p = op.pulse
+    prob = SteadyProblem(params, p.tau_d_ratio, p.xi, 0, 0.0, H=op.elastic.H, state_order=4)
+    _, J = prob.residual_and_jacobian(np.append(np.log(p.v), p.beta))
+    F_c = -J[:-1, -1] / params.c_s
+    dM = op.matrices(1e-6 * op.rate_unit)[1]
+    return float(np.abs(dM @ (op.S @ op.v0) + F_c).max() / np.abs(F_c).max())
+
+
+def test_translation_growing_in_time_is_a_change_of_speed(op12, params):
+    """M′(0) t = −∂F/∂c (docs/stability.md §9.5): a translation that grows linearly in time is a
+    pulse at another speed. Hence σ = 0 is a double eigenvalue (with the chain M(0) g = −M′(0) t)
+    exactly where a steady pulse at a neighbouring speed exists at the same τ_d: at a fold of
+    the family. The identity holds to the discretisation: 1e-3 at N = 700, falling with N."""
+    from slippulse.steady.solver import solve_pulse
+    d700 = _chain_defect(op12, params)
+    assert d700 < 2.5e-3
+    fine = StabilityOperator(solve_pulse(params, 1.2, n_points=1400).to_pulse(), params)
+    assert _chain_defect(fine, params) < d700 / 4.0
+
+
 def test_uniform_slip_is_an_exact_neutral_mode(op12):
     M = op12.matrices_delta(0.0)
     one = np.ones(op12.n)

@@ -435,7 +435,8 @@ def cmd_stability(args) -> int:
 def cmd_rates(args) -> int:
     import numpy as np
 
-    from ..stability.law import family_rates, fit_power_law, fit_shifted_power_law
+    from ..stability.law import (family_curve, family_rates, family_slope, fit_power_law,
+                                 fit_shifted_power_law, fold_ratio, folds)
     from ..stability.spectrum_family import check_family_file
     if not (math.isfinite(args.below) and 1.0 < args.below <= 2.0):
         raise ParameterError(f"below={args.below!r} is invalid: must be in (1, 2] "
@@ -456,11 +457,18 @@ def cmd_rates(args) -> int:
         raise UsageError(f"{' '.join(args.file)}: no growth rate with an error estimate stored; "
                          "run `slippulse steady stability FILE` first")
     x, y, e = r["tau_d_ratio"], r["s_per_L"], r["s_err_per_L"]
+    # the family's slope at each rated pulse, from all converged pulses of the files, and the
+    # fold ratio R = s L/c_p / |d tau_d/d ln L| (docs/stability.md section 9.5)
+    curve = family_curve(args.file)
+    slope, slope_err = family_slope(curve["tau_d_ratio"], curve["L"], at=r["L"])
+    R, R_err = fold_ratio(y, e, slope, slope_err)
     for k in range(x.size):
         sign = ("unstable" if y[k] > 2 * e[k] else "stable" if y[k] < -2 * e[k]
                 else "sign not resolved")
+        fold = (f"; d tau_d/d ln L = {slope[k]:.4g} ± {slope_err[k]:.1g}, R = {R[k]:.4g} ± "
+                f"{R_err[k]:.1g}" if np.isfinite(R[k]) else "")
         print(f"{r['label'][k]}: L = {r['L'][k]:.4g} m, s L/c_p = {y[k]:.4g} ± {e[k]:.1g}, "
-              f"s = {r['s'][k]:.4g} ± {r['s_err'][k]:.1g} 1/s: {sign}")
+              f"s = {r['s'][k]:.4g} ± {r['s_err'][k]:.1g} 1/s: {sign}{fold}")
     res = r["sign_resolved"] == 1
     n_un, n_st = int(np.sum(res & (y > 0))), int(np.sum(res & (y < 0)))
     win = (x <= args.below) & res & (y > 0)
@@ -485,8 +493,8 @@ def cmd_rates(args) -> int:
         parts.append(f"no fit: {exc}")
     for line in parts:
         print("fit: " + line)
+    from ..stability.law import local_exponents
     if tau_star is not None and np.sum(win & (x > tau_star)) >= 2:
-        from ..stability.law import local_exponents
         m = win & (x > tau_star)
         xm, k = local_exponents(x[m] - tau_star, y[m])
         print("local exponents d ln(s L/c_p)/d ln(tau_d/tau_min - tau_star): "
@@ -494,9 +502,25 @@ def cmd_rates(args) -> int:
         xm, k = local_exponents(r["L"][m], y[m])
         print("local exponents d ln(s L/c_p)/d ln L: "
               + ", ".join(f"{b:.2f} at L = {a:.3g} m" for a, b in zip(xm, k)))
+    turns = folds(curve["tau_d_ratio"], curve["L"])
+    if turns:
+        fold_line = ("tau_d(L) turns (a fold) between L = " + ", ".join(
+            f"{a:.4g}-{b:.4g} m" for a, b in turns) + ": a real eigenvalue may cross zero there")
+    else:
+        fold_line = (f"no fold: tau_d falls monotonically with L over the {curve['L'].size} "
+                     f"pulses, L = {curve['L'].min():.4g}-{curve['L'].max():.4g} m, so no real "
+                     "eigenvalue crosses zero there")
+    print("family: " + fold_line + " (docs/stability.md section 9.5)")
+    mR = win & np.isfinite(R) & (R > 0)
+    if np.sum(mR) >= 3:
+        fits["R"] = fit_power_law(r["L"][mR], R[mR], R_err[mR])
+        print("fit: " + fits["R"].describe("L/m", "R = s L/c_p / |d tau_d/d ln L|"))
+        xm, k = local_exponents(r["L"][mR], R[mR])
+        print("local exponents d ln R/d ln L: "
+              + ", ".join(f"{b:.2f} at L = {a:.3g} m" for a, b in zip(xm, k)))
     if args.figure and tau_star is not None:
         from ..plotting.rates import plot_rates
-        plot_rates(r, fits, args.figure, tau_star)
+        plot_rates(r, fits, args.figure, tau_star, fold=(R, R_err))
         print(f"figure: {args.figure}")
     cross = ("s changes sign" if n_un and n_st else
              "s does not cross zero (unstable at every resolved pulse)" if n_un and not n_st else
@@ -504,7 +528,9 @@ def cmd_rates(args) -> int:
     lo = x[res].min() if np.any(res) else float("nan")
     print(f"rates {' '.join(args.file)}: {x.size} pulses, unstable at {n_un}, stable at {n_st}, sign not "
           f"resolved at {x.size - n_un - n_st}; {cross} down to tau_d/tau_min = {lo:.6f} "
-          f"(L = {r['L'][x == lo][0] if np.any(res) else float('nan'):.4g} m)")
+          f"(L = {r['L'][x == lo][0] if np.any(res) else float('nan'):.4g} m); "
+          + ("no fold of tau_d(L) in the family" if not turns else
+             f"{len(turns)} fold(s) of tau_d(L)"))
     return 0
 
 
@@ -693,7 +719,11 @@ def register(sub) -> None:
                                   "in log space; errors Birge-scaled) against x = tau_d/tau_min - "
                                   "tau_star (tau_star fitted too unless given) and against L, on "
                                   "the pulses with tau_d/tau_min <= --below (docs/stability.md "
-                                  "section 9.0).")
+                                  "section 9.0). It also gives the family's slope d tau_d/d ln L "
+                                  "at each rated pulse (from all converged pulses of the files), "
+                                  "the ratio R = s L/c_p / |d tau_d/d ln L| and its law, and "
+                                  "whether tau_d(L) folds: a real eigenvalue crosses zero only "
+                                  "at a fold (section 9.5).")
     p.add_argument("file", metavar="FILE", nargs="+",
                    help="HDF5 family file(s) with stored spectra (several: their pulses are "
                         "taken together, e.g. a family and its deep continuation)")

@@ -5,17 +5,19 @@ from __future__ import annotations
 import numpy as np
 
 
-def plot_rates(rates, fits, out, tau_star, dpi=130):
+def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
     """Three panels: s L/c_p against τ_d/τ_min − τ̃* and against L (log–log, error bars, fits),
     and s L/c_p against τ_d/τ_min (linear, the sign). `rates`: :func:`stability.law.family_rates`;
-    `fits`: dict name → PowerLaw (keys 'shift', 'L') or None."""
+    `fits`: dict name → PowerLaw (keys 'shift', 'L', 'R') or None. ``fold`` = (R, R_err) of
+    :func:`stability.law.fold_ratio` adds a fourth panel: R against L (docs/stability.md §9.5)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     x = rates["tau_d_ratio"]
     y, e = rates["s_per_L"], rates["s_err_per_L"]
     pos = y > 0
-    fig, ax = plt.subplots(1, 3, figsize=(14, 4.3))
+    panels = 3 if fold is None else 4
+    fig, ax = plt.subplots(1, panels, figsize=(4.7 * panels, 4.3))
     for a, xv, name, xl in ((ax[0], x - tau_star, "shift",
                              f"τ_d/τ_min − τ̃*  (τ̃* = {tau_star:.5f})"),
                             (ax[1], rates["L"], "L", "pulse length L (m)")):
@@ -50,6 +52,23 @@ def plot_rates(rates, fits, out, tau_star, dpi=130):
     a.set_ylabel("s L/c_p  (symmetric log, linear below 1e-4)")
     a.set_title("(c) the sign along the family (s > 0: unstable)")
     a.grid(True, which="both", alpha=0.3)
+    if fold is not None:
+        R, Re = (np.asarray(v, float) for v in fold)
+        a = ax[3]
+        m = np.isfinite(R) & (R > 0)
+        a.errorbar(rates["L"][m], R[m], yerr=np.minimum(Re[m], 0.999 * R[m]), fmt="o", ms=4,
+                   color="C2", capsize=2, label="R ± err")
+        f = fits.get("R")
+        if f is not None:
+            xx = np.geomspace(f.x_range[0], f.x_range[1], 100)
+            a.plot(xx, f(xx), "-", color="C3", label=f"fit: ∝ L^({f.n:.2f} ± {f.n_err:.2f})")
+        a.set_xscale("log")
+        a.set_yscale("log")
+        a.set_xlabel("pulse length L (m)")
+        a.set_ylabel("R = s L/c_p / |dτ_d/d ln L|  (τ_d in τ_min)")
+        a.set_title("(d) growth rate per unit slope of the family")
+        a.grid(True, which="both", alpha=0.3)
+        a.legend(fontsize=8, loc="best")
     fig.tight_layout()
     fig.savefig(out, dpi=dpi)
     plt.close(fig)

@@ -158,3 +158,88 @@ def fit_shifted_power_law(x, y, y_err, lo=None):
     lo_gap = crossing(j for j in range(gaps.size - 1, -1, -1) if gaps[j] < best_gap)
     err = 0.5 * (hi_gap - lo_gap) if np.isfinite(hi_gap) and np.isfinite(lo_gap) else float("nan")
     return ShiftedLaw(xmin - best_gap, float(err), law)
+
+
+# ------------------------------------------------------------------ the family's slope
+def family_curve(paths):
+    """τ_d/τ_min, L and β of every converged pulse of one or several family files, sorted by L
+    (a label present in several files: the first file's). Returns a dict of arrays and labels."""
+    import h5py
+
+    from ..core.h5io import pulse_converged
+    rows, seen = [], set()
+    for path in ([paths] if isinstance(paths, (str, bytes)) or hasattr(paths, "__fspath__")
+                 else paths):
+        with h5py.File(path, "r") as h5:
+            for lab, grp in h5["pulses"].items():
+                if lab in seen or not pulse_converged(grp):
+                    continue
+                seen.add(lab)
+                a = grp.attrs
+                rows.append((float(a["L"]), float(a["tau_d_ratio"]), float(a["beta"]), lab))
+    rows.sort()
+    out = {k: np.array([r[i] for r in rows]) for i, k in enumerate(("L", "tau_d_ratio", "beta"))}
+    out["label"] = [r[-1] for r in rows]
+    return out
+
+
+def _lagrange_slope(x, y, x0):
+    """d/dx at x0 of the polynomial through (x, y) (degree len(x) − 1)."""
+    c = np.polyfit(np.asarray(x, float) - x0, np.asarray(y, float), len(x) - 1)
+    return float(c[-2])
+
+
+def family_slope(tau, L, at=None):
+    """dτ_d/d ln L along a family given by its pulses (τ_d/τ_min, L), with an error estimate.
+
+    At each query length (``at``; default the pulses' own L) the slope is that of the quartic
+    through the five pulses nearest in ln L, and its error the difference from the quadratic
+    through the three nearest (a quadratic and a cubic where only four or three pulses exist).
+    A query outside the family's range of L gets nan. Returns (slope, err) arrays.
+
+    The family must be a single-valued τ_d(L) (see :func:`folds`); duplicates in L are dropped."""
+    L, tau = np.asarray(L, float), np.asarray(tau, float)
+    k = np.argsort(L)
+    x, y = np.log(L[k]), tau[k]
+    keep = np.concatenate([[True], np.diff(x) > 0])
+    x, y = x[keep], y[keep]
+    q = x if at is None else np.log(np.asarray(at, float))
+    slope, err = np.full(q.size, np.nan), np.full(q.size, np.nan)
+    if x.size < 3:
+        return slope, err
+    tol = 1e-12 * max(1.0, float(np.abs(x).max()))
+    for i, x0 in enumerate(q):
+        if not (x[0] - tol <= x0 <= x[-1] + tol):
+            continue
+        near = np.sort(np.argsort(np.abs(x - x0), kind="stable")[:min(5, x.size)])
+        hi = _lagrange_slope(x[near], y[near], x0)
+        lo_idx = np.sort(np.argsort(np.abs(x - x0), kind="stable")[:3])
+        lo = _lagrange_slope(x[lo_idx], y[lo_idx], x0)
+        slope[i], err[i] = hi, abs(hi - lo)
+    return slope, err
+
+
+def folds(tau, L):
+    """Where τ_d(L) turns (a fold of the family in τ_d): for each change of sign of Δτ_d between
+    pulses sorted by L, the lengths (L_a, L_b) of the pulses on either side of the turning one.
+    Empty when τ_d is monotone in L."""
+    L, tau = np.asarray(L, float), np.asarray(tau, float)
+    k = np.argsort(L)
+    L, d = L[k], np.diff(tau[k])
+    nz = np.flatnonzero(d != 0.0)
+    out = []
+    for a, b in zip(nz[:-1], nz[1:]):
+        if np.sign(d[a]) != np.sign(d[b]):
+            out.append((float(L[a]), float(L[b + 1])))
+    return out
+
+
+def fold_ratio(s_per_L, s_err_per_L, slope, slope_err):
+    """R = (s L/c_p)/|dτ_d/d ln L| and its 1σ error (relative errors added in quadrature).
+
+    A real eigenvalue of the pulse operator passes through σ = 0 only at a fold of the family in
+    τ_d (docs/stability.md §9.5): near one, s L/c_p ≈ R |dτ_d/d ln L|. A bounded R along a
+    family whose τ_d tends to a limit (|dτ_d/d ln L| → 0) means s L/c_p → 0 there."""
+    s, e, g, ge = (np.asarray(a, float) for a in (s_per_L, s_err_per_L, slope, slope_err))
+    R = s / np.abs(g)
+    return R, np.abs(R) * np.hypot(e / s, ge / g)
