@@ -21,9 +21,21 @@ import tomllib
 
 import numpy as np
 
-from slippulse.core.h5io import label_ratio
+from slippulse.core.h5io import label_decimals, label_ratio
 from slippulse.stability.law import (family_curve, family_slope, fit_power_law, fold_ratio,
                                      folds, local_exponents)
+
+
+def _records_slope(tau, L):
+    """dτ_d/d ln L from the records' own (τ_d, L) points (no β there; L is monotone along the
+    family below 1.2 τ_min): the same quartic-against-quadratic rule in ln L."""
+    from slippulse.stability.law import _derivative
+    k = np.argsort(L)
+    x, y = np.log(L[k]), tau[k]
+    out = np.array([_derivative(x, y, x0) for x0 in x])
+    g, e = np.empty(L.size), np.empty(L.size)
+    g[k], e[k] = out[:, 0], out[:, 1]
+    return g, e
 
 
 def main(argv=None):
@@ -43,16 +55,23 @@ def main(argv=None):
     se = np.array([rec[k]["s_per_L"]["err"] for k in labels])
 
     curve = family_curve(a.family)
-    g, ge = family_slope(curve["tau_d_ratio"], curve["L"], at=L)
+    g, ge = family_slope(curve["tau_d_ratio"], curve["L"], curve["beta"], at_L=L)
     src = np.where(np.isfinite(g), "family", "records")
-    g2, ge2 = family_slope(tau, L)
+    g2, ge2 = _records_slope(tau, L)
+    # the records' τ_d is their label's, rounded to its last decimal: that rounding, over the
+    # spacing in ln L to the nearest record, adds to the error of a slope taken from them
+    half = np.array([0.5 * 10.0 ** -label_decimals(k) for k in labels])
+    dx = np.diff(np.log(L))
+    near = np.minimum(np.r_[np.inf, dx], np.r_[dx, np.inf])
+    ge2 = np.hypot(ge2, np.sqrt(2.0) * half / near)
     g, ge = np.where(np.isfinite(g), g, g2), np.where(np.isfinite(ge), ge, ge2)
     R, Re = fold_ratio(s, se, g, ge)
 
-    turns = folds(curve["tau_d_ratio"], curve["L"])
+    turns = folds(curve["tau_d_ratio"], curve["beta"])
     print(f"Family files: {curve['L'].size} converged pulses, L = {curve['L'].min():.4g} to "
           f"{curve['L'].max():.5g} m; "
-          + ("tau_d(L) is monotone (no fold)." if not turns else f"folds at {turns}."))
+          + ("tau_d is monotone along the family (no fold)." if not turns
+             else f"folds at beta = {turns}."))
     print()
     print("| L (m) | τ_d/τ_min | s L/c_p ± err | dτ_d/d ln L ± err | R ± err | slope from |")
     print("|---|---|---|---|---|---|")

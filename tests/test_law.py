@@ -65,7 +65,9 @@ def _family_with_rates(path, law, err_rel=0.01, unresolved=()):
     from test_analysis import _synthetic_pulse
     ratios = [1.05, 1.04, 1.03, 1.025, 1.02, 1.015, 1.0125]
     for r in ratios:
-        h5io.write_pulse(path, _synthetic_pulse(r, 0.5, 0.2 / (r - 1.0077)), P)
+        # β grows toward τ_min, as along the real family (the slope is taken along β)
+        h5io.write_pulse(path, _synthetic_pulse(r, 0.9 - 8.0 * (r - 1.0125), 0.2 / (r - 1.0077)),
+                         P)
     with h5py.File(path, "r+") as h5:
         for r in ratios:
             g = h5["pulses"][h5io.pulse_label(r)]
@@ -131,17 +133,27 @@ def test_shifted_fit_gives_a_nonzero_error_when_the_profile_is_narrower_than_its
 
 
 # ------------------------------------------------------------- the family's slope and folds
+def _deep_family(n=40):
+    """A family with β → 1: 1 − β = 0.3 L^−0.8, τ_d/τ_min = 1.0075 + 0.3 L^−0.4 (L in m), so
+    dτ_d/d ln L = −0.12 L^−0.4."""
+    L = np.geomspace(10.0, 4000.0, n)
+    return 1.0075 + 0.3 * L ** -0.4, L, 1.0 - 0.3 * L ** -0.8
+
+
 def test_family_slope_recovers_an_exact_law_with_a_covering_error():
     from slippulse.stability.law import family_slope
-    L = np.geomspace(10.0, 4000.0, 40)
-    tau = 1.0075 + 0.3 * L ** -0.4
-    exact = -0.12 * L ** -0.4                          # dτ/d ln L
-    g, e = family_slope(tau, L)
+    tau, L, beta = _deep_family()
+    exact = -0.12 * L ** -0.4
+    g, e = family_slope(tau, L, beta)
     assert np.all(np.abs(g - exact) <= e + 1e-15)
-    assert np.max(np.abs(g / exact - 1.0)) < 1e-5
-    # at lengths between the pulses, and outside the family's range: nan
+    assert np.max(np.abs(g / exact - 1.0)) < 1e-4
+    # the order of the pulses does not matter
+    k = np.random.default_rng(2).permutation(L.size)
+    g2, _ = family_slope(tau[k], L[k], beta[k])
+    assert np.allclose(g2, g[k], rtol=1e-12)
+    # queried by L between the pulses, and outside the family's range: nan
     q = np.array([5.0, 123.4, 4000.0, 4001.0])
-    g, e = family_slope(tau, L, at=q)
+    g, e = family_slope(tau, L, beta, at_L=q)
     assert np.isnan(g[0]) and np.isnan(g[3]) and np.isnan(e[0])
     assert np.all(np.abs(g[1:3] - (-0.12 * q[1:3] ** -0.4)) <= e[1:3] + 1e-15)
     # a slope of the wrong sign or size would not be covered: the bar is small (one-sided at
@@ -149,18 +161,38 @@ def test_family_slope_recovers_an_exact_law_with_a_covering_error():
     assert np.all(e[1:3] < 3e-3 * np.abs(g[1:3]))
 
 
+def test_family_slope_where_the_length_turns():
+    """Above 1.3 τ_min the default family's L has a minimum while β keeps falling: the slope is
+    taken along β, is infinite at the turn, and a query by L there is refused (nan)."""
+    from slippulse.stability.law import family_slope
+    beta = np.geomspace(1e-4, 1e-3, 41)
+    u = np.log(beta / (1.0 - beta))
+    lnL = (u - u[20]) ** 2                               # minimum of L at pulse 20
+    tau = 1.3 - 0.01 * (u - u[0])                         # τ_d monotone in β: no fold
+    g, e = family_slope(tau, np.exp(lnL), beta)
+    with np.errstate(divide="ignore"):
+        exact = -0.01 / (2.0 * (u - u[20]))
+    fin = np.abs(u - u[20]) > 0.3
+    assert np.all(np.abs(g[fin] - exact[fin]) <= e[fin] + 1e-12 * np.abs(exact[fin]))
+    assert abs(g[20]) > 1e6 * np.abs(exact[fin]).max() or not np.isfinite(g[20])
+    gL, _ = family_slope(tau, np.exp(lnL), beta, at_L=[np.exp(lnL[5])])
+    assert np.isnan(gL[0])
+
+
 def test_folds_are_found_where_tau_d_turns_and_only_there():
     from slippulse.stability.law import folds
-    L = np.geomspace(10.0, 4000.0, 40)
-    tau = 1.0075 + 0.3 * L ** -0.4
-    assert folds(tau, L) == []
+    tau, L, beta = _deep_family()
+    assert folds(tau, beta) == []
     turned = tau.copy()
     turned[25:] = 2.0 * tau[24] - tau[25:]               # τ_d rises again beyond pulse 24
-    f = folds(turned, L)
-    assert len(f) == 1 and f[0][0] < L[24] < f[0][1]
+    f = folds(turned, beta)
+    assert len(f) == 1 and f[0][0] < beta[24] < f[0][1]
     # the order of the pulses in the input does not matter
     k = np.random.default_rng(1).permutation(L.size)
-    assert folds(turned[k], L[k]) == f
+    assert folds(turned[k], beta[k]) == f
+    # a turn of L alone (τ_d monotone in β) is not a fold
+    u = np.log(beta / (1.0 - beta))
+    assert folds(1.3 - 0.01 * u, beta) == []
 
 
 def test_fold_ratio_of_rates_proportional_to_the_slope():
@@ -191,5 +223,6 @@ def test_rates_command_gives_the_slope_the_ratio_and_no_fold(tmp_path):
         assert abs(R - 8.8e3 * (q - 1.0077) ** 2) <= Re + 1e-3 * R
         seen += 1
     assert seen == len(ratios)
-    assert "family: no fold" in r.stdout and "no fold of tau_d(L)" in r.stdout.splitlines()[-1]
+    assert "family: no fold" in r.stdout
+    assert "no fold of tau_d along the family" in r.stdout.splitlines()[-1]
     assert "R = s L/c_p / |d tau_d/d ln L|" in r.stdout      # its law is fitted

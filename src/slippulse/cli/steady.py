@@ -460,7 +460,8 @@ def cmd_rates(args) -> int:
     # the family's slope at each rated pulse, from all converged pulses of the files, and the
     # fold ratio R = s L/c_p / |d tau_d/d ln L| (docs/stability.md section 9.5)
     curve = family_curve(args.file)
-    slope, slope_err = family_slope(curve["tau_d_ratio"], curve["L"], at=r["L"])
+    slope, slope_err = family_slope(curve["tau_d_ratio"], curve["L"], curve["beta"],
+                                    at_beta=r["beta"])
     R, R_err = fold_ratio(y, e, slope, slope_err)
     for k in range(x.size):
         sign = ("unstable" if y[k] > 2 * e[k] else "stable" if y[k] < -2 * e[k]
@@ -502,14 +503,15 @@ def cmd_rates(args) -> int:
         xm, k = local_exponents(r["L"][m], y[m])
         print("local exponents d ln(s L/c_p)/d ln L: "
               + ", ".join(f"{b:.2f} at L = {a:.3g} m" for a, b in zip(xm, k)))
-    turns = folds(curve["tau_d_ratio"], curve["L"])
+    turns = folds(curve["tau_d_ratio"], curve["beta"])
     if turns:
-        fold_line = ("tau_d(L) turns (a fold) between L = " + ", ".join(
-            f"{a:.4g}-{b:.4g} m" for a, b in turns) + ": a real eigenvalue may cross zero there")
+        fold_line = ("tau_d turns along the family (a fold) between beta = " + ", ".join(
+            f"{a:.6g}-{b:.6g}" for a, b in turns) + ": a real eigenvalue may cross zero there")
     else:
-        fold_line = (f"no fold: tau_d falls monotonically with L over the {curve['L'].size} "
-                     f"pulses, L = {curve['L'].min():.4g}-{curve['L'].max():.4g} m, so no real "
-                     "eigenvalue crosses zero there")
+        fold_line = (f"no fold: tau_d is monotone along the family over its {curve['L'].size} "
+                     f"pulses (beta = {curve['beta'].min():.4g}-{curve['beta'].max():.7g}, L = "
+                     f"{curve['L'].min():.4g}-{curve['L'].max():.4g} m), so no real eigenvalue "
+                     "crosses zero there")
     print("family: " + fold_line + " (docs/stability.md section 9.5)")
     mR = win & np.isfinite(R) & (R > 0)
     if np.sum(mR) >= 3:
@@ -529,8 +531,8 @@ def cmd_rates(args) -> int:
     print(f"rates {' '.join(args.file)}: {x.size} pulses, unstable at {n_un}, stable at {n_st}, sign not "
           f"resolved at {x.size - n_un - n_st}; {cross} down to tau_d/tau_min = {lo:.6f} "
           f"(L = {r['L'][x == lo][0] if np.any(res) else float('nan'):.4g} m); "
-          + ("no fold of tau_d(L) in the family" if not turns else
-             f"{len(turns)} fold(s) of tau_d(L)"))
+          + ("no fold of tau_d along the family" if not turns else
+             f"{len(turns)} fold(s) of tau_d along the family"))
     return 0
 
 

@@ -72,7 +72,7 @@ def local_exponents(x, y):
 
 def family_rates(paths):
     """The growth rates of record of one or several family files: dict of arrays (τ_d/τ_min, L,
-    c_p, s, s_err, s_per_L, s_err_per_L, sign_resolved) and labels, over the pulses whose
+    c_p, s, s_err, s_per_L, s_err_per_L, sign_resolved, β) and labels, over the pulses whose
     spectrum has ``s`` stored, by decreasing τ_d (a label present in several files: the first
     file's)."""
     import h5py
@@ -90,9 +90,10 @@ def family_rates(paths):
                 rows.append((float(a["tau_d_ratio"]), float(a["L"]), float(a["c_p"]),
                              float(g.attrs["s"]), float(g.attrs["s_err"]),
                              float(g.attrs["s_per_L"]), float(g.attrs["s_err_per_L"]),
-                             int(g.attrs["sign_resolved"]), lab))
+                             int(g.attrs["sign_resolved"]), float(a["beta"]), lab))
     rows.sort(key=lambda r: -r[0])
-    names = ("tau_d_ratio", "L", "c_p", "s", "s_err", "s_per_L", "s_err_per_L", "sign_resolved")
+    names = ("tau_d_ratio", "L", "c_p", "s", "s_err", "s_per_L", "s_err_per_L", "sign_resolved",
+             "beta")
     out = {k: np.array([r[i] for r in rows]) for i, k in enumerate(names)}
     out["label"] = [r[-1] for r in rows]
     return out
@@ -162,8 +163,9 @@ def fit_shifted_power_law(x, y, y_err, lo=None):
 
 # ------------------------------------------------------------------ the family's slope
 def family_curve(paths):
-    """τ_d/τ_min, L and β of every converged pulse of one or several family files, sorted by L
-    (a label present in several files: the first file's). Returns a dict of arrays and labels."""
+    """τ_d/τ_min, L and β of every converged pulse of one or several family files, in the order
+    of the family (increasing β; a label present in several files: the first file's). Returns a
+    dict of arrays and labels."""
     import h5py
 
     from ..core.h5io import pulse_converged
@@ -176,11 +178,18 @@ def family_curve(paths):
                     continue
                 seen.add(lab)
                 a = grp.attrs
-                rows.append((float(a["L"]), float(a["tau_d_ratio"]), float(a["beta"]), lab))
+                rows.append((float(a["beta"]), float(a["L"]), float(a["tau_d_ratio"]), lab))
     rows.sort()
-    out = {k: np.array([r[i] for r in rows]) for i, k in enumerate(("L", "tau_d_ratio", "beta"))}
+    out = {k: np.array([r[i] for r in rows]) for i, k in enumerate(("beta", "L", "tau_d_ratio"))}
     out["label"] = [r[-1] for r in rows]
     return out
+
+
+def _along(beta):
+    """The family's parameter: u = ln(β/(1 − β)), monotone in β, resolving both β → 0 (the
+    quasi-static end) and β → 1 (the deep end)."""
+    b = np.asarray(beta, float)
+    return np.log(b) - np.log1p(-b)
 
 
 def _lagrange_slope(x, y, x0):
@@ -189,48 +198,69 @@ def _lagrange_slope(x, y, x0):
     return float(c[-2])
 
 
-def family_slope(tau, L, at=None):
-    """dτ_d/d ln L along a family given by its pulses (τ_d/τ_min, L), with an error estimate.
+def _derivative(u, y, u0):
+    """dy/du at u0 from the quartic through the five points nearest in u, and its error: the
+    difference from the quadratic through the three nearest (fewer points: lower degrees)."""
+    order = np.argsort(np.abs(u - u0), kind="stable")
+    hi_idx = np.sort(order[:min(5, u.size)])
+    lo_idx = np.sort(order[:3])
+    hi = _lagrange_slope(u[hi_idx], y[hi_idx], u0)
+    lo = _lagrange_slope(u[lo_idx], y[lo_idx], u0)
+    return hi, abs(hi - lo)
 
-    At each query length (``at``; default the pulses' own L) the slope is that of the quartic
-    through the five pulses nearest in ln L, and its error the difference from the quadratic
-    through the three nearest (a quadratic and a cubic where only four or three pulses exist).
-    A query outside the family's range of L gets nan. Returns (slope, err) arrays.
 
-    The family must be a single-valued τ_d(L) (see :func:`folds`); duplicates in L are dropped."""
-    L, tau = np.asarray(L, float), np.asarray(tau, float)
-    k = np.argsort(L)
-    x, y = np.log(L[k]), tau[k]
-    keep = np.concatenate([[True], np.diff(x) > 0])
-    x, y = x[keep], y[keep]
-    q = x if at is None else np.log(np.asarray(at, float))
+def family_slope(tau, L, beta, at_beta=None, at_L=None):
+    """dτ_d/d ln L along a family given by its pulses (τ_d/τ_min, L, β), with an error estimate.
+
+    The family is parametrised by u = ln(β/(1 − β)) (β is monotone along it, where L need not
+    be: above 1.3 τ_min L has a minimum); dτ_d/du and d ln L/du come from the quartic through
+    the five pulses nearest in u, their errors from the difference with the quadratic through the
+    three nearest, and slope = (dτ_d/du)/(d ln L/du) with the relative errors added in
+    quadrature. Queries: ``at_beta`` (default the pulses' own β), or ``at_L`` where ln L is
+    monotone in u over the family (otherwise, and outside the family's range, nan). Returns
+    (slope, err) arrays; infinite where L turns (d ln L/du = 0)."""
+    tau, L, beta = (np.asarray(a, float) for a in (tau, L, beta))
+    k = np.argsort(beta)
+    u, y, z = _along(beta[k]), tau[k], np.log(L[k])
+    keep = np.concatenate([[True], np.diff(u) > 0])
+    u, y, z = u[keep], y[keep], z[keep]
+    if at_L is not None:
+        q_L = np.log(np.asarray(at_L, float))
+        dz = np.diff(z)
+        if u.size >= 2 and (np.all(dz > 0) or np.all(dz < 0)):
+            o = np.argsort(z)
+            q = np.interp(q_L, z[o], u[o], left=np.nan, right=np.nan)
+        else:
+            q = np.full(q_L.size, np.nan)
+    else:
+        q = _along(beta if at_beta is None else at_beta)     # the input's order
+    q = np.atleast_1d(q)
     slope, err = np.full(q.size, np.nan), np.full(q.size, np.nan)
-    if x.size < 3:
+    if u.size < 3:
         return slope, err
-    tol = 1e-12 * max(1.0, float(np.abs(x).max()))
-    for i, x0 in enumerate(q):
-        if not (x[0] - tol <= x0 <= x[-1] + tol):
+    tol = 1e-12 * max(1.0, float(np.abs(u).max()))
+    for i, u0 in enumerate(q):
+        if not (np.isfinite(u0) and u[0] - tol <= u0 <= u[-1] + tol):
             continue
-        near = np.sort(np.argsort(np.abs(x - x0), kind="stable")[:min(5, x.size)])
-        hi = _lagrange_slope(x[near], y[near], x0)
-        lo_idx = np.sort(np.argsort(np.abs(x - x0), kind="stable")[:3])
-        lo = _lagrange_slope(x[lo_idx], y[lo_idx], x0)
-        slope[i], err[i] = hi, abs(hi - lo)
+        dt, et = _derivative(u, y, u0)
+        dl, el = _derivative(u, z, u0)
+        slope[i] = dt / dl if dl != 0.0 else np.inf
+        err[i] = abs(slope[i]) * np.hypot(et / dt if dt else 0.0, el / dl if dl else np.inf)
     return slope, err
 
 
-def folds(tau, L):
-    """Where τ_d(L) turns (a fold of the family in τ_d): for each change of sign of Δτ_d between
-    pulses sorted by L, the lengths (L_a, L_b) of the pulses on either side of the turning one.
-    Empty when τ_d is monotone in L."""
-    L, tau = np.asarray(L, float), np.asarray(tau, float)
-    k = np.argsort(L)
-    L, d = L[k], np.diff(tau[k])
+def folds(tau, beta):
+    """Where τ_d turns along the family (a fold in τ_d), the family ordered by β: for each change
+    of sign of Δτ_d between neighbours, the β of the pulses on either side of the turning one.
+    Empty when τ_d is monotone along the family."""
+    tau, beta = np.asarray(tau, float), np.asarray(beta, float)
+    k = np.argsort(beta)
+    b, d = beta[k], np.diff(tau[k])
     nz = np.flatnonzero(d != 0.0)
     out = []
-    for a, b in zip(nz[:-1], nz[1:]):
-        if np.sign(d[a]) != np.sign(d[b]):
-            out.append((float(L[a]), float(L[b + 1])))
+    for a, c in zip(nz[:-1], nz[1:]):
+        if np.sign(d[a]) != np.sign(d[c]):
+            out.append((float(b[a]), float(b[c + 1])))
     return out
 
 
@@ -241,5 +271,6 @@ def fold_ratio(s_per_L, s_err_per_L, slope, slope_err):
     τ_d (docs/stability.md §9.5): near one, s L/c_p ≈ R |dτ_d/d ln L|. A bounded R along a
     family whose τ_d tends to a limit (|dτ_d/d ln L| → 0) means s L/c_p → 0 there."""
     s, e, g, ge = (np.asarray(a, float) for a in (s_per_L, s_err_per_L, slope, slope_err))
-    R = s / np.abs(g)
-    return R, np.abs(R) * np.hypot(e / s, ge / g)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        R = s / np.abs(g)
+        return R, np.abs(R) * np.hypot(e / s, ge / g)
