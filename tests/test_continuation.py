@@ -299,6 +299,21 @@ def test_grid_check_equals_fixed_tau_d_difference(params):
     assert dl == pytest.approx(abs(p2.L - p0.L) / p0.L, rel=1e-2)
 
 
+def test_grid_check_reusing_the_lu_gives_the_same_check_with_fewer_factorisations(params):
+    """The nested check's re-solve with reuse=True (chord iterations on each full Newton step's
+    LU) converges to the solution of plain Newton, with fewer LUs; Δβ and ΔL/L are the same."""
+    from slippulse.steady.continuation.gridcheck import as_both, grid_change
+    from slippulse.steady.solver import solve_pulse
+    sol = as_both(params, solve_pulse(params, 1.2, n_points=400))
+    plain, db0, dl0 = grid_change(params, sol, 400, nested=True, reuse=False)
+    fast, db1, dl1 = grid_change(params, sol, 400, nested=True, reuse=True)
+    assert plain.stats.converged and fast.stats.converged
+    assert plain.stats.chord_iterations == 0 and fast.stats.chord_iterations > 0
+    assert fast.stats.iterations < plain.stats.iterations
+    assert np.max(np.abs(fast.x - plain.x)) < 1e-9
+    assert abs(db1 - db0) < 1e-6 * abs(db0) and abs(dl1 - dl0) < 1e-6 * abs(dl0)
+
+
 def test_tangent_step_converges_by_chord_iterations_to_the_direct_solution(params):
     """A τ_d step of the family from 1.2 to 1.195 τ_min on the 1.2 pulse's grid: the tangent
     predictor lands close enough for chord iterations with the tangent's LU alone, and the result

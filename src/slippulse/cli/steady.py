@@ -504,7 +504,10 @@ def cmd_rates(args) -> int:
         print("local exponents d ln(s L/c_p)/d ln L: "
               + ", ".join(f"{b:.2f} at L = {a:.3g} m" for a, b in zip(xm, k)))
     turns = folds(curve["tau_d_ratio"], curve["beta"])
-    if turns:
+    if curve["L"].size < 3:
+        fold_line = (f"{curve['L'].size} converged pulses: too few to tell whether tau_d folds "
+                     "along the family")
+    elif turns:
         fold_line = ("tau_d turns along the family (a fold) between beta = " + ", ".join(
             f"{a:.6g}-{b:.6g}" for a, b in turns) + ": a real eigenvalue may cross zero there")
     else:
@@ -531,7 +534,8 @@ def cmd_rates(args) -> int:
     print(f"rates {' '.join(args.file)}: {x.size} pulses, unstable at {n_un}, stable at {n_st}, sign not "
           f"resolved at {x.size - n_un - n_st}; {cross} down to tau_d/tau_min = {lo:.6f} "
           f"(L = {r['L'][x == lo][0] if np.any(res) else float('nan'):.4g} m); "
-          + ("no fold of tau_d along the family" if not turns else
+          + ("folds not judged (fewer than 3 converged pulses)" if curve["L"].size < 3 else
+             "no fold of tau_d along the family" if not turns else
              f"{len(turns)} fold(s) of tau_d along the family"))
     return 0
 

@@ -17,15 +17,22 @@ from .homotopy import solve_robust
 from .tolerance import GRID_TOLERANCE
 
 
+#: The grid checks' Newton reuses each full step's LU for chord iterations (newton(reuse=True)):
+#: the same converged tolerance, fewer factorisations of the 2N − 1 Jacobian
+#: (BENCHMARKS.md "Grid check: one LU for several iterations").
+REUSE_LU = True
+
+
 def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
-                  nested=False, stages=0, cells=None):
+                  nested=False, stages=0, cells=None, reuse=None):
     """:func:`grid_change` as the family's criterion reads it: (fine, |Δβ|, |ΔL|/L)."""
-    fine, dbeta, dL_rel = grid_change(params, sol, n_points, spec, max_iter, nested, stages, cells)
+    fine, dbeta, dL_rel = grid_change(params, sol, n_points, spec, max_iter, nested, stages, cells,
+                                      reuse)
     return fine, abs(dbeta), abs(dL_rel)
 
 
 def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
-                nested=False, stages=0, cells=None):
+                nested=False, stages=0, cells=None, reuse=None):
     """Grid check of an arclength pulse (x = (y, β, q)): re-solve on a grid of 2N adapted to it,
     on the line through it normal to the family tangent, and express the change at fixed τ_d.
 
@@ -50,12 +57,14 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     pulse (``spec``). ``cells`` (with ``nested``): a boolean mask over the N − 1 cells; only
     their midpoints are inserted (one region refined: ``steady/locate_error.py``,
     ``steady/body_refine.py``). ``stages`` > 0: when Newton fails, :func:`solve_robust` with that
-    many homotopy stages.
+    many homotopy stages. ``reuse``: Newton reuses each full step's LU for chord iterations
+    (the same tolerance); None: :data:`REUSE_LU`, read at the call.
     """
     p0 = sol.to_pulse()
     q, beta = float(sol.x[-1]), p0.beta
     n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
     t_a, t_Q = -n[-2] / (1.0 - beta), n[-1]
+    reuse = REUSE_LU if reuse is None else bool(reuse)
     t0 = time.perf_counter()
     if nested:
         xi = sol.xi
@@ -75,7 +84,7 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     if stages > 0:
         xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter)
     else:
-        xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter)
+        xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter, reuse=reuse)
     fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
     if not st.converged or n[-1] == 0.0:
         return fine, math.inf, math.inf

@@ -1,0 +1,73 @@
+"""The deep family from scratch with the grid checks' Newton reusing its LU (this code) and not
+(the code before stop 34), side by side: two processes at once, one per core, one thread each.
+
+    python benchmarks/bench_march_reuse.py [--to 1.009] [--max-length 1500] [--dir /tmp/bmr]
+
+Each process runs ``slippulse steady family --from 1.2 --to TO --max-length L -q`` from an empty
+file, with ``slippulse.steady.continuation.gridcheck.REUSE_LU`` set to False or True before the
+command starts. Prints each one's wall time, the machine load before and after, the ratio, and
+compares the two files: the same labels, the largest differences of β and L over the common
+pulses, and the deepest pulse of each. About 10 min with the defaults.
+"""
+import argparse
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from slippulse.core.h5io import list_pulses, read_pulse
+
+RUN = ("import sys; import slippulse.steady.continuation.gridcheck as g; g.REUSE_LU = {reuse}; "
+       "from slippulse.cli.app import main; sys.exit(main(sys.argv[1:]))")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--to", default="1.009")
+    ap.add_argument("--max-length", default="1500")
+    ap.add_argument("--dir", default="/tmp/bench_march_reuse")
+    a = ap.parse_args(argv)
+    os.makedirs(a.dir, exist_ok=True)
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", NUMBA_NUM_THREADS="1",
+               MKL_NUM_THREADS="1")
+    procs, files, t0 = {}, {}, {}
+    print(f"load before: {os.getloadavg()}", flush=True)
+    for reuse in (False, True):
+        out = os.path.join(a.dir, f"reuse_{reuse}.h5")
+        if os.path.exists(out):
+            os.remove(out)
+        files[reuse] = out
+        cmd = [sys.executable, "-c", RUN.format(reuse=reuse), "steady", "family", "--from", "1.2",
+               "--to", a.to, "--max-length", a.max_length, "--out", out, "-q"]
+        t0[reuse] = time.perf_counter()
+        procs[reuse] = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE,
+                                        stderr=subprocess.STDOUT, text=True)
+    walls = {}
+    for reuse, p in procs.items():
+        text, _ = p.communicate()
+        walls[reuse] = time.perf_counter() - t0[reuse]
+        last = [ln for ln in text.splitlines() if ln.strip()][-1:]
+        print(f"reuse={reuse}: exit {p.returncode}, wall {walls[reuse]:.0f} s; "
+              f"{last[0] if last else ''}", flush=True)
+    print(f"load after: {os.getloadavg()}")
+    print(f"wall {walls[False]:.0f} s -> {walls[True]:.0f} s: {walls[False] / walls[True]:.2f}x")
+    labs = [set(list_pulses(files[r])) for r in (False, True)]
+    common = sorted(labs[0] & labs[1])
+    db = dl = 0.0
+    for lab in common:
+        p0, p1 = read_pulse(files[False], lab)[0], read_pulse(files[True], lab)[0]
+        db, dl = max(db, abs(p1.beta - p0.beta)), max(dl, abs(p1.L / p0.L - 1.0))
+    print(f"pulses: {len(labs[0])} and {len(labs[1])}, {len(common)} common; over those, "
+          f"max|dbeta| = {db:.1e}, max|dL|/L = {dl:.1e}")
+    for r in (False, True):
+        rows = [read_pulse(files[r], lab)[0] for lab in list_pulses(files[r])]
+        deep = min((p for p in rows if p.converged), key=lambda p: p.tau_d_ratio)
+        print(f"reuse={r}: deepest {deep.tau_d_ratio:.7f} tau_min, L = {deep.L:.1f} m, "
+              f"N = {deep.xi.size}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
