@@ -5,7 +5,7 @@ side by side in one run.
 
 For each pulse of the family file: the pulse re-solved on its own grid (converged already: one
 Newton pass), then the nested check (:func:`slippulse.steady.continuation.gridcheck.grid_change`,
-``nested=True``, as the family's check runs it) with ``reuse=False`` (the code before stop 34)
+``nested=True``, ``stages=4``, ``max_iter=15``: as the family's check runs it) with ``reuse=False`` (the code before stop 34)
 and ``reuse=True``, alternated ``--repeat`` times. Prints per run: wall, Newton iterations (LUs),
 chord iterations, and Δβ, ΔL/L of the check; then the ratio of the median walls and the largest
 difference between the two fine solutions (max|Δ ln v|, Δβ, Δq). Minutes at N ≈ 3500.
@@ -38,7 +38,7 @@ def main(argv=None):
             for reuse in (False, True):
                 t0 = time.perf_counter()
                 fine, db, dl = grid_change(params, sol, pulse.xi.size, nested=True, max_iter=15,
-                                           reuse=reuse)
+                                           stages=4, reuse=reuse)
                 w = time.perf_counter() - t0
                 walls[reuse].append(w)
                 fines[reuse] = fine

@@ -13,6 +13,7 @@ import argparse
 import os
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -44,11 +45,19 @@ def main(argv=None):
         t0[reuse] = time.perf_counter()
         procs[reuse] = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE,
                                         stderr=subprocess.STDOUT, text=True)
-    walls = {}
+    walls, texts = {}, {}
+    readers = {r: threading.Thread(target=lambda r=r: texts.__setitem__(r, procs[r].stdout.read()))
+               for r in procs}
+    for t in readers.values():
+        t.start()
+    while len(walls) < len(procs):              # each process's own end time
+        for reuse, p in procs.items():
+            if reuse not in walls and p.poll() is not None:
+                walls[reuse] = time.perf_counter() - t0[reuse]
+        time.sleep(0.5)
     for reuse, p in procs.items():
-        text, _ = p.communicate()
-        walls[reuse] = time.perf_counter() - t0[reuse]
-        last = [ln for ln in text.splitlines() if ln.strip()][-1:]
+        readers[reuse].join()
+        last = [ln for ln in texts[reuse].splitlines() if ln.strip()][-1:]
         print(f"reuse={reuse}: exit {p.returncode}, wall {walls[reuse]:.0f} s; "
               f"{last[0] if last else ''}", flush=True)
     print(f"load after: {os.getloadavg()}")
@@ -63,6 +72,14 @@ def main(argv=None):
           f"max|dbeta| = {db:.1e}, max|dL|/L = {dl:.1e}")
     for r in (False, True):
         rows = [read_pulse(files[r], lab)[0] for lab in list_pulses(files[r])]
+        by = {}
+        for p in rows:
+            a = by.setdefault(str(p.extra.get("continuation", "")), [0, 0.0, 0.0])
+            a[0] += 1
+            a[1] += float(p.wall_time)
+            a[2] += float(p.extra.get("grid_check_wall_time", 0.0))
+        print(f"reuse={r}: per stage (pulses, solves s, grid checks s): "
+              + ", ".join(f"{k} ({v[0]}, {v[1]:.0f}, {v[2]:.0f})" for k, v in by.items()))
         deep = min((p for p in rows if p.converged), key=lambda p: p.tau_d_ratio)
         print(f"reuse={r}: deepest {deep.tau_d_ratio:.7f} tau_min, L = {deep.L:.1f} m, "
               f"N = {deep.xi.size}")

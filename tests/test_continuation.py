@@ -299,14 +299,16 @@ def test_grid_check_equals_fixed_tau_d_difference(params):
     assert dl == pytest.approx(abs(p2.L - p0.L) / p0.L, rel=1e-2)
 
 
-def test_grid_check_reusing_the_lu_gives_the_same_check_with_fewer_factorisations(params):
+@pytest.mark.parametrize("stages", [0, 4])
+def test_grid_check_reusing_the_lu_gives_the_same_check_with_fewer_factorisations(params, stages):
     """The nested check's re-solve with reuse=True (chord iterations on each full Newton step's
-    LU) converges to the solution of plain Newton, with fewer LUs; Δβ and ΔL/L are the same."""
+    LU) converges to the solution of plain Newton, with fewer LUs; Δβ and ΔL/L are the same.
+    stages=4 is the path of the family's check (:func:`check_pulse`, through solve_robust)."""
     from slippulse.steady.continuation.gridcheck import as_both, grid_change
     from slippulse.steady.solver import solve_pulse
     sol = as_both(params, solve_pulse(params, 1.2, n_points=400))
-    plain, db0, dl0 = grid_change(params, sol, 400, nested=True, reuse=False)
-    fast, db1, dl1 = grid_change(params, sol, 400, nested=True, reuse=True)
+    plain, db0, dl0 = grid_change(params, sol, 400, nested=True, reuse=False, stages=stages)
+    fast, db1, dl1 = grid_change(params, sol, 400, nested=True, reuse=True, stages=stages)
     assert plain.stats.converged and fast.stats.converged
     assert plain.stats.chord_iterations == 0 and fast.stats.chord_iterations > 0
     assert fast.stats.iterations < plain.stats.iterations

@@ -82,7 +82,7 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
     x_start = np.concatenate([yn, [beta, q]])
     if stages > 0:
-        xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter)
+        xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter, reuse=reuse)
     else:
         xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter, reuse=reuse)
     fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)

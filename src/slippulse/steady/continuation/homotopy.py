@@ -23,7 +23,7 @@ class _Shifted:
         return r - self.s * self.r0, J
 
 
-def solve_robust(problem, x0, stages=8, max_iter=15, tol=1e-13):
+def solve_robust(problem, x0, stages=8, max_iter=15, tol=1e-13, reuse=False):
     """Newton from x0; if it fails, the residual homotopy F(x) = s F(x0), s = 1 − k/stages.
 
     Notes
@@ -34,8 +34,10 @@ def solve_robust(problem, x0, stages=8, max_iter=15, tol=1e-13):
     not converged after 40). Following s from 1 to 0 in `stages` equal steps, each a Newton
     solve from the last (tolerance 1e-10 on the way, `tol` at s = 0), converged there in 66–73
     iterations in all. Returns (x, stats) of the last solve, stats.iterations the total.
+    ``reuse``: every Newton solve reuses each full step's LU for chord iterations
+    (:func:`~slippulse.steady.newton.newton`).
     """
-    x, st = newton(problem, x0, tol=tol, max_iter=max_iter)
+    x, st = newton(problem, x0, tol=tol, max_iter=max_iter, reuse=reuse)
     if st.converged:
         return x, st
     r0 = problem.residual(np.asarray(x0, float))
@@ -43,7 +45,7 @@ def solve_robust(problem, x0, stages=8, max_iter=15, tol=1e-13):
     for k in range(1, stages + 1):
         s_k = 1.0 - k / stages
         x, st = newton(_Shifted(problem, r0, s_k), x, tol=tol if k == stages else 1e-10,
-                       max_iter=4 * max_iter)
+                       max_iter=4 * max_iter, reuse=reuse)
         total += st.iterations
         if not st.converged:
             st.message = f"homotopy stage {k}/{stages} failed: {st.message}"
