@@ -26,18 +26,6 @@ from slippulse.stability.law import (family_curve, family_slope, fit_power_law, 
                                      folds, local_exponents)
 
 
-def _records_slope(tau, L):
-    """dτ_d/d ln L from the records' own (τ_d, L) points (no β there; L is monotone along the
-    family below 1.2 τ_min): the same quartic-against-quadratic rule in ln L."""
-    from slippulse.stability.law import _derivative
-    k = np.argsort(L)
-    x, y = np.log(L[k]), tau[k]
-    out = np.array([_derivative(x, y, x0) for x0 in x])
-    g, e = np.empty(L.size), np.empty(L.size)
-    g[k], e[k] = out[:, 0], out[:, 1]
-    return g, e
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("family", nargs="+", help="family HDF5 file(s): the slope dtau_d/d ln L")
@@ -57,7 +45,7 @@ def main(argv=None):
     curve = family_curve(a.family)
     g, ge = family_slope(curve["tau_d_ratio"], curve["L"], curve["beta"], at_L=L)
     src = np.where(np.isfinite(g), "family", "records")
-    g2, ge2 = _records_slope(tau, L)
+    g2, ge2 = family_slope(tau, L)                       # along ln L: no β in the records
     # the records' τ_d is their label's, rounded to its last decimal: that rounding, over the
     # spacing in ln L to the nearest record, adds to the error of a slope taken from them
     half = np.array([0.5 * 10.0 ** -label_decimals(k) for k in labels])

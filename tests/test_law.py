@@ -151,6 +151,9 @@ def test_family_slope_recovers_an_exact_law_with_a_covering_error():
     k = np.random.default_rng(2).permutation(L.size)
     g2, _ = family_slope(tau[k], L[k], beta[k])
     assert np.allclose(g2, g[k], rtol=1e-12)
+    # without β (pulses known by τ_d and L alone) the parameter is ln L: the same slope
+    g3, e3 = family_slope(tau, L)
+    assert np.all(np.abs(g3 - exact) <= e3 + 1e-15) and np.max(np.abs(g3 / exact - 1.0)) < 1e-4
     # queried by L between the pulses, and outside the family's range: nan
     q = np.array([5.0, 123.4, 4000.0, 4001.0])
     g, e = family_slope(tau, L, beta, at_L=q)

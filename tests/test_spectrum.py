@@ -285,12 +285,19 @@ def test_operator_sigma_derivative_matches_finite_difference(op12):
     assert np.linalg.norm((dM - fd) @ x) / np.linalg.norm(dM @ x) < 1e-6
 
 
+def _steady_jacobian(op, params):
+    """The steady solver's Jacobian (unknowns ln v and β; rows: the equations, then the pin) of
+    the operator's pulse, on its grid and Hilbert matrix."""
+    from slippulse.steady.equations import SteadyProblem
+    p = op.pulse
+    prob = SteadyProblem(params, p.tau_d_ratio, p.xi, 0, 0.0, H=op.elastic.H, state_order=4)
+    return prob.residual_and_jacobian(np.append(np.log(p.v), p.beta))[1]
+
+
 def test_M0_is_the_linearised_discrete_steady_problem(op12, params):
     """M(0) = −∂Δ/∂v of the steady solver's discrete equations (fixed β), to rounding."""
-    from slippulse.steady.equations import SteadyProblem
     p = op12.pulse
-    prob = SteadyProblem(params, p.tau_d_ratio, p.xi, 0, 0.0, H=op12.elastic.H, state_order=4)
-    _, J = prob.residual_and_jacobian(np.append(np.log(p.v), p.beta))
+    J = _steady_jacobian(op12, params)
     Jv = -J[:-1, :-1] / p.v[None, :]
     M0 = op12.matrices(0.0, deriv=False)[0]
     assert np.max(np.abs(M0 - Jv)) < 1e-13 * np.max(np.abs(Jv))
@@ -300,11 +307,7 @@ def _chain_defect(op, params):
     """max|M′(0) t + ∂F/∂c| / max|∂F/∂c|: t = v₀′ (translation), F the steady equations at fixed
     v in M's sign (M(0) = −∂Δ/∂v), ∂F/∂c = −(∂Δ/∂β)/c_s. M′ at σ = 1e-6 c_p/L (M is analytic
     for Re σ > 0; its derivative at 0⁺ differs by O(κ ln κ))."""
-    from slippulse.steady.equations import SteadyProblem
-    p = op.pulse
-    prob = SteadyProblem(params, p.tau_d_ratio, p.xi, 0, 0.0, H=op.elastic.H, state_order=4)
-    _, J = prob.residual_and_jacobian(np.append(np.log(p.v), p.beta))
-    F_c = -J[:-1, -1] / params.c_s
+    F_c = -_steady_jacobian(op, params)[:-1, -1] / params.c_s
     dM = op.matrices(1e-6 * op.rate_unit)[1]
     return float(np.abs(dM @ (op.S @ op.v0) + F_c).max() / np.abs(F_c).max())
 

@@ -436,7 +436,7 @@ def cmd_rates(args) -> int:
     import numpy as np
 
     from ..stability.law import (family_curve, family_rates, family_slope, fit_power_law,
-                                 fit_shifted_power_law, fold_ratio, folds)
+                                 fit_shifted_power_law, fold_ratio, folds, local_exponents)
     from ..stability.spectrum_family import check_family_file
     if not (math.isfinite(args.below) and 1.0 < args.below <= 2.0):
         raise ParameterError(f"below={args.below!r} is invalid: must be in (1, 2] "
@@ -494,7 +494,6 @@ def cmd_rates(args) -> int:
         parts.append(f"no fit: {exc}")
     for line in parts:
         print("fit: " + line)
-    from ..stability.law import local_exponents
     if tau_star is not None and np.sum(win & (x > tau_star)) >= 2:
         m = win & (x > tau_star)
         xm, k = local_exponents(x[m] - tau_star, y[m])
@@ -504,7 +503,8 @@ def cmd_rates(args) -> int:
         print("local exponents d ln(s L/c_p)/d ln L: "
               + ", ".join(f"{b:.2f} at L = {a:.3g} m" for a, b in zip(xm, k)))
     turns = folds(curve["tau_d_ratio"], curve["beta"])
-    if curve["L"].size < 3:
+    judged = curve["L"].size >= 3
+    if not judged:
         fold_line = (f"{curve['L'].size} converged pulses: too few to tell whether tau_d folds "
                      "along the family")
     elif turns:
@@ -534,7 +534,7 @@ def cmd_rates(args) -> int:
     print(f"rates {' '.join(args.file)}: {x.size} pulses, unstable at {n_un}, stable at {n_st}, sign not "
           f"resolved at {x.size - n_un - n_st}; {cross} down to tau_d/tau_min = {lo:.6f} "
           f"(L = {r['L'][x == lo][0] if np.any(res) else float('nan'):.4g} m); "
-          + ("folds not judged (fewer than 3 converged pulses)" if curve["L"].size < 3 else
+          + ("folds not judged (fewer than 3 converged pulses)" if not judged else
              "no fold of tau_d along the family" if not turns else
              f"{len(turns)} fold(s) of tau_d along the family"))
     return 0

@@ -5,6 +5,22 @@ from __future__ import annotations
 import numpy as np
 
 
+def _loglog(a, xv, yv, ev, m, fit, var, color, label, xlabel, ylabel):
+    """One log–log panel: the points m of (xv, yv ± ev), bars clipped above 0, and the fit."""
+    a.errorbar(xv[m], yv[m], yerr=np.minimum(ev[m], 0.999 * yv[m]), fmt="o", ms=4, color=color,
+               ecolor=color, capsize=2, label=label)
+    if fit is not None:
+        xx = np.geomspace(fit.x_range[0], fit.x_range[1], 100)
+        a.plot(xx, fit(xx), "-", color="C3",
+               label=f"fit: ∝ {var}^({fit.n:.2f} ± {fit.n_err:.2f})")
+    a.set_xscale("log")
+    a.set_yscale("log")
+    a.set_xlabel(xlabel)
+    a.set_ylabel(ylabel)
+    a.grid(True, which="both", alpha=0.3)
+    a.legend(fontsize=8, loc="best")
+
+
 def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
     """Three panels: s L/c_p against τ_d/τ_min − τ̃* and against L (log–log, error bars, fits),
     and s L/c_p against τ_d/τ_min (linear, the sign). `rates`: :func:`stability.law.family_rates`;
@@ -21,20 +37,8 @@ def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
     for a, xv, name, xl in ((ax[0], x - tau_star, "shift",
                              f"τ_d/τ_min − τ̃*  (τ̃* = {tau_star:.5f})"),
                             (ax[1], rates["L"], "L", "pulse length L (m)")):
-        m = pos & (xv > 0)
-        a.errorbar(xv[m], y[m], yerr=np.minimum(e[m], 0.999 * y[m]), fmt="o", ms=4, color="C0",
-                   ecolor="C0", capsize=2, label="s L/c_p ± s_err (spectrum)")
-        f = fits.get(name)
-        if f is not None:
-            xx = np.geomspace(f.x_range[0], f.x_range[1], 100)
-            a.plot(xx, f(xx), "-", color="C3",
-                   label=f"fit: ∝ x^({f.n:.2f} ± {f.n_err:.2f})")
-        a.set_xscale("log")
-        a.set_yscale("log")
-        a.set_xlabel(xl)
-        a.set_ylabel("growth per pulse length  s L/c_p")
-        a.grid(True, which="both", alpha=0.3)
-        a.legend(fontsize=8, loc="best")
+        _loglog(a, xv, y, e, pos & (xv > 0), fits.get(name), "x", "C0",
+                "s L/c_p ± s_err (spectrum)", xl, "growth per pulse length  s L/c_p")
     ax[0].set_title("(a) growth rate against the distance to τ̃*")
     ax[1].set_title("(b) against the pulse length")
     a = ax[2]
@@ -54,21 +58,9 @@ def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
     a.grid(True, which="both", alpha=0.3)
     if fold is not None:
         R, Re = (np.asarray(v, float) for v in fold)
-        a = ax[3]
-        m = np.isfinite(R) & (R > 0)
-        a.errorbar(rates["L"][m], R[m], yerr=np.minimum(Re[m], 0.999 * R[m]), fmt="o", ms=4,
-                   color="C2", capsize=2, label="R ± err")
-        f = fits.get("R")
-        if f is not None:
-            xx = np.geomspace(f.x_range[0], f.x_range[1], 100)
-            a.plot(xx, f(xx), "-", color="C3", label=f"fit: ∝ L^({f.n:.2f} ± {f.n_err:.2f})")
-        a.set_xscale("log")
-        a.set_yscale("log")
-        a.set_xlabel("pulse length L (m)")
-        a.set_ylabel("R = s L/c_p / |dτ_d/d ln L|  (τ_d in τ_min)")
-        a.set_title("(d) growth rate per unit slope of the family")
-        a.grid(True, which="both", alpha=0.3)
-        a.legend(fontsize=8, loc="best")
+        _loglog(ax[3], rates["L"], R, Re, np.isfinite(R) & (R > 0), fits.get("R"), "L", "C2",
+                "R ± err", "pulse length L (m)", "R = s L/c_p / |dτ_d/d ln L|  (τ_d in τ_min)")
+        ax[3].set_title("(d) growth rate per unit slope of the family")
     fig.tight_layout()
     fig.savefig(out, dpi=dpi)
     plt.close(fig)

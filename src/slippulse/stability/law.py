@@ -70,27 +70,36 @@ def local_exponents(x, y):
     return np.exp(0.5 * (lx[1:] + lx[:-1])), np.diff(ly) / np.diff(lx)
 
 
+def _first_groups(paths, keep):
+    """(label, pulse group) of one or several family files for which ``keep(group)`` holds; a
+    label kept in several files: the first file's. Yields inside the open file."""
+    import h5py
+    seen = set()
+    for path in ([paths] if isinstance(paths, (str, bytes)) or hasattr(paths, "__fspath__")
+                 else paths):
+        with h5py.File(path, "r") as h5:
+            for lab, grp in h5["pulses"].items():
+                if lab not in seen and keep(grp):
+                    seen.add(lab)
+                    yield lab, grp
+
+
 def family_rates(paths):
     """The growth rates of record of one or several family files: dict of arrays (τ_d/τ_min, L,
     c_p, s, s_err, s_per_L, s_err_per_L, sign_resolved, β) and labels, over the pulses whose
     spectrum has ``s`` stored, by decreasing τ_d (a label present in several files: the first
     file's)."""
-    import h5py
-    rows, seen = [], set()
-    for path in ([paths] if isinstance(paths, (str, bytes)) or hasattr(paths, "__fspath__")
-                 else paths):
-        with h5py.File(path, "r") as h5:
-            for lab, grp in h5["pulses"].items():
-                g = grp.get("spectrum")
-                if (lab in seen or g is None or "s" not in g.attrs
-                        or g.attrs.get("status") != "converged"):
-                    continue
-                seen.add(lab)
-                a = grp.attrs
-                rows.append((float(a["tau_d_ratio"]), float(a["L"]), float(a["c_p"]),
-                             float(g.attrs["s"]), float(g.attrs["s_err"]),
-                             float(g.attrs["s_per_L"]), float(g.attrs["s_err_per_L"]),
-                             int(g.attrs["sign_resolved"]), float(a["beta"]), lab))
+    def rated(grp):
+        g = grp.get("spectrum")
+        return g is not None and "s" in g.attrs and g.attrs.get("status") == "converged"
+
+    rows = []
+    for lab, grp in _first_groups(paths, rated):
+        g, a = grp["spectrum"], grp.attrs
+        rows.append((float(a["tau_d_ratio"]), float(a["L"]), float(a["c_p"]),
+                     float(g.attrs["s"]), float(g.attrs["s_err"]),
+                     float(g.attrs["s_per_L"]), float(g.attrs["s_err_per_L"]),
+                     int(g.attrs["sign_resolved"]), float(a["beta"]), lab))
     rows.sort(key=lambda r: -r[0])
     names = ("tau_d_ratio", "L", "c_p", "s", "s_err", "s_per_L", "s_err_per_L", "sign_resolved",
              "beta")
@@ -166,19 +175,9 @@ def family_curve(paths):
     """τ_d/τ_min, L and β of every converged pulse of one or several family files, in the order
     of the family (increasing β; a label present in several files: the first file's). Returns a
     dict of arrays and labels."""
-    import h5py
-
     from ..core.h5io import pulse_converged
-    rows, seen = [], set()
-    for path in ([paths] if isinstance(paths, (str, bytes)) or hasattr(paths, "__fspath__")
-                 else paths):
-        with h5py.File(path, "r") as h5:
-            for lab, grp in h5["pulses"].items():
-                if lab in seen or not pulse_converged(grp):
-                    continue
-                seen.add(lab)
-                a = grp.attrs
-                rows.append((float(a["beta"]), float(a["L"]), float(a["tau_d_ratio"]), lab))
+    rows = [(float(g.attrs["beta"]), float(g.attrs["L"]), float(g.attrs["tau_d_ratio"]), lab)
+            for lab, g in _first_groups(paths, pulse_converged)]
     rows.sort()
     out = {k: np.array([r[i] for r in rows]) for i, k in enumerate(("beta", "L", "tau_d_ratio"))}
     out["label"] = [r[-1] for r in rows]
@@ -209,7 +208,7 @@ def _derivative(u, y, u0):
     return hi, abs(hi - lo)
 
 
-def family_slope(tau, L, beta, at_beta=None, at_L=None):
+def family_slope(tau, L, beta=None, at_beta=None, at_L=None):
     """dτ_d/d ln L along a family given by its pulses (τ_d/τ_min, L, β), with an error estimate.
 
     The family is parametrised by u = ln(β/(1 − β)) (β is monotone along it, where L need not
@@ -218,13 +217,25 @@ def family_slope(tau, L, beta, at_beta=None, at_L=None):
     three nearest, and slope = (dτ_d/du)/(d ln L/du) with the relative errors added in
     quadrature. Queries: ``at_beta`` (default the pulses' own β), or ``at_L`` where ln L is
     monotone in u over the family (otherwise, and outside the family's range, nan). Returns
-    (slope, err) arrays; infinite where L turns (d ln L/du = 0)."""
-    tau, L, beta = (np.asarray(a, float) for a in (tau, L, beta))
-    k = np.argsort(beta)
-    u, y, z = _along(beta[k]), tau[k], np.log(L[k])
+    (slope, err) arrays; infinite where L turns (d ln L/du = 0). Without ``beta`` (pulses known
+    by τ_d and L alone, e.g. the records) the parameter is u = ln L itself, which needs L
+    monotone along the family (true below 1.2 τ_min)."""
+    tau, L = np.asarray(tau, float), np.asarray(L, float)
+    if beta is None:
+        if at_beta is not None:
+            raise ValueError("at_beta needs the pulses' beta")
+        k = np.argsort(L)
+        u = np.log(L[k])
+        at_L = L if at_L is None else at_L
+    else:
+        k = np.argsort(beta)
+        u = _along(np.asarray(beta, float)[k])
+    y, z = tau[k], np.log(L[k])
     keep = np.concatenate([[True], np.diff(u) > 0])
     u, y, z = u[keep], y[keep], z[keep]
-    if at_L is not None:
+    if beta is None:
+        q = np.log(np.asarray(at_L, float))
+    elif at_L is not None:
         q_L = np.log(np.asarray(at_L, float))
         dz = np.diff(z)
         if u.size >= 2 and (np.all(dz > 0) or np.all(dz < 0)):
@@ -243,9 +254,9 @@ def family_slope(tau, L, beta, at_beta=None, at_L=None):
         if not (np.isfinite(u0) and u[0] - tol <= u0 <= u[-1] + tol):
             continue
         dt, et = _derivative(u, y, u0)
-        dl, el = _derivative(u, z, u0)
+        dl, el = (1.0, 0.0) if beta is None else _derivative(u, z, u0)
         slope[i] = dt / dl if dl != 0.0 else np.inf
-        err[i] = abs(slope[i]) * np.hypot(et / dt if dt else 0.0, el / dl if dl else np.inf)
+        err[i] = np.hypot(et, abs(slope[i]) * el) / abs(dl) if dl != 0.0 else np.inf
     return slope, err
 
 

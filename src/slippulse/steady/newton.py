@@ -30,16 +30,17 @@ def _max_abs(r):
     return float(np.max(np.abs(r))) if np.all(np.isfinite(r)) else np.inf
 
 
-def chord(problem, x0, lu, tol=1e-13, max_iter=30, rate=0.5):
+def chord(problem, x0, lu, tol=1e-13, max_iter=30, rate=0.5, r0=None):
     """Chord iterations x ← x − J₀⁻¹ r(x) with a factored Jacobian J₀ (``lu``, from
-    :func:`scipy.linalg.lu_factor`) taken at a nearby point; one residual per iteration.
+    :func:`scipy.linalg.lu_factor`) taken at a nearby point; one residual per iteration
+    (``r0``: the residual at x0 when the caller has it).
 
     Stops when max|r| ≤ tol, or as soon as an iteration does not contract max|r| by `rate`
     (J₀ too far from the Jacobian here) or leaves the valid region. Returns (x, max|r|, iterations)
     with x the best iterate.
     """
     x = np.array(x0, dtype=float)
-    r = problem.residual(x)
+    r = problem.residual(x) if r0 is None else r0
     m = _max_abs(r)
     for it in range(1, max_iter + 1):
         if m <= tol:
@@ -130,7 +131,7 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=No
         x = xt
         if reuse and lam == 1.0:
             t0 = time.perf_counter()
-            x, m, k = chord(problem, x, lu, tol)
+            x, m, k = chord(problem, x, lu, tol, r0=rt)      # rt: the line search's r(x)
             st.t_residual += time.perf_counter() - t0
             st.chord_iterations += k
             if m <= tol:
