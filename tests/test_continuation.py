@@ -379,6 +379,31 @@ def test_solve_robust_falls_back_on_the_residual_homotopy():
     assert not st.converged and "homotopy stage" in st.message
 
 
+class _Slow(_Cubic):
+    """The cubic with a Jacobian 10 times too large: every full Newton step is a tenth of the
+    right one, so max|r| falls by ≈ 10 % per iteration (a creeping iteration)."""
+
+    def residual_and_jacobian(self, x):
+        r, J = super().residual_and_jacobian(x)
+        return r, 10.0 * J
+
+
+def test_newton_stops_creeping_iterations_when_asked():
+    """creep=3: Newton gives up once max|r| has not halved over 3 iterations (here at the 3rd:
+    0.9³ > 0.5 is not, 0.9⁷ is; the first halving takes 7), says so, and counts them; creep=0
+    goes on to max_iter. A converging iteration is not stopped."""
+    from slippulse.steady.newton import newton
+    x0 = np.array([1.0, 1.0])
+    _, st0 = newton(_Slow(), x0, max_iter=12)
+    _, st3 = newton(_Slow(), x0, max_iter=12, creep=3)
+    assert not st0.converged and st0.iterations == 12
+    assert not st3.converged and "creeping" in st3.message and st3.iterations == 3
+    ratios = np.array(st0.history[3:]) / np.array(st0.history[:-3])
+    assert np.all(ratios > 0.5)                      # creeping all along
+    x, st = newton(_Cubic(), np.array([0.0, 0.0]), max_iter=30, creep=3)
+    assert st.converged and abs(x[0] + 0.5 * x[0] ** 3 - 3.0) <= 1e-13
+
+
 def test_stretched_march_and_nested_grid_check(params):
     """deep.stretch: the grid is deformed with the pulse every step (same N, the nodes ahead of
     the front kept, the healing front and tail shifted), the steps are converged pulses on the family

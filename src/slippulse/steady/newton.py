@@ -57,7 +57,7 @@ def chord(problem, x0, lu, tol=1e-13, max_iter=30, rate=0.5, r0=None):
 
 
 def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=None,
-           reuse=False):
+           reuse=False, creep=0):
     """Damped Newton: J δ = −r by LU, step limited to |δy| ≤ max_dy, kept valid, backtracking on ‖r‖₂.
 
     Converges when max|r| ≤ tol. Stops (not converged) when the line search fails or after
@@ -71,6 +71,12 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=No
     with the LU of that step run before a new Jacobian is formed, for as long as each contracts
     max|r| by half. Near the solution a Jacobian one step old contracts by orders of magnitude
     per iteration, so one LU does the work of two or three. The converged tolerance is the same.
+
+    ``creep`` > 0: stop (not converged) as soon as max|r| has not fallen by half over the last
+    ``creep`` iterations. The damped iteration then creeps (measured on a 2.4 km pulse's grid
+    check: max|r| 2.7e−4 → 2.4e−4 in 14 iterations of a 7083-point LU each) and a caller with
+    another way on (:func:`~slippulse.steady.continuation.homotopy.solve_robust`'s homotopy)
+    takes it sooner.
     """
     x = np.array(x0, dtype=float)
     st = SolveStats(False, "", 0, np.inf)
@@ -93,6 +99,11 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=No
             callback(it - 1, x, st.max_residual)
         if st.max_residual <= tol:
             st.converged, st.message, st.iterations = True, f"converged: max|r|={st.max_residual:.2e}", it - 1
+            return x, st
+        if creep and len(st.history) > creep and st.max_residual > 0.5 * st.history[-1 - creep]:
+            st.message = (f"creeping: max|r|={st.max_residual:.2e} after {it - 1} iterations, "
+                          f"{st.history[-1 - creep]:.2e} {creep} iterations before")
+            st.iterations = it - 1
             return x, st
         t0 = time.perf_counter()
         try:
