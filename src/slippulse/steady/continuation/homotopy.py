@@ -28,7 +28,7 @@ class _Shifted:
 CREEP = 3
 
 
-def solve_robust(problem, x0, stages=8, max_iter=15, tol=1e-13, reuse=False, creep=CREEP):
+def solve_robust(problem, x0, stages=8, max_iter=15, tol=1e-13, reuse=False, creep=None):
     """Newton from x0; if it fails, the residual homotopy F(x) = s F(x0), s = 1 − k/stages.
 
     Notes
@@ -43,8 +43,10 @@ def solve_robust(problem, x0, stages=8, max_iter=15, tol=1e-13, reuse=False, cre
     (:func:`~slippulse.steady.newton.newton`). ``creep``: the plain solve stops once max|r| has
     not halved over that many iterations and the homotopy takes over (0: only after
     ``max_iter``; measured on a 2.4 km pulse's grid check, N = 7083: 15 creeping iterations,
-    74 s, before the homotopy's 4 stages of 2 iterations each, 39 s).
+    74 s, before the homotopy's 4 stages of 2 iterations each, 39 s); None: :data:`CREEP`, read
+    at the call.
     """
+    creep = CREEP if creep is None else int(creep)
     x, st = newton(problem, x0, tol=tol, max_iter=max_iter, reuse=reuse, creep=creep)
     if st.converged:
         return x, st
