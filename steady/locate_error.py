@@ -4,7 +4,8 @@
     python steady/locate_error.py runs/deep/arc_008.npz  (a step of steady/deep_march.py)
 
 The cells of one region (:func:`slippulse.steady.continuation.gridcheck.regions`: ahead of the
-front, the leading edge ±0.01 L about the pin, the body (−0.9 L, −0.01 L], the healing front
+front, the leading edge (−0.0005 L, +0.01 L] about the pin, the band
+(−0.01 L, −0.0005 L] behind it, the body (−0.9 L, −0.01 L], the healing front
 (−1.1 L, −0.9 L], the tail) get their midpoints inserted; the pulse is re-solved on that grid on
 the line normal to the family tangent and the change converted to fixed τ_d
 (:func:`~slippulse.steady.continuation.grid_change` with a cell mask). About 1 min at N = 4000.

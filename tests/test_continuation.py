@@ -496,7 +496,7 @@ def test_to_refine_picks_the_fewest_regions_that_leave_the_rest_within_tolerance
 
 
 def test_check_pulse_locates_the_error_before_refining(params):
-    """locate=True on a marched pulse with a tolerance it misses: the shares of the three inner
+    """locate=True on a marched pulse with a tolerance it misses: the shares of the four inner
     regions add up to about the full nested check's change, and the refined pulse has exactly
     the chosen regions' midpoints inserted (its old nodes kept)."""
     from slippulse.steady.continuation import DeepSettings, grid_change, march_arclength

@@ -123,27 +123,32 @@ def as_both(params, sol: SteadySolution) -> SteadySolution:
 
 
 #: The regions of :func:`regions`. The body held most of the N-dependence on the deformed grid
-#: at 600 m (docs/analysis.md: 1.67e-4 of 1.78e-4 at 602 m); beyond 2 km the leading edge, which
-#: the deformation moves rigidly while it steepens, holds the largest part (stop 32: −1.26e-4
-#: of ≈ −1.7e-4 at 2.43 km, :func:`locate_error`).
+#: at 600 m (docs/analysis.md: 1.67e-4 of 1.78e-4 at 602 m); beyond 2 km the zone ±0.01 L about
+#: the leading edge, which the deformation keeps while the pulse lengthens, holds the largest part
+#: (stop 32: −1.26e-4 of ≈ −1.7e-4 at 2.43 km, :func:`locate_error`), and within it the band
+#: (−0.01 L, −0.0005 L] behind the edge (stop 35: at 2.06 km −8.6e-5 of the zone's −1.0e-4 from
+#: 121 of its 620 cells, the steep edge itself −1.2e-5; at 4.08 km that band alone, 119 cells,
+#: took the check from 9.1e-5 to 2.1e-5, the whole zone, 696 cells, to 7.4e-6).
 AHEAD = "ahead (> +0.01 L)"
-LEADING = "leading edge (±0.01 L)"
+NEAR = "behind the edge (−0.01 L, −0.0005 L]"
+LEADING = "leading edge (−0.0005 L, +0.01 L]"
 BODY = "body (−0.9 L, −0.01 L]"
 HEALING = "healing front (−1.1 L, −0.9 L]"
 TAIL = "tail (< −1.1 L)"
 #: the regions whose share of the error :func:`check_pulse` measures before refining (ahead of
 #: the front and in the tail the share is ~1e-10: measured at 2.43 km)
-INNER = (LEADING, BODY, HEALING)
+INNER = (LEADING, NEAR, BODY, HEALING)
 
 
 def regions(sol: SteadySolution, L: float) -> dict:
-    """Boolean masks over the cells of ``sol``'s grid: ahead, leading edge, body, healing front,
-    tail, relative to the pin ξ_R and the pulse length L."""
+    """Boolean masks over the cells of ``sol``'s grid: ahead, leading edge, behind the edge, body,
+    healing front, tail, relative to the pin ξ_R and the pulse length L."""
     xi = sol.xi
     xf = xi[sol.problem.pin_index]
     mid = 0.5 * (xi[1:] + xi[:-1])
     return {AHEAD: mid > xf + 0.01 * L,
-            LEADING: (mid > xf - 0.01 * L) & (mid <= xf + 0.01 * L),
+            LEADING: (mid > xf - 0.0005 * L) & (mid <= xf + 0.01 * L),
+            NEAR: (mid > xf - 0.01 * L) & (mid <= xf - 0.0005 * L),
             BODY: (mid > xf - 0.9 * L) & (mid <= xf - 0.01 * L),
             HEALING: (mid > xf - 1.1 * L) & (mid <= xf - 0.9 * L),
             TAIL: mid <= xf - 1.1 * L}
@@ -262,7 +267,8 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
     log : callable(str), optional; one line per check.
     locate : False: each local refinement is of the body (:func:`refine_body`). True: after a
         failed check the error is located first (:func:`locate_error` over the leading edge,
-        the body and the healing front: one re-solve each, cheaper than the check) and the
+        the band behind it, the body and the healing front: one re-solve each, cheaper than the
+        check) and the
         fewest regions whose shares leave the rest within 0.8 of the tolerance are refined
         together (:func:`_to_refine`), as many of them, largest share first, as keep the
         refined pulse's check within ``n_max``.
