@@ -57,3 +57,21 @@ def test_range_is_advertised_and_enforced(capsys):
     for x in ("1.01", "1.33"):
         assert main(["steady", "solve", "--tau-d", x]) == 2
         assert f"tau-d={x}" in capsys.readouterr().err
+
+
+def test_a_final_solve_that_cannot_start_is_a_failure_with_its_reason(monkeypatch):
+    """The walk up reaches the target, but the final solve on N points raises (at 1.325 τ_min
+    with the default N the grid could not be laid: "cannot measure the pulse length"): reach_pulse
+    returns no solution and says why, instead of the traceback the command printed (stop 35)."""
+    import slippulse.steady.reach as reach
+    real = reach.solve_pulse
+
+    def failing_final(*args, **kw):
+        if kw.get("passes") == 0 and "max_iter" not in kw:      # the final solve, not the walk's
+            raise RuntimeError("cannot measure the pulse length on this solution")
+        return real(*args, **kw)
+
+    monkeypatch.setattr(reach, "solve_pulse", failing_final)
+    sol, why = reach.reach_pulse(P, 1.205, n_points=500)
+    assert sol is None
+    assert "cannot measure the pulse length" in why and "continued up from 1.2" in why

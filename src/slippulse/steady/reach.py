@@ -127,7 +127,11 @@ def reach_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 2000,
                           f"{last.tau_d_ratio:.6f}, not {tau_d_ratio}")
         guess = (last.xi, np.log(last.v), last.beta)
         route = f"continued down from {GUESS_RATIO} by the family continuation ({n} steps)"
-    final = solve_pulse(params, tau_d_ratio, n_points=n_points, guess=guess, passes=0,
-                        method=method, tol=tol)
+    try:
+        final = solve_pulse(params, tau_d_ratio, n_points=n_points, guess=guess, passes=0,
+                            method=method, tol=tol)
+    except RuntimeError as exc:     # e.g. no measurable pulse length to lay the N-point grid on
+        return None, (f"{route} to tau_d/tau_min={tau_d_ratio}, but the final solve on "
+                      f"{n_points} points could not start from that pulse ({exc})")
     final.wall_time = time.perf_counter() - t0
     return final, route
