@@ -1,6 +1,7 @@
 """The product's family (issue 18): ``slippulse steady family`` with ``--deep auto`` (default) —
 every pulse grid-checked, the deep march as an object (:class:`DeepMarch`), labels at non-round
 τ_d, bad input refused with one line and no file touched, kill -9 and resume."""
+import dataclasses
 import hashlib
 import math
 import os
@@ -278,3 +279,49 @@ def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, 
     rep = FamilyReport()
     assert _resume(params, out, rep).q == 1.17
     assert rep.resumed_previous == (0.03, 1.18) and rep.resumed_method == "arclength"
+
+
+class _StubMarch:
+    """A DeepMarch stand-in: every step lengthens the pulse by 0.3 %; stopped at max_length."""
+
+    def __init__(self, params, start, settings=None, stop=None, max_length=None, on_attempt=None):
+        from types import SimpleNamespace
+        self.L, self.max_length, self.status, self.n_steps = 1000.0, max_length, "running", 0
+        self.message = ""
+        self.sol = SimpleNamespace(to_pulse=lambda: SimpleNamespace(L=self.L))
+
+    def step(self):
+        self.L *= 1.003
+        self.n_steps += 1
+        if self.L >= self.max_length:
+            self.status = "stopped"
+        return None
+
+
+@pytest.mark.parametrize("spacing", [0.0, 0.01])
+def test_the_deep_march_writes_a_pulse_per_spacing_of_L_and_its_last(monkeypatch, spacing):
+    """DeepSettings.spacing (`--spacing`): a step is written (and checked) once L has grown by the
+    spacing since the last written pulse, and the march's last pulse is always written; spacing
+    0 writes every step."""
+    from types import SimpleNamespace
+    from slippulse.steady.continuation import family
+    from slippulse.steady.continuation.report import FamilyReport
+    monkeypatch.setattr(family, "DeepMarch", _StubMarch)
+    written = []
+
+    def write(sol, pulse, method):
+        written.append(pulse.L)
+        return SimpleNamespace(passed=True, sol=sol)
+
+    rep = FamilyReport()
+    settings = dataclasses.replace(family.AUTO_DEEP, spacing=spacing)
+    family._auto_deep(None, "unused.h5", (None, None, 0.998, 1.0095), 1.0, rep, None, write,
+                      None, 1100.0, 4000, None, None, settings=settings)
+    steps = rep.deep_steps
+    assert written[-1] >= 1100.0 and rep.limit_reached
+    if spacing == 0:
+        assert len(written) == steps
+    else:
+        grown = np.array(written[:-1]) / np.array([1000.0] + written[:-2])
+        assert grown.size >= 2 and np.all(grown >= 1 + spacing)
+        assert len(written) < steps / 3

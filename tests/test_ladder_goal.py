@@ -103,20 +103,26 @@ def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, puls
     tried = []
     real = sf._level0
 
-    def level0(pulse, prm, gmap, n0):
+    creeps = []
+
+    def level0(pulse, prm, gmap, n0, creep=0):
         tried.append(n0)
+        creeps.append(creep)
         if n0 < 700:
             return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
-        return real(pulse, prm, gmap, n0)
+        return real(pulse, prm, gmap, n0, creep)
 
     monkeypatch.setattr(sf, "_level0", level0)
     rep = sf.run_spectrum(path, extra=False, levels=0, min_points=0, max_points=500)
     assert tried == [500, 700]
+    # the clipped attempt, which has the own N to fall back on, gives up when it creeps; the
+    # own N, the last resort, does not
+    assert creeps == [sf.LEVEL0_CREEP, 0] and sf.LEVEL0_CREEP > 0
     res = rep.results[0]
     assert res.status == "converged" and res.n_points == 700 and not rep.failed
     assert res.leading.real / res.rate_unit == pytest.approx(22.65, rel=0.02)
 
-    def never(pulse, prm, gmap, n0):
+    def never(pulse, prm, gmap, n0, creep=0):
         tried.append(n0)
         return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
 
@@ -131,3 +137,25 @@ def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, puls
     tried.clear()
     sf.run_spectrum(path, extra=False, levels=0, level0_points=500, overwrite=True)
     assert tried == [500]
+
+
+def test_creep_reaches_the_newton_of_a_mapped_resolve(pulse12, params, monkeypatch):
+    """mapped_pulse(creep=k) → resolve_on_grid → solve_on_grid → newton(creep=k); the other
+    solvers, which have no creep stop, are not given it."""
+    from slippulse.stability.refine import mapped_pulse
+    from slippulse.steady import newton as nw
+    from slippulse.steady.grid import GridMap
+    seen = []
+    real = nw.SOLVERS["newton"]
+
+    def spy(problem, x0, **kw):
+        seen.append(kw.get("creep"))
+        return real(problem, x0, **kw)
+
+    monkeypatch.setitem(nw.SOLVERS, "newton", spy)
+    p = pulse12.to_pulse()
+    gmap = GridMap(p.xi)
+    sol = mapped_pulse(params, p, gmap, p.n_points, creep=4)
+    assert sol.stats.converged and seen == [4]
+    mapped_pulse(params, p, gmap, p.n_points)
+    assert seen == [4, None]

@@ -261,8 +261,11 @@ def cmd_family(args) -> int:
         raise ParameterError(f"ds-min={args.ds_min} is invalid: must be in (0, 0.4)")
     if not args.max_length > 0:
         raise ParameterError(f"max-length={args.max_length} is invalid: must be > 0 (m)")
+    if not (0 <= args.spacing <= 0.5):
+        raise ParameterError(f"spacing={args.spacing} is invalid: must be in [0, 0.5] (a fraction "
+                             "of L)")
     deep = DeepSettings(n_max=args.max_points, ds_min=args.ds_min, max_length=args.max_length,
-                        check=not args.no_grid_check)
+                        check=not args.no_grid_check, spacing=args.spacing)
     _check_out(out)
 
     def log(msg):
@@ -639,6 +642,11 @@ def register(sub) -> None:
     p.add_argument("--ds-min", type=float, default=DeepSettings.ds_min,
                    help="auto and arclength: smallest step of the deep march before it stops "
                         f"(default {DeepSettings.ds_min:g})")
+    p.add_argument("--spacing", type=float, default=0.0,
+                   help="auto: write (and grid-check) a deep-march pulse only once L has grown "
+                        "by this fraction since the last one, e.g. 0.01 (default 0: every "
+                        "arclength step; beyond 4 km a step moves L by 0.2-0.4 %% and its grid "
+                        "check costs several steps)")
     p.add_argument("--max-length", type=float, default=math.inf,
                    help="stop (exit 0) once the pulse length exceeds this (m; default no limit)")
     p.add_argument("--no-grid-check", action="store_true",

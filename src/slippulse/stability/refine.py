@@ -180,10 +180,11 @@ def check_refinable(pulse, levels, min_points=0, level0_points=None, max_points=
                          f"fewer --levels or a smaller --min-points")
 
 
-def mapped_pulse(params, pulse, gmap, n, tol=1e-13):
+def mapped_pulse(params, pulse, gmap, n, tol=1e-13, creep=0):
     """The pulse re-solved (steady Newton, state order 4) on the grid ``gmap(n)``, started from
-    its ln v interpolated there. Returns a :class:`slippulse.steady.solver.SteadySolution`."""
-    return solver.resolve_on_grid(params, pulse, gmap(n), tol=tol, state_order=4)
+    its ln v interpolated there (creep > 0: give up once max|r| has not halved over `creep`
+    iterations). Returns a :class:`slippulse.steady.solver.SteadySolution`."""
+    return solver.resolve_on_grid(params, pulse, gmap(n), tol=tol, state_order=4, creep=creep)
 
 
 #: Largest level of a ladder that climbs toward a target (dense complex N×N matrices: ~1 GB each

@@ -104,9 +104,18 @@ DEFAULT_TARGET = 1e-4
 DEFAULT_REL_TARGET = 1e-3
 
 
-def _level0(pulse, params, gmap, n0):
+#: A level 0 clipped below the pulse's own N gives way to the own N once its re-solve has not
+#: halved max|r| over this many Newton iterations. Where the clipped grid holds the pulse the
+#: re-solve converges in 3-5 iterations, each halving max|r| or better (measured at L = 0.42-2.6
+#: km, N = 2828 on 3542-point pulses); where it cannot (2.8 km and deeper) max|r| stalls at
+#: 1e-4 after two and the 60 iterations it used to spend cost 30 s of a 143 s pulse
+#: (BENCHMARKS.md, stop 36).
+LEVEL0_CREEP = 4
+
+
+def _level0(pulse, params, gmap, n0, creep=0):
     """Level 0: the pulse re-solved on ``gmap(n0)``; (pulse, '') or (pulse, why) on failure."""
-    sol = mapped_pulse(params, pulse, gmap, n0)
+    sol = mapped_pulse(params, pulse, gmap, n0, creep=creep)
     if not sol.stats.converged:
         return pulse, (f"steady re-solve on the mapped grid (N = {n0}) did not converge: "
                        f"{sol.stats.message}")
@@ -223,9 +232,10 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
         gmap = why = None
         if levels or n0 != pulse.n_points:
             gmap = GridMap(pulse.xi)
-            pulse, why = _level0(pulse, params, gmap, n0)
             n_own = int(source.n_points)
-            if why and level0_points is None and n0 < n_own:
+            fallback = level0_points is None and n0 < n_own
+            pulse, why = _level0(pulse, params, gmap, n0, LEVEL0_CREEP if fallback else 0)
+            if why and fallback:
                 # the clip to max_points is too coarse for this pulse (the deep pulses beyond
                 # L ≈ 2.5 km need their own N = 3542): level 0 on the pulse's own N instead
                 try:

@@ -93,6 +93,11 @@ class DeepSettings:
         :func:`stretch_grid` moves rigidly, in L.
     homotopy : stages of the residual homotopy (:func:`solve_robust`) when Newton fails from an
         interpolated guess (grid checks, new grids).
+    spacing : the "auto" march (:func:`~slippulse.steady.continuation.family.run_family`) writes,
+        and grid-checks, an accepted step only once L has grown by this fraction since the last
+        written pulse (0: every accepted step); the pulse the march ends on is always written.
+        Deep in the family a step moves L by 0.2-0.4 % and its grid check costs 2-5 steps
+        (docs/steady.md), so a spacing of ~1 % takes the march deeper per hour.
     """
 
     ds: float = 0.1
@@ -110,3 +115,4 @@ class DeepSettings:
     front_zone: float = 0.01
     back_zone: float = 0.05
     homotopy: int = 8
+    spacing: float = 0.0

@@ -331,11 +331,12 @@ AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25)
 
 def auto_deep_settings(deep_settings: DeepSettings | None = None) -> DeepSettings:
     """The "auto" deep march's settings: :data:`AUTO_DEEP` with the caller's smallest step
-    ``deep_settings.ds_min`` (``--ds-min``), the one setting of the arclength march that "auto"
-    takes from the user."""
+    ``deep_settings.ds_min`` (``--ds-min``) and write spacing ``deep_settings.spacing``
+    (``--spacing``), the settings of the arclength march that "auto" takes from the user."""
     if deep_settings is None:
         return AUTO_DEEP
-    return dataclasses.replace(AUTO_DEEP, ds_min=deep_settings.ds_min)
+    return dataclasses.replace(AUTO_DEEP, ds_min=deep_settings.ds_min,
+                               spacing=deep_settings.spacing)
 
 
 def _check_auto_args(params, out, tol, n_max, deep_points, max_length):
@@ -412,7 +413,8 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
     """The deep part of the "auto" family: from ``start`` = (xi, y, β, q) — re-solved at its τ_d
     on ``resolve_n`` adapted points unless None (then taken on its own grid) — the
     pseudo-arclength march on the deformed grid (:class:`DeepMarch`, :data:`AUTO_DEEP`), every
-    accepted pulse grid-checked and written by ``write``; the march goes on from the checked
+    accepted pulse (with ``settings.spacing``: the first after L has grown by that fraction, and
+    the last) grid-checked and written by ``write``; the march goes on from the checked
     (refined) pulse. Ends at ``stop``, at ``max_length`` (clean: ``rep.limit_reached``), or where
     the march fails (``rep.stop``). ``previous`` = (β, q) of the step before ``start`` (a resumed
     march): the first ds is that step's (:meth:`DeepMarch.resume_step`)."""
@@ -430,10 +432,14 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
                                                   progress and progress(r, p, m)))
     if previous is not None:              # a resumed march: go on at the pace it had
         march.resume_step(*previous)
+    last_L = march.L
     while march.status == "running":
         if march.step() is not None:
             break
+        if march.status == "running" and march.L < last_L * (1.0 + settings.spacing):
+            continue                  # a continuation step, not written (settings.spacing)
         res = write(march.sol, march.sol.to_pulse(), "arclength")
+        last_L = march.L
         if res.passed and res.sol is not march.sol:
             march.replace(res.sol)
     rep.deep_steps += march.n_steps
