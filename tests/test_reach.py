@@ -49,12 +49,30 @@ def test_reach_over_the_range(tmp_path, x):
     _check(tmp_path, x)
 
 
+@pytest.mark.slow
+def test_reach_at_the_top_of_the_range():
+    """1.32, the top of SOLVE_RANGE: the family cannot start there from the built-in guess, so the
+    reference is the reached pulse re-solved on a grid 1.5 times finer, adapted to it."""
+    import numpy as np
+    from slippulse.steady.solver import solve_pulse
+    x = SOLVE_RANGE[1]
+    sol, route = reach_pulse(P, x, n_points=2000)
+    assert sol is not None and sol.stats.converged, route
+    got = sol.to_pulse()
+    assert got.extra["n_humps"] == 1 and 0 < got.beta < 1e-3
+    fine = solve_pulse(P, x, n_points=3000, guess=(got.xi, np.log(got.v), got.beta), passes=0)
+    assert fine.stats.converged, fine.stats.message
+    ref = fine.to_pulse()
+    assert abs(got.beta / ref.beta - 1) <= 1e-3, (got.beta, ref.beta)
+    assert abs(got.L / ref.L - 1) <= L_TOL, (got.L, ref.L)
+
+
 def test_range_is_advertised_and_enforced(capsys):
     from slippulse.cli.app import build_parser, main
-    assert SOLVE_RANGE == (1.015, 1.325)
+    assert SOLVE_RANGE == (1.015, 1.32)
     helptext = build_parser()._subparsers._group_actions[0].choices["steady"]
     assert helptext is not None
-    for x in ("1.01", "1.33"):
+    for x in ("1.01", "1.325", "1.33"):
         assert main(["steady", "solve", "--tau-d", x]) == 2
         assert f"tau-d={x}" in capsys.readouterr().err
 

@@ -602,7 +602,7 @@ def register(sub) -> None:
                                   "continuation below 1.2, steps upward above); writes HDF5 "
                                   "(+ PNG) and prints a one-line summary.")
     p.add_argument("--tau-d", default="1.2",
-                   help="driving stress tau_d/tau_min in [1.015, 1.325] (default 1.2; away from "
+                   help="driving stress tau_d/tau_min in [1.015, 1.32] (default 1.2; away from "
                         "1.2 the pulse is reached by continuation from 1.2, with a progress bar)")
     p.add_argument("--points", type=int, default=2000, help="grid points N (default 2000)")
     p.add_argument("--out", default=None, help="output HDF5 (default runs/steady/tdX.XXXX.h5)")
