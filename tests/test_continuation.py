@@ -404,6 +404,58 @@ def test_newton_stops_creeping_iterations_when_asked():
     assert st.converged and abs(x[0] + 0.5 * x[0] ** 3 - 3.0) <= 1e-13
 
 
+def test_solve_robust_starts_with_the_homotopy_when_told():
+    """plain=False: no plain Newton solve (its iterations are not spent), the homotopy from the
+    start, to the same root, and stats.homotopy says so; a plain solve that converges does not
+    set it."""
+    from slippulse.steady.continuation import solve_robust
+    import slippulse.steady.continuation.homotopy as hm
+    calls = []
+    real = hm.newton
+
+    def spy(problem, x0, **kw):
+        calls.append(type(problem).__name__)
+        return real(problem, x0, **kw)
+
+    hm.newton = spy
+    try:
+        x, st = solve_robust(_Cubic(), np.array([0.0, 0.0]), stages=4, max_iter=30, plain=False)
+        assert calls == ["_Shifted"] * 4 and st.converged and st.homotopy
+        assert abs(x[0] + 0.5 * x[0] ** 3 - 3.0) <= 1e-13
+        calls.clear()
+        x, st = solve_robust(_Cubic(), np.array([0.0, 0.0]), stages=4, max_iter=30)
+        assert calls == ["_Cubic"] and st.converged and not st.homotopy
+    finally:
+        hm.newton = real
+
+
+def test_checks_start_with_the_homotopy_after_one_needed_it(monkeypatch):
+    """_CheckedWriter: after a check whose plain re-solve needed the homotopy, the next
+    HOMOTOPY_FIRST checks are asked to start with it (plain=False), then plain Newton again."""
+    from types import SimpleNamespace
+    from slippulse.steady.continuation import family
+    asked = []
+    crept = iter([False, True] + [True] * family.HOMOTOPY_FIRST + [False, False])
+
+    def check(params, sol, tol, n_max, log=None, body_levels=0, locate=False, plain=True):
+        asked.append(plain)
+        homotopy = next(crept)
+        return SimpleNamespace(passed=False, homotopy=homotopy, message="mock", sol=sol,
+                               attrs=lambda tol: {})
+
+    monkeypatch.setattr(family, "check_pulse", check)
+    monkeypatch.setattr(family, "write_pulse", lambda *a, **k: None)
+    rep = SimpleNamespace(checks=0, failed_checks=[], wrote=lambda p: None)
+    w = family._CheckedWriter(None, "/nonexistent/never.h5", rep, None, 4000, None)
+    pulse = SimpleNamespace(extra={}, label="td1.0085", tau_d_ratio=1.0085, name="",
+                            converged=True)
+    sol = SimpleNamespace(to_pulse=lambda: pulse)
+    for _ in range(3 + family.HOMOTOPY_FIRST):
+        w(sol, pulse, "arclength")
+    k = family.HOMOTOPY_FIRST
+    assert asked == [True, True] + [False] * k + [True]
+
+
 def test_stretched_march_and_nested_grid_check(params):
     """deep.stretch: the grid is deformed with the pulse every step (same N, the nodes ahead of
     the front kept, the healing front and tail shifted), the steps are converged pulses on the family

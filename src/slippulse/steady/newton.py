@@ -24,6 +24,7 @@ class SolveStats:
     t_linear: float = 0.0
     t_residual: float = 0.0
     chord_iterations: int = 0
+    homotopy: bool = False          # the solve went through the residual homotopy (solve_robust)
 
 
 def _max_abs(r):

@@ -366,6 +366,11 @@ def _check_auto_args(params, out, tol, n_max, deep_points, max_length):
                                  f"another --out")
 
 
+#: After a grid check whose plain Newton re-solve crept (and the homotopy finished it), this many
+#: checks start with the homotopy before plain Newton is tried again (docs/steady.md, stop 36).
+HOMOTOPY_FIRST = 4
+
+
 class _CheckedWriter:
     """Write a pulse after :func:`check_pulse`: the checked pulse with the check's figures, or,
     when it cannot pass, the pulse marked failed with the reason. A label already taken by a
@@ -376,6 +381,11 @@ class _CheckedWriter:
         self.params, self.out, self.rep, self.tol, self.n_max, self.log = \
             params, out, rep, tol, n_max, log
         self.taken = {}
+        # checks start with plain Newton; one whose plain re-solve crept and needed the homotopy
+        # (beyond ≈ 5.3 km every one did: 5 iterations of a 2N − 1 LU, ≈ 39 s of ≈ 120 s) makes
+        # the next HOMOTOPY_FIRST checks start with the homotopy (check_pulse(plain=False)); then
+        # plain Newton is tried again
+        self.homotopy_first = 0
         if os.path.exists(out):
             for label in list_pulses(out):
                 self.taken[label] = read_pulse(out, label)[0].tau_d_ratio
@@ -387,7 +397,11 @@ class _CheckedWriter:
         # everywhere (N doubled)
         res = check_pulse(self.params, sol, self.tol, self.n_max, log=self.log,
                           body_levels=2 if method == "arclength" else 0,
-                          locate=method == "arclength")
+                          locate=method == "arclength", plain=self.homotopy_first == 0)
+        if self.homotopy_first:
+            self.homotopy_first -= 1
+        elif res.homotopy:
+            self.homotopy_first = HOMOTOPY_FIRST
         p = res.sol.to_pulse()
         p.extra.update(res.attrs(self.tol))
         p.extra["continuation"] = method

@@ -24,15 +24,15 @@ REUSE_LU = True
 
 
 def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
-                  nested=False, stages=0, cells=None, reuse=None):
+                  nested=False, stages=0, cells=None, reuse=None, plain=True):
     """:func:`grid_change` as the family's criterion reads it: (fine, |Δβ|, |ΔL|/L)."""
     fine, dbeta, dL_rel = grid_change(params, sol, n_points, spec, max_iter, nested, stages, cells,
-                                      reuse)
+                                      reuse, plain)
     return fine, abs(dbeta), abs(dL_rel)
 
 
 def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
-                nested=False, stages=0, cells=None, reuse=None):
+                nested=False, stages=0, cells=None, reuse=None, plain=True):
     """Grid check of an arclength pulse (x = (y, β, q)): re-solve on a grid of 2N adapted to it,
     on the line through it normal to the family tangent, and express the change at fixed τ_d.
 
@@ -58,7 +58,8 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     their midpoints are inserted (one region refined: ``steady/locate_error.py``,
     ``steady/body_refine.py``). ``stages`` > 0: when Newton fails, :func:`solve_robust` with that
     many homotopy stages. ``reuse``: Newton reuses each full step's LU for chord iterations
-    (the same tolerance); None: :data:`REUSE_LU`, read at the call.
+    (the same tolerance); None: :data:`REUSE_LU`, read at the call. ``plain=False`` (with
+    ``stages``): the homotopy from the start (:func:`solve_robust`).
     """
     p0 = sol.to_pulse()
     q, beta = float(sol.x[-1]), p0.beta
@@ -82,7 +83,8 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
     x_start = np.concatenate([yn, [beta, q]])
     if stages > 0:
-        xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter, reuse=reuse)
+        xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter, reuse=reuse,
+                              plain=plain)
     else:
         xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter, reuse=reuse)
     fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
@@ -230,6 +232,7 @@ class GridCheck:
     body_levels : body refinements applied to reach ``sol``; doublings : nested doublings.
     message : what was tried, in one line.
     wall_time : seconds spent.
+    homotopy : whether the first check's re-solve needed the residual homotopy.
     """
 
     sol: SteadySolution
@@ -242,6 +245,7 @@ class GridCheck:
     doublings: int = 0
     message: str = ""
     wall_time: float = 0.0
+    homotopy: bool = False
 
     def attrs(self, tol) -> dict:
         """The check's figures as pulse attributes (stored in the family file)."""
@@ -255,7 +259,7 @@ class GridCheck:
 
 
 def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINTS, body_levels=2,
-                max_iter=15, stages=4, log=None, locate=False) -> GridCheck:
+                max_iter=15, stages=4, log=None, locate=False, plain=True) -> GridCheck:
     """Grid-check a pulse and refine it until it passes: N, or the body refinement, per pulse.
 
     Parameters
@@ -272,6 +276,8 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
         fewest regions whose shares leave the rest within 0.8 of the tolerance are refined
         together (:func:`_to_refine`), as many of them, largest share first, as keep the
         refined pulse's check within ``n_max``.
+    plain : False: the first check's re-solve starts with the homotopy (:func:`solve_robust`
+        ``plain=False``; a caller whose last check needed it, :attr:`GridCheck.homotopy`).
 
     Notes
     -----
@@ -286,10 +292,13 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
     cur = as_both(params, sol)
     levels = doublings = 0
     steps = []
+    first = None
     while True:
         n = cur.xi.size
         fine, db, dl = check_grid_2n(params, cur, n, nested=True, stages=stages,
-                                     max_iter=max_iter)
+                                     max_iter=max_iter, plain=plain if first is None else True)
+        if first is None:
+            first = bool(fine.stats.homotopy)
         ok = bool(fine.stats.converged) and math.isfinite(db)
         line = (f"N={n} vs {fine.xi.size}: dbeta={db:.1e} dL/L={dl:.1e}" if ok else
                 f"N={n} vs {fine.xi.size}: re-solve failed ({fine.stats.message})")
@@ -331,4 +340,5 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
         cur, doublings, levels = fine, doublings + 1, 0
     res.message = "; ".join(steps)
     res.wall_time = time.perf_counter() - t0
+    res.homotopy = bool(first)
     return res
