@@ -404,6 +404,34 @@ def test_newton_stops_creeping_iterations_when_asked():
     assert st.converged and abs(x[0] + 0.5 * x[0] ** 3 - 3.0) <= 1e-13
 
 
+class _Floor(_Cubic):
+    """The cubic with |r₀| ≥ `floor` everywhere (a floor like round-off's, of either sign across
+    the root): no Newton step lowers ‖r‖₂ below it."""
+
+    def __init__(self, floor):
+        self.floor = floor
+
+    def residual(self, x):
+        r = super().residual(x)
+        r[0] += math.copysign(self.floor, r[0])
+        return r
+
+    def residual_and_jacobian(self, x):
+        return self.residual(x), super().residual_and_jacobian(x)[1]
+
+
+def test_newton_accepts_the_round_off_floor_within_ROUNDOFF_of_tol():
+    """A line search that finds no lower ‖r‖₂ ends Newton as converged when max|r| is within
+    ROUNDOFF of tol (measured on the deep march: 1.11e-13 against 1e-13 ended it), and as failed
+    when the floor is farther above tol."""
+    from slippulse.steady.newton import ROUNDOFF, newton
+    x, st = newton(_Floor(2e-13), np.array([1.0, 0.0]), tol=1e-13, max_iter=40)
+    assert st.converged and "round-off" in st.message and st.max_residual > 1e-13
+    assert abs(x[0] + 0.5 * x[0] ** 3 - 3.0) <= ROUNDOFF * 1e-13
+    x, st = newton(_Floor(3e-12), np.array([1.0, 0.0]), tol=1e-13, max_iter=40)
+    assert not st.converged and "line search failed" in st.message
+
+
 def test_solve_robust_starts_with_the_homotopy_when_told():
     """plain=False: no plain Newton solve (its iterations are not spent), the homotopy from the
     start, to the same root, and stats.homotopy says so; a plain solve that converges does not
