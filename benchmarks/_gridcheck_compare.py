@@ -1,5 +1,7 @@
-"""Shared by the grid-check benchmarks (bench_gridcheck_reuse.py, bench_gridcheck_creep.py): one
-pulse's nested check run under two settings, alternated, side by side in one process."""
+"""Shared by the grid-check benchmarks (bench_gridcheck_reuse.py, bench_gridcheck_creep.py,
+bench_gridcheck_homotopy_first.py): their command line, and one pulse's nested check run under
+two settings, alternated, side by side in one process."""
+import argparse
 import time
 
 import numpy as np
@@ -7,6 +9,16 @@ import numpy as np
 from slippulse.core.h5io import read_pulse
 from slippulse.steady.continuation.gridcheck import as_both, grid_change
 from slippulse.steady.solver import resolve_on_grid
+
+
+def parse_args(doc, argv=None, repeat=1):
+    """The benchmarks' command line: FAMILY.h5 LABEL [LABEL ...] [--repeat N] (default `repeat`);
+    the description is the first paragraph of `doc`."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    ap.add_argument("family")
+    ap.add_argument("labels", nargs="+")
+    ap.add_argument("--repeat", type=int, default=repeat)
+    return ap.parse_args(argv)
 
 
 def compare(family, labels, repeat, variants):

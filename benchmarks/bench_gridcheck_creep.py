@@ -12,19 +12,14 @@ per run: wall, Newton iterations of all solves, the check's Δβ and ΔL/L; then
 median walls and the largest difference between the two fine solutions. A pulse whose first
 solve converges without creeping runs the same way in both (ratio ≈ 1). Minutes at N ≈ 3500.
 """
-import argparse
 import sys
 
 import slippulse.steady.continuation.homotopy as homotopy
-from _gridcheck_compare import compare
+from _gridcheck_compare import compare, parse_args
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("family")
-    ap.add_argument("labels", nargs="+")
-    ap.add_argument("--repeat", type=int, default=1)
-    a = ap.parse_args(argv)
+    a = parse_args(__doc__, argv, repeat=1)
     creep_now = homotopy.CREEP
 
     def creep(value):

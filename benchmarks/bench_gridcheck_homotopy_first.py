@@ -12,18 +12,13 @@ two fine solutions. Where the plain solve converges without creeping, plain firs
 (the ratio is below 1): the family tries it again every HOMOTOPY_FIRST + 1 checks. Minutes at
 N ≈ 3500.
 """
-import argparse
 import sys
 
-from _gridcheck_compare import compare
+from _gridcheck_compare import compare, parse_args
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("family")
-    ap.add_argument("labels", nargs="+")
-    ap.add_argument("--repeat", type=int, default=1)
-    a = ap.parse_args(argv)
+    a = parse_args(__doc__, argv, repeat=1)
     compare(a.family, a.labels, a.repeat,
             [("plain first", lambda: {"plain": True}),
              ("homotopy first", lambda: {"plain": False})])

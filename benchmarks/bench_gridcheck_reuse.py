@@ -10,18 +10,13 @@ and ``reuse=True``, alternated ``--repeat`` times. Prints per run: wall, Newton 
 chord iterations, and Δβ, ΔL/L of the check; then the ratio of the median walls and the largest
 difference between the two fine solutions (max|Δ ln v|, Δβ, Δq). Minutes at N ≈ 3500.
 """
-import argparse
 import sys
 
-from _gridcheck_compare import compare
+from _gridcheck_compare import compare, parse_args
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("family")
-    ap.add_argument("labels", nargs="+")
-    ap.add_argument("--repeat", type=int, default=2)
-    a = ap.parse_args(argv)
+    a = parse_args(__doc__, argv, repeat=2)
     compare(a.family, a.labels, a.repeat,
             [("reuse=False", lambda: {"reuse": False}), ("reuse=True", lambda: {"reuse": True})])
     return 0

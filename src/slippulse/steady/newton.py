@@ -72,8 +72,9 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=No
     `max_iter` iterations; near round-off a full step that does not reduce ‖r‖₂ but keeps
     max|r| ≤ tol is accepted, and a line search that finds no lower ‖r‖₂ at max|r| ≤
     :data:`ROUNDOFF` · tol ends it as converged ("converged at round-off"). With ``lu`` (a
-    factored Jacobian at a nearby point, e.g. the one the continuation's tangent came from) :func:`chord` iterations run first; Newton takes over from
-    their best iterate when they stop contracting.
+    factored Jacobian at a nearby point, e.g. the one the continuation's tangent came from)
+    :func:`chord` iterations run first; Newton takes over from their best iterate when they stop
+    contracting.
 
     ``reuse=True`` (the grid checks' re-solves, whose Jacobian and LU at 2N − 1 points cost far
     more than a residual): after every full (undamped) Newton step, :func:`chord` iterations

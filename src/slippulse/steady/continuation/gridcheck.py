@@ -292,13 +292,13 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
     cur = as_both(params, sol)
     levels = doublings = 0
     steps = []
-    first = None
+    homotopy = None                 # whether the first check's re-solve needed the homotopy
     while True:
         n = cur.xi.size
         fine, db, dl = check_grid_2n(params, cur, n, nested=True, stages=stages,
-                                     max_iter=max_iter, plain=plain if first is None else True)
-        if first is None:
-            first = bool(fine.stats.homotopy)
+                                     max_iter=max_iter, plain=plain)
+        if homotopy is None:
+            homotopy, plain = bool(fine.stats.homotopy), True   # later checks: plain first
         ok = bool(fine.stats.converged) and math.isfinite(db)
         line = (f"N={n} vs {fine.xi.size}: dbeta={db:.1e} dL/L={dl:.1e}" if ok else
                 f"N={n} vs {fine.xi.size}: re-solve failed ({fine.stats.message})")
@@ -340,5 +340,5 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
         cur, doublings, levels = fine, doublings + 1, 0
     res.message = "; ".join(steps)
     res.wall_time = time.perf_counter() - t0
-    res.homotopy = bool(first)
+    res.homotopy = homotopy
     return res
