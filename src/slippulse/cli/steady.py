@@ -287,6 +287,10 @@ def spectrum_line(label, res) -> str:
     resolved'), whether it is real, the translation check per level, the count, the cost."""
     if res.status != "converged":
         return f"{label}: FAILED ({res.message}); nothing stored"
+    if res.sigmas.size == 0 and "det M" in res.message:
+        return (f"{label}: no eigenvalue with Re sigma > 1e-7 c_p/L found (the search above "
+                f"0.001 c_p/L, the sign of det M below): stable, or a rate below 1e-7 c_p/L; "
+                f"N={res.n_points}, {res.wall_time:.1f} s")
     if res.sigmas.size == 0:
         return (f"{label}: no eigenvalue with Re sigma > 0.001 c_p/L found (stable or below "
                 f"resolution: the rates near tau_min, below ~0.002 c_p/L at L > 100 m, are found "
@@ -389,6 +393,15 @@ def cmd_stability(args) -> int:
                              "integer in [1, 256] (threads of each count worker)")
     if args.guess is not None and not (math.isfinite(args.guess) and 0 < args.guess <= 100):
         raise ParameterError(f"guess={args.guess!r} is invalid: must be an s L/c_p in (0, 100]")
+    if not (isinstance(args.workers, int) and 1 <= args.workers <= 256):
+        raise ParameterError(f"workers={args.workers!r} is invalid: must be an integer in "
+                             "[1, 256] (processes computing pulses at once)")
+    if not (isinstance(args.threads, int) and 1 <= args.threads <= 256):
+        raise ParameterError(f"threads={args.threads!r} is invalid: must be an integer in "
+                             "[1, 256] (threads of each worker)")
+    if args.workers > 1 and args.count_workers > 1:
+        raise ParameterError("workers and count_workers are both > 1: use one of them "
+                             "(a count's pool is not started inside a worker)")
     if not (isinstance(args.count_evals, int) and 24 <= args.count_evals <= 20000):
         raise ParameterError(f"count_evals={args.count_evals!r} is invalid: must be an integer "
                              "in [24, 20000] (det M evaluations of the count)")
@@ -420,7 +433,7 @@ def cmd_stability(args) -> int:
                        progress=progress, levels=args.levels, count_box=box,
                        count_evals=args.count_evals, count_workers=args.count_workers,
                        count_threads=args.count_threads,
-                       guess=args.guess,
+                       guess=args.guess, workers=args.workers, threads=args.threads,
                        level_progress=level_progress, min_points=args.min_points,
                        target=args.target, pin_translation=args.pin_translation,
                        level0_points=args.points, rel_target=args.rel_target,
@@ -719,7 +732,16 @@ def register(sub) -> None:
                    help="start the first pulse's eigenvalue search at s L/c_p = S instead of "
                         "from the spectrum stored above it (deep pulses, whose rates are below "
                         "the search's 0.001 c_p/L, with none computed above; e.g. the law of "
-                        "`slippulse steady rates`); the pulses after it track from it")
+                        "`slippulse steady rates`); the pulses after it track from it. Without "
+                        "it such a pulse is found by the sign of det M on [1e-7, 1e-3] c_p/L "
+                        "after the default search (about 3 min more at N = 3542)")
+    p.add_argument("--workers", type=int, default=1, metavar="K",
+                   help="compute the pulses on K processes at once (default 1): the pulses "
+                        "are cut into K contiguous runs, each tracked along on its own; the "
+                        "runs after the first start from the default search. Each holds about "
+                        "10 N x N complex matrices (4 GB at N = 5009)")
+    p.add_argument("--threads", type=int, default=1, metavar="T",
+                   help="BLAS, OpenMP and numba threads of each of the --workers (default 1)")
     p.add_argument("--figure", default=None, metavar="PNG",
                    help="also draw s(tau_d) and the leading modes into this file")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.h5io import UNSTORED_STATE_ORDER, state_order_of
-from .eigensolve import Eigen, linearised_candidates, neutral_modes, newton_eigen
+from .eigensolve import (Eigen, det_sign, linearised_candidates, neutral_modes, newton_eigen,
+                         real_eigenvalues)
 from .operators import ElasticOperator, StabilityOperator, slope_matrix, symbol
 from .spectrum_store import MODE_FIELDS, SPECTRUM_GROUP, read_spectrum, write_spectrum
 
@@ -31,6 +32,14 @@ DEFAULT_SHIFTS = (25.0, 8.0, 2.0, 0.5, 0.15, 0.05)   # first search shifts, in u
 MIN_RE = 1e-3                              # eigenvalues with Re σ < MIN_RE c/L are not sought
 TRACK_FLOOR = 0.1                          # ... except a tracked one, down to this × its guess
 NEWTON_TOL = 1e-6                          # Newton's step criterion (pulse_spectrum's tol)
+#: Below MIN_RE c/L, with translation pinned and nothing tracked or found above: the real axis
+#: [SCAN_LO, MIN_RE] c/L is scanned for a sign change of det M(σ) at SCAN_POINTS geometric points
+#: (two per decade), and an eigenvalue it brackets is refined by Arnoldi and Newton. A deep pulse
+#: analysed on its own (no neighbour above, no --guess) is found so, instead of reading as
+#: "no eigenvalue" (its s L/c_p is 7e-5 to 3e-4 at L = 0.4-6.7 km). Unpinned, the translation
+#: mode lies in that range too (its discretisation error), so no scan is made.
+SCAN_LO = 1e-7
+SCAN_POINTS = 9
 
 
 @dataclass
@@ -111,12 +120,46 @@ def order4_pulse(pulse, params):
     return SteadySolution(prob, x, stats, time.perf_counter() - t0, 0).to_pulse()
 
 
+def _scan_brackets(op):
+    """Intervals (lo, hi) in 1/s where det M(σ) changes sign, on a geometric scan of
+    [SCAN_LO, MIN_RE] c/L walked from the top down (the largest real eigenvalue first); a
+    generator, so that the walk stops where an eigenvalue is found (4 evaluations at s L/c_p ~
+    1e-4)."""
+    pts = np.geomspace(MIN_RE, SCAN_LO, SCAN_POINTS) * op.rate_unit
+    prev = det_sign(op, pts[0])[0]
+    for hi, lo in zip(pts, pts[1:]):
+        sign = det_sign(op, lo)[0]
+        if sign * prev < 0:
+            yield lo, hi
+        prev = sign
+
+
+def scan_below(op, add):
+    """The leading real eigenvalue below MIN_RE c/L (see :data:`SCAN_LO`): for each bracket of
+    :func:`_scan_brackets`, from the top, the linearised candidates at its geometric middle (then,
+    if Newton loses them, at Brent's root of det M in it) are handed to
+    ``add(sigma, vector, floor=...)``, until add returns True (an eigenvalue found)."""
+    unit = op.rate_unit
+    for lo, hi in _scan_brackets(op):
+        for sa in (np.sqrt(lo * hi), None):
+            if sa is None:
+                roots = real_eigenvalues(op, lo, hi, n_scan=2, xtol=1e-6).roots
+                if not roots:
+                    break
+                sa = roots[0]
+            sig, vec = linearised_candidates(op, complex(sa), k=2)
+            if any([add(complex(sig[j]), vec[:, j], floor=0.5 * lo / unit)
+                    for j in range(len(sig))]):
+                return
+
+
 def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label="",
                    guess_modes=None, pin_translation=False, neutral=True):
     """Leading eigenvalues and modes of one pulse.
 
     guesses : σ values (1/s) to start from (e.g. the neighbouring pulse's eigenvalues, rescaled);
-        the shifts DEFAULT_SHIFTS·c/L are tried after them (or alone) until an eigenvalue is found.
+        the shifts DEFAULT_SHIFTS·c/L are tried after them (or alone) until an eigenvalue is found;
+        then, pinned, the real axis below MIN_RE c/L by the sign of det M (:func:`scan_below`).
     extra : after the leading eigenvalue, search below it (shift at 0.4 Re σ₁, 2 candidates).
     tol : Newton's step criterion, relative to max(|σ|, c/L); the iteration converges
         quadratically, so the σ returned (after that step) is accurate to ~tol² (measured on a
@@ -153,6 +196,8 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
         if eig.sigma.real > floor * unit and not any(
                 abs(eig.sigma - f.sigma) < 1e-6 * max(abs(f.sigma), unit) for f in found):
             found.append(eig)
+            return True
+        return False
 
     tracked = [complex(g) for g in guesses]
     if guess_modes is not None:
@@ -175,6 +220,9 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
         sig, vec = linearised_candidates(op, sa, k=2 if i < n_tracked else 1)
         for j in range(len(sig)):
             add(complex(sig[j]), vec[:, j], floor=floor)
+    scanned = not found and pin_translation
+    if scanned:
+        scan_below(op, add)
     t1 = time.perf_counter()
     if found and extra:
         lead = max(f.sigma.real for f in found)
@@ -205,6 +253,9 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
         status, msg = "converged", f"{len(found)} eigenvalue(s) with Re sigma > {MIN_RE:g} c/L"
     elif failures:
         status, msg = "failed", "; ".join(failures[:3])
+    elif scanned:
+        status, msg = "converged", (f"no eigenvalue with Re sigma > {MIN_RE:g} c/L found, and "
+                                    f"no sign change of det M on [{SCAN_LO:g}, {MIN_RE:g}] c/L")
     else:
         status, msg = "converged", f"no eigenvalue with Re sigma > {MIN_RE:g} c/L found"
     t3 = time.perf_counter()

@@ -152,12 +152,113 @@ def _failed(label, pulse, message):
                          pulse.c_p / pulse.L, int(pulse.n_points), "failed", message, 0.0)
 
 
+def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
+    """The spectrum of one pulse (read from its file), tracked from (prev, prev_mode): level 0,
+    the eigenvalues, the refinement and the count of the options ``o`` (a dict of
+    :func:`run_spectrum`'s settings). No file is written but the count's checkpoint. Returns
+    (res, prev, prev_mode), the tracking state after it (unchanged where the pulse failed)."""
+    levels, level0_points = o["levels"], o["level0_points"]
+    if levels:
+        check_refinable(pulse, levels, o["min_points"], level0_points, o["max_points"])
+    pulse = source = order4_pulse(pulse, params)
+    n0 = level0_size(pulse.n_points, o["min_points"], level0_points, o["max_points"])
+    gmap = why = None
+    if levels or n0 != pulse.n_points:
+        gmap = GridMap(pulse.xi)
+        n_own = int(source.n_points)
+        fallback = level0_points is None and n0 < n_own
+        pulse, why = _level0(pulse, params, gmap, n0, LEVEL0_CREEP if fallback else 0)
+        if why and fallback:
+            # the clip to max_points is too coarse for this pulse (the deep pulses beyond
+            # L ≈ 2.5 km need their own N = 3542): level 0 on the pulse's own N instead
+            try:
+                check_refinable(source, levels, level0_points=n_own)
+            except UsageError as exc:
+                why += f"; on its own N instead: {exc}"
+            else:
+                pulse, why_own = _level0(source, params, gmap, n_own)
+                why = f"{why}; on the pulse's own N = {n_own} too: {why_own}" if why_own else ""
+    if why:
+        return _failed(lab, pulse, why), prev, prev_mode
+    unit = pulse.c_p / pulse.L
+    guesses, modes = [], None
+    if prev is not None and prev[0].size:
+        s0 = prev[0][0]
+        guesses = [complex(s0.real, abs(s0.imag)) * unit / prev[1]]
+        if prev_mode is not None:
+            x = pulse.xi / pulse.L
+            modes = [np.interp(x, prev_mode[0], prev_mode[1].real)
+                     + 1j * np.interp(x, prev_mode[0], prev_mode[1].imag)]
+    pin = o["pin_translation"]
+    res = pulse_spectrum(pulse, params, guesses=guesses, extra=o["extra"], tol=o["tol"],
+                         label=lab, guess_modes=modes, pin_translation=pin)
+    if res.status == "converged" and res.sigmas.size and levels:
+        res.refined = refine_leading(pulse, params, res, gmap, levels, tol=o["tol"],
+                                     progress=level_progress, target=o["target"],
+                                     pin_translation=pin, source=source,
+                                     rel_target=o["rel_target"])
+        if res.refined.status != "converged":
+            res.status = "failed"
+            res.message = f"refinement failed: {res.refined.message}"
+    box0 = o["count_box"]
+    if res.status == "converged" and box0 is not None:
+        lead = res.leading.real / res.rate_unit if res.sigmas.size else 0.0
+        box = (box0[0], max(box0[1], 1.5 * lead), max(box0[2], 1.5 * lead))
+        ckpt = count_checkpoint_path(o["path"], lab)
+        res.count = count_unstable(res.operator, box, max_evals=o["count_evals"],
+                                   workers=o["count_workers"],
+                                   threads_per_worker=o["count_threads"],
+                                   progress=(lambda k: level_progress(f"count: {k} det"))
+                                   if level_progress else None, checkpoint=ckpt)
+        if res.count.status == "converged":
+            if os.path.exists(ckpt):
+                os.remove(ckpt)
+        elif os.path.exists(ckpt):
+            res.count.message += (f"; its evaluations are kept in {ckpt}: the same count "
+                                  "with a larger budget goes on from them")
+    res.operator = None                             # N×N matrices: not kept per pulse
+    if res.status != "converged":                   # a failure stores no eigenvalue
+        res.sigmas = np.zeros(0, complex)
+        res.modes = []
+        return res, prev, prev_mode
+    prev = (res.sigmas, res.rate_unit)
+    prev_mode = (pulse.xi / pulse.L, res.modes[0]["V"]) if res.modes else None
+    return res, prev, prev_mode
+
+
+def _chunk_worker(path, items, params, seed, opts, queue):
+    """A worker of :func:`run_spectrum` with ``workers`` > 1: the pulses ``items`` ((label,
+    pulse) in order), tracked from ``seed``; each result is put on ``queue`` as (label,
+    PulseSpectrum, ''), or the error that stopped it as (label, None, (is a UsageError, text))."""
+    prev, prev_mode = seed
+    for lab, pulse in items:
+        try:
+            res, prev, prev_mode = _pulse_result(lab, pulse, params, prev, prev_mode, opts)
+        except UsageError as exc:                    # bad input: the parent's one-line error
+            queue.put((lab, None, (True, str(exc))))
+            return
+        except Exception as exc:                     # reported by the parent, which stops
+            import traceback
+            queue.put((lab, None, (False, f"{type(exc).__name__}: {exc}\n"
+                                          f"{traceback.format_exc()}")))
+            return
+        queue.put((lab, res, ""))
+
+
+def split_chunks(labels, workers):
+    """`labels` (in order) cut into at most `workers` contiguous runs of near-equal length: each
+    worker tracks along its own run."""
+    k = max(1, min(int(workers), len(labels)))
+    edges = np.linspace(0, len(labels), k + 1).round().astype(int)
+    return [labels[a:b] for a, b in zip(edges, edges[1:]) if b > a]
+
+
 def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL, progress=None,
                  levels=DEFAULT_LEVELS, count_box=None, level_progress=None,
                  min_points=MIN_SPECTRUM_POINTS, target=DEFAULT_TARGET, pin_translation=True,
                  level0_points=None, count_evals=COUNT_EVALS, rel_target=DEFAULT_REL_TARGET,
                  count_workers=1, count_threads=1, guess=None,
-                 max_points=MAX_SPECTRUM_POINTS):
+                 max_points=MAX_SPECTRUM_POINTS, workers=1, threads=1):
     """Spectrum of every (or each named) converged pulse of `path`, stored in its group.
 
     Pulses are taken by decreasing τ_d; each starts from its neighbour's eigenvalues at equal
@@ -194,6 +295,13 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
     level0_points : level 0 has exactly this many points on the map, fewer than the pulse's
         own N included (overrides `min_points`); with `pin_translation` the deep pulses need
         no more than the shallow ones (docs/spectrum.md §5).
+    workers, threads : with workers > 1, the pulses to compute are cut into that many
+        contiguous runs (:func:`split_chunks`), each on a spawned process with `threads`
+        BLAS/OpenMP/numba threads that tracks along its run; this process writes each result
+        as it arrives. The first run starts as with one worker; the others from the default
+        search, which below MIN_RE c/L finds the leading real eigenvalue by the sign of det M
+        (:data:`slippulse.stability.spectrum.SCAN_LO`), at the cost of a few assemblies. Not
+        with ``count_workers`` > 1 (no pools inside the workers).
     """
     from ..core.h5io import read_pulse
     t0 = time.perf_counter()
@@ -209,96 +317,110 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
     unset = {"pin_translation": 0, "level0_points": 0, "rel_target": 0.0,
              "max_points": 0}                    # settings added later: value before
     # (a spectrum stored before pinning existed was computed without it)
+    opts = {"levels": levels, "min_points": min_points, "level0_points": level0_points,
+            "max_points": max_points, "extra": extra, "tol": tol,
+            "pin_translation": pin_translation, "target": target, "rel_target": rel_target,
+            "count_box": count_box, "count_evals": count_evals, "count_workers": count_workers,
+            "count_threads": count_threads, "path": str(path)}
     rep = SpectrumReport()
     # tracking starts from the nearest pulse above the first one that has a stored spectrum
     # (any settings): the deep pulses' rates are below the default search's MIN_RE
     prev, prev_mode = _seed(path, chosen)
     if guess is not None:
         prev, prev_mode = (np.array([complex(guess)]), 1.0), None
-    for lab in chosen:
-        stored = None if overwrite else read_spectrum(path, lab)
-        if stored is not None and stored.get("status") == "converged" and all(
-                stored.get(f"setting_{k}", unset.get(k)) == v for k, v in settings.items()):
-            rep.skipped.append(lab)
-            prev, prev_mode = _track(stored)
-            if progress:
-                progress(lab, None, stored)
-            continue
-        pulse, _ = read_pulse(path, lab)
-        if levels:
-            check_refinable(pulse, levels, min_points, level0_points, max_points)
-        pulse = source = order4_pulse(pulse, params)
-        n0 = level0_size(pulse.n_points, min_points, level0_points, max_points)
-        gmap = why = None
-        if levels or n0 != pulse.n_points:
-            gmap = GridMap(pulse.xi)
-            n_own = int(source.n_points)
-            fallback = level0_points is None and n0 < n_own
-            pulse, why = _level0(pulse, params, gmap, n0, LEVEL0_CREEP if fallback else 0)
-            if why and fallback:
-                # the clip to max_points is too coarse for this pulse (the deep pulses beyond
-                # L ≈ 2.5 km need their own N = 3542): level 0 on the pulse's own N instead
-                try:
-                    check_refinable(source, levels, level0_points=n_own)
-                except UsageError as exc:
-                    why += f"; on its own N instead: {exc}"
-                else:
-                    pulse, why_own = _level0(source, params, gmap, n_own)
-                    why = f"{why}; on the pulse's own N = {n_own} too: {why_own}" if why_own else ""
-        if why:
-            res = _failed(lab, pulse, why)
-            write_spectrum(path, res, settings)
-            rep.results.append(res)
-            rep.failed.append(lab)
-            if progress:
-                progress(lab, res, None)
-            continue
-        unit = pulse.c_p / pulse.L
-        guesses, modes = [], None
-        if prev is not None and prev[0].size:
-            s0 = prev[0][0]
-            guesses = [complex(s0.real, abs(s0.imag)) * unit / prev[1]]
-            if prev_mode is not None:
-                x = pulse.xi / pulse.L
-                modes = [np.interp(x, prev_mode[0], prev_mode[1].real)
-                         + 1j * np.interp(x, prev_mode[0], prev_mode[1].imag)]
-        res = pulse_spectrum(pulse, params, guesses=guesses, extra=extra, tol=tol, label=lab,
-                             guess_modes=modes, pin_translation=pin_translation)
-        if res.status == "converged" and res.sigmas.size and levels:
-            res.refined = refine_leading(pulse, params, res, gmap, levels, tol=tol,
-                                         progress=level_progress, target=target,
-                                         pin_translation=pin_translation, source=source,
-                                         rel_target=rel_target)
-            if res.refined.status != "converged":
-                res.status = "failed"
-                res.message = f"refinement failed: {res.refined.message}"
-        if res.status == "converged" and count_box is not None:
-            lead = res.leading.real / res.rate_unit if res.sigmas.size else 0.0
-            box = (count_box[0], max(count_box[1], 1.5 * lead), max(count_box[2], 1.5 * lead))
-            ckpt = count_checkpoint_path(path, lab)
-            res.count = count_unstable(res.operator, box, max_evals=count_evals,
-                                       workers=count_workers,
-                                       threads_per_worker=count_threads,
-                                       progress=(lambda k: level_progress(f"count: {k} det"))
-                                       if level_progress else None, checkpoint=ckpt)
-            if res.count.status == "converged":
-                if os.path.exists(ckpt):
-                    os.remove(ckpt)
-            elif os.path.exists(ckpt):
-                res.count.message += (f"; its evaluations are kept in {ckpt}: the same count "
-                                      "with a larger budget goes on from them")
-        res.operator = None                             # N×N matrices: not kept per pulse
-        if res.status != "converged":                   # a failure stores no eigenvalue
-            res.sigmas = np.zeros(0, complex)
-            res.modes = []
+
+    def record(lab, res):
         write_spectrum(path, res, settings)
         rep.results.append(res)
         if res.status != "converged":
             rep.failed.append(lab)
-        else:
-            prev = (res.sigmas, res.rate_unit)
-            prev_mode = (pulse.xi / pulse.L, res.modes[0]["V"]) if res.modes else None
         if progress:
             progress(lab, res, None)
+
+    plan = []                                        # (label, stored spectrum to keep or None)
+    for lab in chosen:
+        stored = None if overwrite else read_spectrum(path, lab)
+        keep = stored is not None and stored.get("status") == "converged" and all(
+            stored.get(f"setting_{k}", unset.get(k)) == v for k, v in settings.items())
+        plan.append((lab, stored if keep else None))
+    todo = [lab for lab, kept in plan if kept is None]
+    if int(workers) > 1 and len(todo) > 1:
+        for lab, kept in plan:
+            if kept is not None:
+                rep.skipped.append(lab)
+                if progress:
+                    progress(lab, None, kept)
+        seeds = {}                                   # chunk start: the nearest kept one above
+        state = (prev, prev_mode)
+        for lab, kept in plan:
+            if kept is not None:
+                state = _track(kept)
+            else:
+                seeds.setdefault(lab, state)
+                state = (None, None)
+        _run_parallel(path, todo, params, seeds, opts, int(workers), int(threads), record)
+    else:
+        for lab, kept in plan:
+            if kept is not None:
+                rep.skipped.append(lab)
+                prev, prev_mode = _track(kept)
+                if progress:
+                    progress(lab, None, kept)
+                continue
+            pulse, _ = read_pulse(path, lab)
+            res, prev, prev_mode = _pulse_result(lab, pulse, params, prev, prev_mode, opts,
+                                                 level_progress)
+            record(lab, res)
     rep.wall_time = time.perf_counter() - t0
     return rep
+
+
+#: Seconds between the parent's checks that its workers are alive (a worker that dies without
+#: reporting, e.g. killed for memory, stops the run instead of hanging it).
+POLL_SECONDS = 5.0
+
+
+def _run_parallel(path, todo, params, seeds, opts, workers, threads, record):
+    """:func:`run_spectrum`'s pulses `todo` on `workers` spawned processes (see there); a run
+    starting at `label` tracks from ``seeds[label]``: the kept spectrum right above it, the guess
+    or the stored spectrum above the first, or nothing."""
+    import multiprocessing
+    import queue as queue_mod
+
+    from ..core.h5io import read_pulse
+    from .count import _thread_env
+    chunks = split_chunks(todo, workers)
+    ctx = multiprocessing.get_context("spawn")
+    q = ctx.Queue()
+    procs = []
+    with _thread_env(threads):
+        for k, chunk in enumerate(chunks):
+            items = [(lab, read_pulse(path, lab)[0]) for lab in chunk]
+            start = seeds.get(chunk[0], (None, None))
+            p = ctx.Process(target=_chunk_worker, args=(str(path), items, params, start, opts, q),
+                            daemon=True)
+            p.start()
+            procs.append(p)
+    left = len(todo)
+    try:
+        while left:
+            try:
+                lab, res, err = q.get(timeout=POLL_SECONDS)
+            except queue_mod.Empty:
+                if not any(p.is_alive() for p in procs) and q.empty():
+                    raise RuntimeError(f"the spectrum workers stopped with {left} pulse(s) not "
+                                       "reported (exit codes "
+                                       f"{[p.exitcode for p in procs]})") from None
+                continue
+            if res is None:
+                usage, text = err
+                if usage:
+                    raise UsageError(text)
+                raise RuntimeError(f"spectrum worker failed at {lab}: {text}")
+            record(lab, res)
+            left -= 1
+    finally:
+        for p in procs:
+            if p.is_alive():
+                p.terminate()
+            p.join()
