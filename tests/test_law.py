@@ -229,3 +229,26 @@ def test_rates_command_gives_the_slope_the_ratio_and_no_fold(tmp_path):
     assert "family: no fold" in r.stdout
     assert "no fold of tau_d along the family" in r.stdout.splitlines()[-1]
     assert "R = s L/c_p / |d tau_d/d ln L|" in r.stdout      # its law is fitted
+
+
+def test_windowed_exponents_follow_a_curving_law_with_covering_errors():
+    """Dense data (0.2 % apart) with 1 % noise on a law whose exponent runs from -1.0 to -0.5:
+    each window's slope within 3 of its error of the local exponent at its centre, the windows
+    disjoint, ordered and covering every point; neighbour differences are useless there."""
+    from slippulse.stability.law import windowed_exponents
+    rng = np.random.default_rng(11)
+    L = np.exp(np.arange(np.log(400.0), np.log(6700.0), 0.002))
+    a0, a1 = -1.0, -0.5                    # exponent linear in ln L between the ends
+    u = (np.log(L) - np.log(L[0])) / (np.log(L[-1]) - np.log(L[0]))
+    span = np.log(L[-1]) - np.log(L[0])
+    lny = a0 * (np.log(L) - np.log(L[0])) + 0.5 * (a1 - a0) * span * u ** 2
+    y = np.exp(lny) * (1.0 + 0.01 * rng.standard_normal(L.size))
+    xm, k, ke, n = windowed_exponents(L, y, 0.01 * np.abs(y))
+    assert n.sum() == L.size and np.all(np.diff(xm) > 0) and np.all(n >= 3)
+    um = (np.log(xm) - np.log(L[0])) / span
+    truth = a0 + (a1 - a0) * um
+    assert np.all(np.abs(k - truth) < 3.0 * ke + 0.01)
+    # 1 % over 50 points spread over 0.1 in ln L: 0.01/(√50 · 0.1/√12) = 0.049
+    assert np.all(ke < 0.08) and len(xm) >= 25
+    _, kn = local_exponents(L, y)
+    assert np.std(kn) > 3.0                                      # why windows are needed

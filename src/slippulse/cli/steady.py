@@ -448,11 +448,25 @@ def cmd_stability(args) -> int:
     return 1 if rep.failed else 0
 
 
+def _print_exponents(what, x, y, err, where):
+    """One line of local exponents, each a weighted fit over a window of 10 % in x
+    (:func:`slippulse.stability.law.windowed_exponents`), with its error bar."""
+    from ..stability.law import EXPONENT_WINDOW, windowed_exponents
+    xm, k, ke, n = windowed_exponents(x, y, err)
+    if xm.size == 0:
+        print(f"local exponents {what}: too few pulses (3 per window)")
+        return
+    print(f"local exponents {what} (windows of {EXPONENT_WINDOW:g} in ln x, >= 3 pulses): "
+          + ", ".join(f"{b:.3f} ± {c:.2g} at {where(a)} ({m})"
+                      for a, b, c, m in zip(xm, k, ke, n)))
+
+
 def cmd_rates(args) -> int:
     import numpy as np
 
     from ..stability.law import (family_curve, family_rates, family_slope, fit_power_law,
-                                 fit_shifted_power_law, fold_ratio, folds, local_exponents)
+                                 fit_shifted_power_law, fold_ratio, folds,
+                                 windowed_exponents)
     from ..stability.spectrum_family import check_family_file
     if not (math.isfinite(args.below) and 1.0 < args.below <= 2.0):
         raise ParameterError(f"below={args.below!r} is invalid: must be in (1, 2] "
@@ -512,12 +526,10 @@ def cmd_rates(args) -> int:
         print("fit: " + line)
     if tau_star is not None and np.sum(win & (x > tau_star)) >= 2:
         m = win & (x > tau_star)
-        xm, k = local_exponents(x[m] - tau_star, y[m])
-        print("local exponents d ln(s L/c_p)/d ln(tau_d/tau_min - tau_star): "
-              + ", ".join(f"{b:.2f} at {a + tau_star:.5f}" for a, b in zip(xm, k)))
-        xm, k = local_exponents(r["L"][m], y[m])
-        print("local exponents d ln(s L/c_p)/d ln L: "
-              + ", ".join(f"{b:.2f} at L = {a:.3g} m" for a, b in zip(xm, k)))
+        _print_exponents("d ln(s L/c_p)/d ln(tau_d/tau_min - tau_star)", x[m] - tau_star, y[m],
+                         e[m], lambda a: f"{a + tau_star:.5f}")
+        _print_exponents("d ln(s L/c_p)/d ln L", r["L"][m], y[m], e[m],
+                         lambda a: f"L = {a:.3g} m")
     turns = folds(curve["tau_d_ratio"], curve["beta"])
     judged = curve["L"].size >= 3
     if not judged:
@@ -536,9 +548,8 @@ def cmd_rates(args) -> int:
     if np.sum(mR) >= 3:
         fits["R"] = fit_power_law(r["L"][mR], R[mR], R_err[mR])
         print("fit: " + fits["R"].describe("L/m", "R = s L/c_p / |d tau_d/d ln L|"))
-        xm, k = local_exponents(r["L"][mR], R[mR])
-        print("local exponents d ln R/d ln L: "
-              + ", ".join(f"{b:.2f} at L = {a:.3g} m" for a, b in zip(xm, k)))
+        _print_exponents("d ln R/d ln L", r["L"][mR], R[mR], R_err[mR],
+                         lambda a: f"L = {a:.3g} m")
     if args.figure and tau_star is not None:
         from ..plotting.rates import plot_rates
         plot_rates(r, fits, args.figure, tau_star, fold=(R, R_err))
