@@ -386,6 +386,8 @@ def _run_parallel(path, todo, params, seeds, opts, workers, threads, record):
     or the stored spectrum above the first, or nothing."""
     import multiprocessing
     import queue as queue_mod
+    import signal
+    import threading
 
     from ..core.h5io import read_pulse
     from .count import _thread_env
@@ -393,14 +395,22 @@ def _run_parallel(path, todo, params, seeds, opts, workers, threads, record):
     ctx = multiprocessing.get_context("spawn")
     q = ctx.Queue()
     procs = []
-    with _thread_env(threads):
-        for k, chunk in enumerate(chunks):
-            items = [(lab, read_pulse(path, lab)[0]) for lab in chunk]
-            start = seeds.get(chunk[0], (None, None))
-            p = ctx.Process(target=_chunk_worker, args=(str(path), items, params, start, opts, q),
-                            daemon=True)
-            p.start()
-            procs.append(p)
+    # the workers ignore Ctrl-C (an ignored signal stays ignored in the spawned interpreter):
+    # this process takes it, says "interrupted" and terminates them
+    main = threading.current_thread() is threading.main_thread()
+    old_int = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    try:
+        with _thread_env(threads):
+            for k, chunk in enumerate(chunks):
+                items = [(lab, read_pulse(path, lab)[0]) for lab in chunk]
+                start = seeds.get(chunk[0], (None, None))
+                p = ctx.Process(target=_chunk_worker,
+                                args=(str(path), items, params, start, opts, q), daemon=True)
+                p.start()
+                procs.append(p)
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, old_int)
     left = len(todo)
     try:
         while left:
