@@ -18,6 +18,7 @@ class _DiagonalOp:
         rng = np.random.default_rng(seed)
         q, _ = np.linalg.qr(rng.standard_normal((len(eigs), len(eigs))))
         self.A = q @ np.diag(eigs) @ q.T
+        self.q = q
         self.n = len(eigs)
         self.rate_unit = 1.0
         self.det_calls = 0
@@ -115,3 +116,20 @@ def test_cli_refuses_bad_worker_counts(tmp_path, pulse12, params):
                             str(good), "-q", *args], capture_output=True, text=True)
         assert r.returncode == 2, (args, r.stderr)
         assert msg in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_newton_onto_a_real_eigenvalue_never_carries_a_subnormal_imaginary_part():
+    """Quadratic convergence squares Im σ at each step (1e-17, 1e-34, ... 1e-318): a subnormal
+    imaginary part then slowed every kernel assembly 20× (stop 37). Iterates of Newton onto a
+    real eigenvalue, started from a guess with a subnormal imaginary part, are exactly real."""
+    from slippulse.stability.eigensolve import snap_real
+    op = _DiagonalOp([0.0, 0.37] + list(-np.linspace(0.01, 3.0, 28)))
+    rng = np.random.default_rng(5)
+    x0 = op.q[:, 1] + 0.05 * (rng.standard_normal(op.n) + 1j * rng.standard_normal(op.n))
+    eig = newton_eigen(op, complex(0.30, 1.1e-318), x0, tol=1e-12, min_re=1e-3)
+    assert eig.converged and eig.sigma.real == pytest.approx(0.37, rel=1e-12)
+    assert eig.sigma.imag == 0.0
+    assert all(h.imag == 0.0 or abs(h.imag) > 1e-250 for h in eig.history)
+    # a complex eigenvalue keeps its imaginary part, however small against 1e-13 it is not
+    assert snap_real(1.0 + 1e-9j, 1.0) == 1.0 + 1e-9j
+    assert snap_real(1.0 + 1e-300j, 1.0).imag == 0.0
