@@ -339,6 +339,14 @@ def spectrum_line(label, res) -> str:
     return line + f"; {res.wall_time + (ref.wall_time if ref else 0.0):.1f} s"
 
 
+def _integer(name, value, lo, hi, what) -> None:
+    """A ParameterError naming option `name`, its range [lo, hi] and what it counts, unless
+    `value` is an integer in that range."""
+    if not (isinstance(value, int) and lo <= value <= hi):
+        raise ParameterError(f"{name}={value!r} is invalid: must be an integer in [{lo}, {hi}] "
+                             f"({what})")
+
+
 def cmd_stability(args) -> int:
     from ..stability.refine import MIN_REFINE_POINTS
     from ..stability.spectrum_family import (COUNT_EVALS, DEFAULT_LEVELS, DEFAULT_REL_TARGET,
@@ -358,24 +366,17 @@ def cmd_stability(args) -> int:
         args.target = DEFAULT_TARGET
     if args.rel_target is None:
         args.rel_target = DEFAULT_REL_TARGET
-    if not (isinstance(args.min_points, int) and 0 <= args.min_points <= 8000):
-        raise ParameterError(f"min-points={args.min_points!r} is invalid: must be an integer in "
-                             "[0, 8000] (smallest N of the spectrum's first level)")
-    if not (isinstance(args.max_points, int) and max(args.min_points, MIN_REFINE_POINTS)
-            <= args.max_points <= 8000):
-        raise ParameterError(f"max-points={args.max_points!r} is invalid: must be an integer in "
-                             f"[{max(args.min_points, MIN_REFINE_POINTS)}, 8000] (largest N of "
-                             "the spectrum's first level, at least --min-points)")
+    _integer("min-points", args.min_points, 0, 8000, "smallest N of the spectrum's first level")
+    _integer("max-points", args.max_points, max(args.min_points, MIN_REFINE_POINTS), 8000,
+             "largest N of the spectrum's first level, at least --min-points")
     if not (math.isfinite(args.rel_target) and 0.0 <= args.rel_target < 1.0):
         raise ParameterError(f"rel-target={args.rel_target!r} is invalid: must be a number in "
                              "[0, 1) (s_err as a fraction of |s|)")
-    if not (isinstance(args.levels, int) and 0 <= args.levels <= 6):
-        raise ParameterError(f"levels={args.levels!r} is invalid: must be an integer in [0, 6] "
-                             "(levels N_0 sqrt(2)^k above level 0 for the error estimate)")
-    if args.points is not None and not (isinstance(args.points, int)
-                                        and MIN_REFINE_POINTS <= args.points <= 8000):
-        raise ParameterError(f"points={args.points!r} is invalid: must be an integer in "
-                             f"[{MIN_REFINE_POINTS}, 8000] (N of the spectrum's first level)")
+    _integer("levels", args.levels, 0, 6,
+             "levels N_0 sqrt(2)^k above level 0 for the error estimate")
+    if args.points is not None:
+        _integer("points", args.points, MIN_REFINE_POINTS, 8000,
+                 "N of the spectrum's first level")
     if args.target is not None and not (math.isfinite(args.target) and args.target > 0):
         raise ParameterError(f"target={args.target!r} is invalid: must be a number > 0 "
                              "(s_err in units of c_p/L)")
@@ -385,26 +386,16 @@ def cmd_stability(args) -> int:
         if not (all(math.isfinite(b) for b in box) and 0.0 < box[0] < box[1] and box[2] > 0.0):
             raise ParameterError(f"count={list(box)!r} is invalid: need X0 X1 Y1 with "
                                  "0 < X0 < X1 and Y1 > 0 (units of c_p/L)")
-    if not (isinstance(args.count_workers, int) and 1 <= args.count_workers <= 256):
-        raise ParameterError(f"count_workers={args.count_workers!r} is invalid: must be an "
-                             "integer in [1, 256] (worker processes of the count)")
-    if not (isinstance(args.count_threads, int) and 1 <= args.count_threads <= 256):
-        raise ParameterError(f"count_threads={args.count_threads!r} is invalid: must be an "
-                             "integer in [1, 256] (threads of each count worker)")
+    _integer("count_workers", args.count_workers, 1, 256, "worker processes of the count")
+    _integer("count_threads", args.count_threads, 1, 256, "threads of each count worker")
     if args.guess is not None and not (math.isfinite(args.guess) and 0 < args.guess <= 100):
         raise ParameterError(f"guess={args.guess!r} is invalid: must be an s L/c_p in (0, 100]")
-    if not (isinstance(args.workers, int) and 1 <= args.workers <= 256):
-        raise ParameterError(f"workers={args.workers!r} is invalid: must be an integer in "
-                             "[1, 256] (processes computing pulses at once)")
-    if not (isinstance(args.threads, int) and 1 <= args.threads <= 256):
-        raise ParameterError(f"threads={args.threads!r} is invalid: must be an integer in "
-                             "[1, 256] (threads of each worker)")
+    _integer("workers", args.workers, 1, 256, "processes computing pulses at once")
+    _integer("threads", args.threads, 1, 256, "threads of each worker")
     if args.workers > 1 and args.count_workers > 1:
         raise ParameterError("workers and count_workers are both > 1: use one of them "
                              "(a count's pool is not started inside a worker)")
-    if not (isinstance(args.count_evals, int) and 24 <= args.count_evals <= 20000):
-        raise ParameterError(f"count_evals={args.count_evals!r} is invalid: must be an integer "
-                             "in [24, 20000] (det M evaluations of the count)")
+    _integer("count_evals", args.count_evals, 24, 20000, "det M evaluations of the count")
     if args.figure:
         check_figure(args.figure, "--figure")             # format and writability, before the work
     chosen, _ = check_family_file(args.file, labels)      # bad input fails here, before any work
@@ -465,8 +456,7 @@ def cmd_rates(args) -> int:
     import numpy as np
 
     from ..stability.law import (family_curve, family_rates, family_slope, fit_power_law,
-                                 fit_shifted_power_law, fold_ratio, folds,
-                                 windowed_exponents)
+                                 fit_shifted_power_law, fold_ratio, folds)
     from ..stability.spectrum_family import check_family_file
     if not (math.isfinite(args.below) and 1.0 < args.below <= 2.0):
         raise ParameterError(f"below={args.below!r} is invalid: must be in (1, 2] "

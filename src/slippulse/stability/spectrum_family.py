@@ -226,7 +226,7 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
     return res, prev, prev_mode
 
 
-def _chunk_worker(path, items, params, seed, opts, queue):
+def _chunk_worker(items, params, seed, opts, queue):
     """A worker of :func:`run_spectrum` with ``workers`` > 1: the pulses ``items`` ((label,
     pulse) in order), tracked from ``seed``; each result is put on ``queue`` as (label,
     PulseSpectrum, ''), or the error that stopped it as (label, None, (is a UsageError, text))."""
@@ -345,15 +345,13 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
         plan.append((lab, stored if keep else None))
     todo = [lab for lab, kept in plan if kept is None]
     if int(workers) > 1 and len(todo) > 1:
+        seeds = {}                                   # chunk start: the nearest kept one above
+        state = (prev, prev_mode)
         for lab, kept in plan:
             if kept is not None:
                 rep.skipped.append(lab)
                 if progress:
                     progress(lab, None, kept)
-        seeds = {}                                   # chunk start: the nearest kept one above
-        state = (prev, prev_mode)
-        for lab, kept in plan:
-            if kept is not None:
                 state = _track(kept)
             else:
                 seeds.setdefault(lab, state)
@@ -401,11 +399,11 @@ def _run_parallel(path, todo, params, seeds, opts, workers, threads, record):
     old_int = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
     try:
         with _thread_env(threads):
-            for k, chunk in enumerate(chunks):
+            for chunk in chunks:
                 items = [(lab, read_pulse(path, lab)[0]) for lab in chunk]
                 start = seeds.get(chunk[0], (None, None))
                 p = ctx.Process(target=_chunk_worker,
-                                args=(str(path), items, params, start, opts, q), daemon=True)
+                                args=(items, params, start, opts, q), daemon=True)
                 p.start()
                 procs.append(p)
     finally:
