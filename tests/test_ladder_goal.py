@@ -159,3 +159,36 @@ def test_creep_reaches_the_newton_of_a_mapped_resolve(pulse12, params, monkeypat
     assert sol.stats.converged and seen == [4]
     mapped_pulse(params, p, gmap, p.n_points)
     assert seen == [4, None]
+
+
+def test_a_clipped_level0_climbs_a_third_level_and_a_short_stored_ladder_is_redone(
+        tmp_path, pulse12, params):
+    """A level 0 below the pulse's own N (here 400 < 700) is not trusted on two levels: it
+    climbs CLIPPED_LEVELS levels, so that its estimate observes an order (stop 37: at 6.30 km the
+    clipped two-level ladder was 2.1 times its summed bars off). A level 0 at or above the own N
+    keeps the levels asked for; a two-level clipped ladder stored before the rule is redone."""
+    import h5py
+
+    from slippulse.core.h5io import write_pulse
+    from slippulse.stability import spectrum_family as sf
+    assert sf.CLIPPED_LEVELS == 2
+    assert sf.clipped_levels(1, 2828, 3542) == 2 and sf.clipped_levels(1, 3542, 3542) == 1
+    assert sf.clipped_levels(3, 2828, 3542) == 3 and sf.clipped_levels(0, 2828, 3542) == 0
+    assert sf.clipped_levels(1, 6000, 9000) == 1            # 12000 > MAX_LADDER_POINTS
+    path = str(tmp_path / "td12.h5")
+    write_pulse(path, pulse12.to_pulse(), params)
+    kw = dict(extra=False, levels=1, min_points=0, target=None)
+    rep = sf.run_spectrum(path, max_points=400, **kw)
+    assert rep.results[0].refined.n_points == [400, 566, 800], rep.results[0].refined.message
+    # the same pulse at its own N: one level above, as asked
+    own = sf.run_spectrum(path, max_points=None, overwrite=True, **kw)
+    assert own.results[0].refined.n_points == [700, 990]
+    # a clipped two-level ladder in the file (as written before the rule) is not kept
+    sf.run_spectrum(path, max_points=400, overwrite=True, **kw)
+    with h5py.File(path, "r+") as h5:
+        g = h5["pulses/td1.2000/spectrum"]
+        g.attrs["refine_n_points"] = np.array([400, 566])
+    again = sf.run_spectrum(path, max_points=400, **kw)
+    assert again.skipped == [] and again.results[0].refined.n_points == [400, 566, 800]
+    kept = sf.run_spectrum(path, max_points=400, **kw)
+    assert kept.skipped == ["td1.2000"] and kept.results == []
