@@ -66,3 +66,53 @@ def test_newton_onto_a_real_eigenvalue_factorises_real_matrices(monkeypatch):
     e = es.newton_eigen(op, cplx * (1 + 1e-4), x0, tol=1e-12, min_re=-1e9)
     assert e.converged and abs(e.sigma - cplx) < 1e-9 * abs(cplx)
     assert dtypes and all(d == np.complex128 for d in dtypes)
+
+
+def test_the_kernel_assembly_at_real_sigma_is_real_and_equals_the_complex_one(pulse12, params):
+    """The product integration of W̃ runs in real arithmetic at real σ, with the same matrices as
+    the complex assembly of the same σ + 0j (tables, Filon weights and all)."""
+    from slippulse.stability.operators import ElasticOperator
+    from slippulse.stability.spectrum_kernels import KernelTables, assemble_w
+    from slippulse.steady.hilbert import add_times_slopes
+    p = pulse12.to_pulse()
+    el = ElasticOperator(p.xi, p.beta, params.c_s, params.mu)
+    for s_per_L in (22.65, 1e-3, 300.0):          # 300: far segments by Filon–Gauss
+        sigma = s_per_L * p.beta * params.c_s / p.L
+        tab = KernelTables(sigma, el.beta, el.c_s, el.r_min, el.r_max)
+        assert tab.real and tab.GA.dtype == float
+        W, dW = el.kernel_matrices(sigma)
+        assert W.dtype == float and dW.dtype == float
+        n = p.xi.size
+        cargs = list(tab.args())
+        for k in (0, 2, 3):                         # κ, σ, λ₀ as complex numbers
+            cargs[k] = complex(cargs[k])
+        cargs[6] = tab.GA.astype(complex)
+        cargs[8] = tab.EB.astype(complex)
+        A = [np.zeros((n, n), complex) for _ in range(4)]
+        assemble_w(el.xi, *cargs, *A, el.split_per_side)
+        Wc = add_times_slopes(A[0], A[1], el.xi)
+        dWc = add_times_slopes(A[2], A[3], el.xi)
+        assert np.abs(Wc.imag).max() == 0.0
+        assert np.allclose(W, Wc.real, rtol=0, atol=1e-14 * np.abs(W).max())
+        assert np.allclose(dW, dWc.real, rtol=0, atol=1e-14 * np.abs(dW).max())
+    # complex σ: complex tables and matrices
+    W, _ = el.kernel_matrices(complex(sigma, 0.1 * sigma))
+    assert W.dtype == complex and np.abs(W.imag).max() > 0
+
+
+def test_the_stability_matrices_at_real_sigma_are_real_and_equal_the_complex_ones(pulse12,
+                                                                                   params):
+    """M(σ), M′(σ) at real σ come out as real arrays (state, slip and kernel recursions in real
+    arithmetic) and agree with the complex assembly at σ + 1e-300j to rounding."""
+    from slippulse.stability.operators import StabilityOperator
+    p = pulse12.to_pulse()
+    op = StabilityOperator(p, params, pin_translation=True)
+    assert op.matrices(0.0)[0].dtype == float
+    for s_per_L in (22.65, 1e-4):
+        sigma = s_per_L * op.rate_unit
+        M, dM = op.matrices(sigma)
+        Mc, dMc = op.matrices(complex(sigma, 1e-300))
+        assert M.dtype == float and dM.dtype == float
+        assert Mc.dtype == complex
+        assert np.abs(M - Mc).max() <= 1e-14 * np.abs(M).max()
+        assert np.abs(dM - dMc).max() <= 1e-14 * np.abs(dM).max()

@@ -101,13 +101,15 @@ class ElasticOperator:
         return K, dK
 
     def kernel_matrices(self, sigma, deriv=True):
-        """(𝒲̃(σ), ∂_σ𝒲̃(σ)): ∫ δ(z) W̃(ξ_i − z) dz for the cubic spline of δ, and its σ-derivative."""
+        """(𝒲̃(σ), ∂_σ𝒲̃(σ)): ∫ δ(z) W̃(ξ_i − z) dz for the cubic spline of δ, and its σ-derivative
+        (real arrays at real σ, where the kernel is real; complex otherwise)."""
         n = self.xi.size
         tab = KernelTables(sigma, self.beta, self.c_s, self.r_min, self.r_max)
-        AW = np.zeros((n, n), complex)
-        BW = np.zeros((n, n), complex)
-        AS = np.zeros((n, n), complex)
-        BS = np.zeros((n, n), complex)
+        dt = tab.dtype                    # real at real σ (M(σ̄) = conj M(σ))
+        AW = np.zeros((n, n), dt)
+        BW = np.zeros((n, n), dt)
+        AS = np.zeros((n, n), dt)
+        BS = np.zeros((n, n), dt)
         assemble_w(self.xi, *tab.args(), AW, BW, AS, BS, self.split_per_side)
         W = add_times_slopes(AW, BW, self.xi, overwrite_b=True)
         dW = add_times_slopes(AS, BS, self.xi, overwrite_b=True) if deriv else None
@@ -122,6 +124,13 @@ def symbol(k, sigma, beta, c_s, mu):
     """Fourier symbol −(μ/2)√(k² + (σ − ikc)²/c_s²), principal root (Re ≥ 0); e^{ikξ} convention."""
     c = beta * c_s
     return -(mu / 2.0) * np.sqrt(k * k + (sigma - 1j * k * c) ** 2 / c_s ** 2 + 0j)
+
+
+def _real_or_complex(sigma):
+    """σ as a float where its imaginary part is exactly 0, else as a complex number (the
+    compiled recursions then run in real arithmetic)."""
+    sigma = complex(sigma)
+    return sigma.real if sigma.imag == 0.0 else sigma
 
 
 # ------------------------------------------------------------------ full stability operator
@@ -174,7 +183,7 @@ class StabilityOperator:
         # Φ(σ) is corrected by the σ-independent O(h⁴) difference that makes Φ(0) the exact
         # derivative ∂φ/∂v of the steady map, so that M(0) is exactly the linearised discrete
         # steady problem (docs/spectrum.md §2)
-        Phi0 = self._state(0.0, np.eye(self.n, dtype=complex), False)[0]
+        Phi0 = self._state(0.0, np.eye(self.n), False)[0]
         self.state_correction = P * self.inv_v[None, :] - Phi0.real
         self.phi_correction = self.fphi[:, None] * self.state_correction
         self.elastic = ElasticOperator(self.xi, self.beta, p.c_s, p.mu)
@@ -191,21 +200,25 @@ class StabilityOperator:
             self.pin = (r, t / float(t @ t))
 
     def _state(self, sigma, Vm, deriv):
-        """(Φ(σ) Vm, ∂_σΦ(σ) Vm) without the correction (the second only if deriv)."""
+        """(Φ(σ) Vm, ∂_σΦ(σ) Vm) without the correction (the second only if deriv); real
+        arrays where σ and Vm are real."""
         hs, j0s, lws, ws, G, omegas, _ = self.cells
-        Vm = np.ascontiguousarray(Vm, dtype=complex)
-        Y = np.empty(Vm.shape, complex)
-        dY = np.empty(Vm.shape if deriv else (1, 1), complex)
-        state_rows4(hs, j0s, lws, ws, G, omegas, self.inv_v, RADAU_A, complex(sigma), Vm, Y, dY,
-                    deriv)
+        sg = _real_or_complex(sigma)
+        dt = complex if (np.iscomplexobj(Vm) or isinstance(sg, complex)) else float
+        Vm = np.ascontiguousarray(Vm, dtype=dt)
+        Y = np.empty(Vm.shape, dt)
+        dY = np.empty(Vm.shape if deriv else (1, 1), dt)
+        state_rows4(hs, j0s, lws, ws, G, omegas, self.inv_v, RADAU_A, sg, Vm, Y, dY, deriv)
         return Y, (dY if deriv else None)
 
     def _slip(self, sigma):
         hs, j0s, lws, _, _, _, vst = self.cells
-        return slip_coefficients4(hs, j0s, lws, vst, self.inv_v, RADAU_A, complex(sigma))
+        return slip_coefficients4(hs, j0s, lws, vst, self.inv_v, RADAU_A,
+                                  _real_or_complex(sigma))
 
     def matrices(self, sigma, deriv=True):
-        """(M(σ), M′(σ)) acting on the slip-rate perturbation V₁ (rows divided by τ_d).
+        """(M(σ), M′(σ)) acting on the slip-rate perturbation V₁ (rows divided by τ_d); real
+        arrays at real σ, complex otherwise.
 
         δ₁ = D(σ) V₁ integrates (σ − c∂_ξ) δ₁ = V₁ from δ₁ = 0 far ahead (bounded ahead; behind it
         decays as e^{σξ/c}), φ₁ = Φ(σ) V₁, and with δ₁′ = (σ δ₁ − V₁)/c the elastic stress is
@@ -216,29 +229,35 @@ class StabilityOperator:
         n = self.n
         el = self.elastic
         lam, c = el.lam, self.c
-        Phi, dPhi = self._state(sigma, np.eye(n, dtype=complex), deriv)
+        # at real σ every part is real (M(σ̄) = conj M(σ)) and is built in real arithmetic,
+        # half the work and memory of the complex (stop 38); W decides, being real only where
+        # its tables came out exactly real
+        if sigma != 0.0:
+            W, dW = el.kernel_matrices(sigma, deriv)
+        dt = complex if sigma.imag != 0.0 or (sigma != 0.0 and np.iscomplexobj(W)) else float
+        s_ = sigma if dt is complex else sigma.real
+        Phi, dPhi = self._state(s_, np.eye(n, dtype=dt), deriv)
         M = self.fphi[:, None] * Phi
         M += self.phi_correction
         M[np.diag_indices(n)] += self.fv
         M += (lam / (math.pi * c)) * el.H
         dM = self.fphi[:, None] * dPhi if deriv else None
         if sigma != 0.0:
-            W, dW = el.kernel_matrices(sigma, deriv)
             X = lam * W
-            X += (lam * sigma / (math.pi * c)) * el.H
-            X += (lam * el.gamma(sigma) / math.pi) * el.H0
+            X += (lam * s_ / (math.pi * c)) * el.H
+            X += (lam * el.gamma(s_) / math.pi) * el.H0
         else:
-            X = np.zeros((n, n), complex)
-            dW = np.zeros((n, n), complex) if deriv else None
+            X = np.zeros((n, n), dt)
+            dW = np.zeros((n, n), dt) if deriv else None
         if deriv:
             dX = lam * dW
             dX += (lam / (math.pi * c)) * el.H
             dX += (lam * el.gamma(1.0) / math.pi) * el.H0
         else:
-            dX = np.empty((1, 1), complex)
-        a, B, da, dB = self._slip(sigma)
-        XD = np.empty((n, n), complex)
-        dXD = np.empty((n, n) if deriv else (1, 1), complex)
+            dX = np.empty((1, 1), X.dtype)
+        a, B, da, dB = self._slip(s_)
+        XD = np.empty((n, n), dt)
+        dXD = np.empty((n, n) if deriv else (1, 1), dt)
         times_D4(X, dX, a, B, self.cells[1], da, dB, XD, dXD, deriv)
         M -= XD
         M /= self.tau_d

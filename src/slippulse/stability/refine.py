@@ -194,7 +194,7 @@ MAX_LADDER_POINTS = 8000
 
 def refine_leading(pulse, params, first, gmap, levels=2, tol=NEWTON_TOL, progress=None,
                    target=None, max_points=MAX_LADDER_POINTS, pin_translation=False, source=None,
-                   rel_target=0.0):
+                   rel_target=0.0, neighbour=None):
     """The leading eigenvalue on `levels` further levels of the map `gmap`.
 
     Parameters
@@ -208,6 +208,11 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=NEWTON_TOL, progres
         until the estimate is below max(target, rel_target |s L/c_p|); the result says whether
         it was reached (``target_met``).
     rel_target : the relative part of that goal (0: absolute only).
+    neighbour : {N: s L/c_p} of the neighbouring pulse's ladder, or None. A level of N points
+        starts Newton from the neighbour's value on its level of the same N (the deep pulses,
+        0.1 % apart in L, differ by 0.5 % there, while one level moves s L/c_p by 20 %: one
+        or two Newton iterations fewer on the finest, costliest level), else from the level
+        below; a start from the neighbour that fails is retried from the level below.
     pin_translation : every level solved with translation pinned (:func:`pulse_spectrum`).
     source : the pulse the map was made from (its own grid), or None: where the steady re-solve
         of a level from the level below it does not converge, it is started from this one
@@ -244,6 +249,9 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=NEWTON_TOL, progres
             break
         q = sol.to_pulse()
         guess = lead * (q.c_p / q.L) / (p.c_p / p.L)
+        starts = [guess]
+        if neighbour and int(q.n_points) in neighbour:
+            starts.insert(0, complex(neighbour[int(q.n_points)]) * (q.c_p / q.L))
         gmode = None
         if mode is not None:               # the coarser level's mode, interpolated (cubic: its
             # first Newton step lands 4.6e-7 c/L from the eigenvalue, against 4.9e-6 from a
@@ -251,8 +259,12 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=NEWTON_TOL, progres
             gmode = [CubicSpline(p.xi, mode.real)(q.xi)
                      + 1j * CubicSpline(p.xi, mode.imag)(q.xi)]
         # pinned, σ_t = 0 by construction: the neutral pair is not computed above level 0
-        res = pulse_spectrum(q, params, guesses=[guess], extra=False, tol=tol, guess_modes=gmode,
-                             pin_translation=pin_translation, neutral=not pin_translation)
+        for start in starts:
+            res = pulse_spectrum(q, params, guesses=[start], extra=False, tol=tol,
+                                 guess_modes=gmode, pin_translation=pin_translation,
+                                 neutral=not pin_translation)
+            if res.status == "converged" and res.sigmas.size:
+                break
         if res.status != "converged" or res.sigmas.size == 0:
             out.status = "failed"
             out.message = f"eigen-solve on level {lev} (N = {q.n_points}): {res.message}"

@@ -157,11 +157,28 @@ def _level0(pulse, params, gmap, n0, creep=0):
 
 def _track(stored):
     """(σ array, c/L) and (ξ/L, V₁ of the leading mode) of a stored spectrum, for tracking."""
-    prev = (stored["sigma"], float(stored["rate_unit_c_over_L"]))
+    prev = (stored["sigma"], float(stored["rate_unit_c_over_L"]), _stored_ladder(stored))
     mode = None
     if stored["sigma"].size and stored["V"].shape[0]:
         mode = (np.asarray(stored["xi"], float) / float(stored["L"]), stored["V"][0])
     return prev, mode
+
+
+def _stored_ladder(stored):
+    """{N_k: s_k L_k/c_k} of a stored spectrum's refinement levels (empty where none)."""
+    n = stored.get("refine_n_points")
+    if n is None or "refine_s_levels" not in stored or "refine_rate_unit_levels" not in stored:
+        return {}
+    return {int(k): float(s) / float(u) for k, s, u in
+            zip(np.atleast_1d(n), np.atleast_1d(stored["refine_s_levels"]),
+                np.atleast_1d(stored["refine_rate_unit_levels"]))}
+
+
+def _ladder(refined):
+    """{N_k: s_k L_k/c_k} of a RefinedRate (empty where none or failed)."""
+    if refined is None or refined.status != "converged":
+        return {}
+    return {int(k): float(v) for k, v in zip(refined.n_points, refined.s_per_L_levels)}
 
 
 def _seed(path, chosen):
@@ -231,7 +248,9 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
         res.refined = refine_leading(pulse, params, res, gmap, levels, tol=o["tol"],
                                      progress=level_progress, target=o["target"],
                                      pin_translation=pin, source=source,
-                                     rel_target=o["rel_target"])
+                                     rel_target=o["rel_target"],
+                                     neighbour=prev[2] if prev is not None and len(prev) > 2
+                                     else None)
         if res.refined.status != "converged":
             res.status = "failed"
             res.message = f"refinement failed: {res.refined.message}"
@@ -256,7 +275,7 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
         res.sigmas = np.zeros(0, complex)
         res.modes = []
         return res, prev, prev_mode
-    prev = (res.sigmas, res.rate_unit)
+    prev = (res.sigmas, res.rate_unit, _ladder(res.refined))
     prev_mode = (pulse.xi / pulse.L, res.modes[0]["V"]) if res.modes else None
     return res, prev, prev_mode
 
