@@ -697,7 +697,9 @@ def register(sub) -> None:
     p.add_argument("--max-points", type=int, default=None,
                    help="the upper end of that clip (default 2828, or MIN_POINTS where larger: "
                         "enough down to L = 2 km, 1.0089 tau_min, where N = 2000 is not; a "
-                        "pulse whose re-solve on the clipped N fails gets level 0 on its own N)")
+                        "pulse whose re-solve on the clipped N fails gets level 0 on its own N; "
+                        "a level 0 below the pulse's own N climbs at least 2 levels, so that "
+                        "its error comes from an observed order)")
     p.add_argument("--target", type=float, default=None, metavar="S_ERR",
                    help="add levels beyond --levels (up to N = 8000) until s_err L/c_p <= "
                         "max(S_ERR, REL |s L/c_p|) (default 1e-4)")
