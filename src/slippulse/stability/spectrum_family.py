@@ -164,21 +164,20 @@ def _track(stored):
     return prev, mode
 
 
+def _ladder(n_points, s_per_L):
+    """{N_k: s_k L_k/c_k}: a pulse's refinement levels, the tracking's start for the same level
+    of the next pulse (:func:`refine_leading`'s ``neighbour``)."""
+    return {int(k): float(v) for k, v in zip(n_points, s_per_L)}
+
+
 def _stored_ladder(stored):
-    """{N_k: s_k L_k/c_k} of a stored spectrum's refinement levels (empty where none)."""
-    n = stored.get("refine_n_points")
-    if n is None or "refine_s_levels" not in stored or "refine_rate_unit_levels" not in stored:
+    """:func:`_ladder` of a stored spectrum (empty where it has no levels)."""
+    if not all(k in stored for k in ("refine_n_points", "refine_s_levels",
+                                     "refine_rate_unit_levels")):
         return {}
-    return {int(k): float(s) / float(u) for k, s, u in
-            zip(np.atleast_1d(n), np.atleast_1d(stored["refine_s_levels"]),
-                np.atleast_1d(stored["refine_rate_unit_levels"]))}
-
-
-def _ladder(refined):
-    """{N_k: s_k L_k/c_k} of a RefinedRate (empty where none or failed)."""
-    if refined is None or refined.status != "converged":
-        return {}
-    return {int(k): float(v) for k, v in zip(refined.n_points, refined.s_per_L_levels)}
+    return _ladder(np.atleast_1d(stored["refine_n_points"]),
+                   np.atleast_1d(stored["refine_s_levels"])
+                   / np.atleast_1d(stored["refine_rate_unit_levels"]))
 
 
 def _seed(path, chosen):
@@ -275,7 +274,9 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
         res.sigmas = np.zeros(0, complex)
         res.modes = []
         return res, prev, prev_mode
-    prev = (res.sigmas, res.rate_unit, _ladder(res.refined))
+    ref = res.refined
+    prev = (res.sigmas, res.rate_unit,
+            _ladder(ref.n_points, ref.s_per_L_levels) if ref is not None else {})
     prev_mode = (pulse.xi / pulse.L, res.modes[0]["V"]) if res.modes else None
     return res, prev, prev_mode
 
