@@ -29,7 +29,7 @@ from ..core.h5io import state_order_of
 from ..steady.equations import RADAU_A, RADAU_C, integrate_state_radau, radau_stage_values
 from ..steady.hilbert import add_times_slopes, hilbert_matrix, tail_columns
 from .spectrum_kernels import (SPLIT_PER_SIDE, KernelTables, assemble_w, slip_coefficients4,
-                               state_rows4, times_D4)
+                               stability_rows, state_rows4)
 
 
 # ----------------------------------------------------------------------- spline helpers
@@ -237,36 +237,19 @@ class StabilityOperator:
         dt = complex if sigma.imag != 0.0 or (sigma != 0.0 and np.iscomplexobj(W)) else float
         s_ = sigma if dt is complex else sigma.real
         Phi, dPhi = self._state(s_, np.eye(n, dtype=dt), deriv)
-        M = self.fphi[:, None] * Phi
-        M += self.phi_correction
-        M[np.diag_indices(n)] += self.fv
-        M += (lam / (math.pi * c)) * el.H
-        dM = self.fphi[:, None] * dPhi if deriv else None
-        if sigma != 0.0:
-            X = lam * W
-            X += (lam * s_ / (math.pi * c)) * el.H
-            X += (lam * el.gamma(s_) / math.pi) * el.H0
-        else:
-            X = np.zeros((n, n), dt)
-            dW = np.zeros((n, n), dt) if deriv else None
-        if deriv:
-            dX = lam * dW
-            dX += (lam / (math.pi * c)) * el.H
-            dX += (lam * el.gamma(1.0) / math.pi) * el.H0
-        else:
-            dX = np.empty((1, 1), X.dtype)
+        k_h = lam / (math.pi * c)
+        cx = np.array([lam, k_h * s_, lam * el.gamma(s_) / math.pi], dt)
+        cdx = np.array([lam, k_h, lam * el.gamma(1.0) / math.pi], dt)
+        dummy = np.zeros((1, 1), dt)
+        has_w = sigma != 0.0
         a, B, da, dB = self._slip(s_)
-        XD = np.empty((n, n), dt)
-        dXD = np.empty((n, n) if deriv else (1, 1), dt)
-        times_D4(X, dX, a, B, self.cells[1], da, dB, XD, dXD, deriv)
-        M -= XD
-        M /= self.tau_d
-        if self.pin is not None:
-            M -= np.outer(self.pin[0], self.pin[1])
-        if deriv:
-            dM -= dXD
-            dM /= self.tau_d
-        return M, dM
+        pin_r, pin_t = self.pin if self.pin is not None else (np.zeros(1), np.zeros(1))
+        # M over Phi and M′ over dPhi, row by row in one compiled pass (stop 39)
+        stability_rows(W if has_w else dummy, dW if has_w and deriv else dummy, el.H, el.H0,
+                       cx, cdx, Phi, dPhi if deriv else dummy, self.phi_correction, self.fphi, self.fv, k_h,
+                       a, B, self.cells[1], da, dB, pin_r, pin_t, self.tau_d, has_w,
+                       self.pin is not None, deriv)
+        return Phi, (dPhi if deriv else None)
 
     def slip(self, sigma, V):
         """δ₁ = D(σ) V₁ (the recursion of :func:`slip_coefficients4` applied to a vector)."""
@@ -299,12 +282,17 @@ class StabilityOperator:
     def matrices_delta(self, sigma):
         """M(σ) acting on δ₁ with δ₁′ from its cubic spline (the form in which uniform slip,
         δ₁ = 1, is an exact null vector at σ = 0). Used to check that neutral mode."""
-        sigma = complex(sigma)
+        s_ = _real_or_complex(sigma)
         n = self.n
-        Vm = -self.c * self.S.astype(complex)
-        Vm[np.diag_indices(n)] += sigma
-        # state_correction @ Vm with Vm = −c S + σ I, as one real product (S is real)
-        corr = (-self.c) * (self.state_correction @ self.S) + sigma * self.state_correction
-        Y = self._state(sigma, Vm, False)[0] + corr
-        K = self.elastic.matrices(sigma, deriv=False)[0]
+        Vm = (-self.c) * self.S.astype(type(s_))
+        Vm[np.diag_indices(n)] += s_
+        # state_correction @ Vm with Vm = −c S + σ I: the product with S in O(N²)
+        # (add_times_slopes), not as a dense N³ product (2 s at N = 3542, stop 39)
+        corr = (-self.c) * add_times_slopes(np.zeros((n, n)), self.state_correction, self.xi)
+        corr = corr + s_ * self.state_correction
+        Y = self._state(s_, Vm, False)[0] + corr
+        if s_ == 0.0:                       # real: K_0 = (λ/π) H S
+            K = (self.elastic.lam / math.pi) * self.elastic.HS
+        else:
+            K = self.elastic.matrices(s_, deriv=False)[0]
         return (self.fv[:, None] * Vm + self.fphi[:, None] * Y - K) / self.tau_d
