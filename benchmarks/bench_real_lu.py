@@ -1,5 +1,6 @@
-"""Real arithmetic at real σ: the spectrum of some pulses by this code and by a base commit,
-side by side in one run (issue 17, item 5; stop 38).
+"""The spectrum of some pulses by this code and by a base commit, side by side in one run
+(issue 17, item 5): stop 38's real arithmetic at real σ (base 3ee2570), stop 39's cheaper levels
+(base acf0fdd; BENCHMARKS.md "Stop 39").
 
     git worktree add --detach /tmp/base HEAD~1     # the code before the change
     python benchmarks/bench_real_lu.py FAMILY.h5 LABEL [LABEL ...] --base /tmp/base

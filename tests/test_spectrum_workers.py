@@ -80,6 +80,24 @@ def test_split_chunks_are_contiguous_and_cover_every_label():
     assert split_chunks(labels[:2], 5) == [["p0"], ["p1"]]
 
 
+def test_split_chunks_balance_the_estimated_cost():
+    """A family of 70 shallow pulses (N = 1000) and 150 deep ones (N = 3542), as the 271-pulse
+    family: two runs of equal length would give one worker the deep pulses alone (63 min
+    against 53 estimated, stop 39); the cost model cuts where N^COST_POWER splits evenly."""
+    from slippulse.stability import spectrum_family as sf
+    labels = [f"p{k}" for k in range(220)]
+    points = [1000] * 70 + [3542] * 150
+    a, b = split_chunks(labels, 2, points)
+    assert a + b == labels
+    cost = [sum(n ** sf.COST_POWER for n in points[:len(a)]),
+            sum(n ** sf.COST_POWER for n in points[len(a):])]
+    assert abs(cost[0] - cost[1]) <= 3542 ** sf.COST_POWER
+    assert len(a) > 110                          # the shallow ones and some deep ones
+    # every run gets at least one label, in order
+    assert split_chunks(labels[:3], 3, [1, 1, 10 ** 6]) == [["p0"], ["p1"], ["p2"]]
+    assert split_chunks(labels[:3], 2, [10 ** 6, 1, 1]) == [["p0"], ["p1", "p2"]]
+
+
 def test_two_workers_give_the_sequential_spectrum(tmp_path, pulse12, params, spectrum12):
     """Two pulses on two spawned workers: the second starts from the default search, not from
     the first; both must give the eigenvalue of the sequential solve (same grid, unpinned)."""

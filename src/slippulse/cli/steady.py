@@ -304,7 +304,8 @@ def spectrum_line(label, res) -> str:
     if ref is None:
         rate = (f"s L/c_p = {s.real / res.rate_unit:.5g} on N={res.n_points} (no error estimate: "
                 "--levels 0)")
-        trans = f"{res.neutral[1].real / res.rate_unit:.1e}"
+        t = res.neutral[1].real / res.rate_unit
+        trans = f"{t:.1e}" if math.isfinite(t) else "0 (pinned)"   # pinned: not computed
         levels = f"N={res.n_points}"
     else:
         rate = ref.describe()

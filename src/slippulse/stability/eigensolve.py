@@ -82,6 +82,38 @@ def snap_real(sigma, scale):
     return sigma
 
 
+#: Solves with the factor of M(σ_k) that :func:`newton_eigen` spends on the vector once σ has
+#: converged and the vector has not, before it assembles M again. Each is an inverse-iteration
+#: step on the linearisation M(σ_k) + (σ − σ_k) M′(σ_k), which contracts the vector's error by
+#: |σ* − σ_k|/|σ₂ − σ_k| (σ₂ the next pencil eigenvalue), so one or two suffice where σ_k is
+#: within the step criterion of σ*; a solve costs O(N²) against the O(N²) assembly with its
+#: kernel tables and the O(N³) LU (measured on the deep pulses, N = 3542–5009: one assembly
+#: fewer per ladder level, BENCHMARKS.md "Stop 39").
+FROZEN_SOLVES = 4
+
+
+def _frozen_solves(lu, M, dM, e, x, sigma, scale, step_tol, res_tol, hist, sig=None):
+    """Inverse iteration on the pencil M + (σ − σ_k) M′ (M, M′ and the factor `lu` of M at
+    σ_k = `sigma`), from the pair (sig, x) (sig: Newton's σ_{k+1}; None: σ_k): (σ, x,
+    linearised residual, converged), the last pair. Stops unconverged once σ moves more than
+    `step_tol` from σ_k (the linearisation's remainder, O(|σ − σ_k|²), is then no longer
+    negligible against res_tol) or after :data:`FROZEN_SOLVES` solves."""
+    sig, res = (sigma if sig is None else sig), float("inf")
+    for _ in range(FROZEN_SOLVES):
+        u = lu.solve(matvec(dM, x))
+        eu = np.vdot(e, u)
+        sig_new = snap_real(sigma - 1.0 / eu, scale)
+        d = sig_new - sigma
+        if abs(d) > step_tol:               # Newton goes on from this σ (a new assembly)
+            return sig_new, u / eu, res, False
+        sig, x = sig_new, u / eu
+        hist.append(complex(sig))
+        res = _relres(M, x, matvec(M, x) + d * matvec(dM, x))
+        if res < res_tol:
+            return sig, x, res, True
+    return sig, x, res, False
+
+
 def newton_eigen(op, sigma0, x0, tol=1e-10, max_iter=12, min_re=None, res_tol=1e-6):
     """Newton on the bordered system M(σ) x = 0, eᴴx = 1 (nonlinear inverse iteration with M′).
 
@@ -108,7 +140,8 @@ def newton_eigen(op, sigma0, x0, tol=1e-10, max_iter=12, min_re=None, res_tol=1e
                          f"(sigma L/c = {sigma / scale:.4g})", hist)
         M, dM = real_if_real(*op.matrices(sigma))      # real at real σ: a real LU
         res = _relres(M, x)
-        u = Factor(M).solve(matvec(dM, x))
+        lu = Factor(M)
+        u = lu.solve(matvec(dM, x))
         eu = np.vdot(e, u)
         step = 1.0 / eu
         sigma_new = snap_real(sigma - step, scale)
@@ -121,11 +154,21 @@ def newton_eigen(op, sigma0, x0, tol=1e-10, max_iter=12, min_re=None, res_tol=1e
             if min(res, res_new) < res_tol:
                 return Eigen(sigma_new, x, True, it, res_new if res_new < res_tol else res,
                              "converged", hist)
+            # σ is already there but the vector is not (a start whose σ is good and whose
+            # vector is not: a mode interpolated from a coarser level or moved over from the
+            # neighbouring pulse): the vector by inverse iteration on the linearisation about
+            # σ_k, with the factor in hand (see FROZEN_SOLVES), while σ stays within the step
+            # criterion of σ_k
+            sigma_new, x, res_new, ok = _frozen_solves(lu, M, dM, e, x, sigma, scale,
+                                                       tol * max(abs(sigma), scale), res_tol,
+                                                       hist, sigma_new)
+            if ok:
+                return Eigen(sigma_new, x, True, it, res_new, "converged", hist)
             if it == max_iter:
                 return Eigen(sigma_new, x, False, it, res_new,
                              f"step converged but residual {res_new:.1e}", hist)
-            # σ is already there but the vector is not (a start whose σ is good and whose
-            # vector is not, e.g. an Arnoldi candidate near a second eigenvalue): iterate on
+            # not there with the frozen factor (σ moved beyond the criterion, or the vector
+            # converges slowly, e.g. an Arnoldi candidate near a second eigenvalue): iterate on
         sigma = sigma_new
     return Eigen(sigma, x, False, max_iter, res,
                  f"no convergence in {max_iter} Newton iterations", hist)

@@ -183,8 +183,12 @@ def check_refinable(pulse, levels, min_points=0, level0_points=None, max_points=
 def mapped_pulse(params, pulse, gmap, n, tol=1e-13, creep=0):
     """The pulse re-solved (steady Newton, state order 4) on the grid ``gmap(n)``, started from
     its ln v interpolated there (creep > 0: give up once max|r| has not halved over `creep`
-    iterations). Returns a :class:`slippulse.steady.solver.SteadySolution`."""
-    return solver.resolve_on_grid(params, pulse, gmap(n), tol=tol, state_order=4, creep=creep)
+    iterations). Each full Newton step's LU is reused by chord iterations before a new Jacobian
+    is formed (the start is close: measured on the deep pulses, 2 LUs instead of 4–5 at
+    N = 3542–5009, BENCHMARKS.md "Stop 39"); the tolerance is the same.
+    Returns a :class:`slippulse.steady.solver.SteadySolution`."""
+    return solver.resolve_on_grid(params, pulse, gmap(n), tol=tol, state_order=4, creep=creep,
+                                  reuse=True)
 
 
 #: Largest level of a ladder that climbs toward a target (dense complex N×N matrices: ~1 GB each

@@ -160,7 +160,8 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
     guesses : σ values (1/s) to start from (e.g. the neighbouring pulse's eigenvalues, rescaled);
         the shifts DEFAULT_SHIFTS·c/L are tried after them (or alone) until an eigenvalue is found;
         then, pinned, the real axis below MIN_RE c/L by the sign of det M (:func:`scan_below`).
-    extra : after the leading eigenvalue, search below it (shift at 0.4 Re σ₁, 2 candidates).
+    extra : after the leading eigenvalue, search below it (shift at 0.4 Re σ₁, 2 candidates),
+        for eigenvalues with Re σ > MIN_RE c/L: not made where Re σ₁ is below that.
     tol : Newton's step criterion, relative to max(|σ|, c/L); the iteration converges
         quadratically, so the σ returned (after that step) is accurate to ~tol² (measured on a
         refinement level at 1.05 τ_min, N = 1414, from the level below: steps 7e-4, 4.6e-7,
@@ -172,8 +173,9 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
         rank-one change that makes v₀′ an exact null vector of M(0); σ_t is then 0 by
         construction, not a check; docs/spectrum.md §5).
     neutral : also compute the neutral pair (translation σ_t and the uniform-slip backward error;
-        two more assemblies at σ = 0, an Arnoldi and a dense product). False stores nan for both:
-        the refinement levels of a pinned ladder, where σ_t = 0 by construction
+        two more assemblies at σ = 0, an Arnoldi and a dense product). Pinned, σ_t = 0 by
+        construction and is stored as nan (not computed); the uniform-slip error is computed.
+        False stores nan for both: the refinement levels of a pinned ladder
         (:func:`slippulse.stability.refine.refine_leading`).
     """
     t0 = time.perf_counter()
@@ -224,8 +226,11 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
     if scanned:
         scan_below(op, add)
     t1 = time.perf_counter()
-    if found and extra:
-        lead = max(f.sigma.real for f in found)
+    lead = max((f.sigma.real for f in found), default=0.0)
+    if found and extra and lead > MIN_RE * unit:
+        # (where the leading rate is below MIN_RE c/L, as on the deep pulses, an eigenvalue
+        # below it is below the floor that add() keeps: the search could find nothing, and is
+        # not made; it cost an assembly, a factorisation and an Arnoldi, 3 s at N = 3542)
         sig, vec = linearised_candidates(op, 0.4 * lead, k=2)
         for j in range(len(sig)):
             add(complex(sig[j]), vec[:, j], max_iter=8)
@@ -238,8 +243,15 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
     found.sort(key=lambda f: -f.sigma.real)
     t2 = time.perf_counter()
     if neutral:
-        nsig, nvec = neutral_modes(op)
-        sig_t, terr, _ = _translation_check(op, nsig, nvec)
+        if pin_translation:
+            # σ_t = 0 by construction (the pin makes v₀′ an exact null vector of M(0)): the
+            # Arnoldi at σ = 0 that finds it unpinned would only return rounding (≤ 1e-13
+            # c/L), at the cost of an assembly with M′ and a factorisation (6 s of a deep
+            # pulse's 50 s at N = 3542); nan says "not computed", as on the levels above
+            sig_t, terr = complex("nan"), float("nan")
+        else:
+            nsig, nvec = neutral_modes(op)
+            sig_t, terr, _ = _translation_check(op, nsig, nvec)
         # uniform slip (δ₁ = 1, V₁ = 0) is outside the V₁ form; in the δ₁ form it is exact at
         # σ = 0:
         Md = op.matrices_delta(0.0)

@@ -155,6 +155,35 @@ def _level0(pulse, params, gmap, n0, creep=0):
     return sol.to_pulse(), ""
 
 
+def _clip_failed_above(prev, n_own, source, levels):
+    """Whether level 0 goes straight to the pulse's own N: the neighbour above (tracking state
+    `prev`, its ladder {N: s L/c_p}) had the same own N and its ladder started there, so the
+    clip failed on it (or was not asked for), and this pulse's own N can carry the levels.
+    Along the family the pulses get longer, so a clip that failed above fails here as well: a
+    deep pulse then skips a re-solve that would give up after :data:`LEVEL0_CREEP` iterations
+    (4–6 s at N = 2828, measured at L = 3.3 km; BENCHMARKS.md "Stop 39"), and neighbouring
+    pulses keep one ladder."""
+    ladder = prev[2] if prev is not None and len(prev) > 2 else None
+    if not ladder or min(ladder) != int(n_own):
+        return False
+    try:
+        check_refinable(source, levels, level0_points=n_own)
+    except UsageError:
+        return False
+    return True
+
+
+def _moved_mode(x, x_prev, V_prev):
+    """The neighbour's mode V₁(ξ/L) moved onto this pulse's ξ/L: cubic spline inside its range,
+    its end values outside (where the mode has decayed). Cubic, not linear: Newton's first step
+    from it lands nearer, measured on the clipped pulses at L = 2.3 km (N = 2828) two to four
+    assemblies at level 0 with the linear one (stop 39)."""
+    from scipy.interpolate import CubicSpline
+    xc = np.clip(x, x_prev[0], x_prev[-1])
+    V_prev = np.asarray(V_prev)
+    return CubicSpline(x_prev, V_prev.real)(xc) + 1j * CubicSpline(x_prev, V_prev.imag)(xc)
+
+
 def _track(stored):
     """(σ array, c/L) and (ξ/L, V₁ of the leading mode) of a stored spectrum, for tracking."""
     prev = (stored["sigma"], float(stored["rate_unit_c_over_L"]), _stored_ladder(stored))
@@ -216,6 +245,8 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
         gmap = GridMap(pulse.xi)
         n_own = int(source.n_points)
         fallback = level0_points is None and n0 < n_own
+        if fallback and _clip_failed_above(prev, n_own, source, levels):
+            n0, fallback = n_own, False
         pulse, why = _level0(pulse, params, gmap, n0, LEVEL0_CREEP if fallback else 0)
         if not why:
             levels = clipped_levels(levels, n0, n_own)
@@ -237,9 +268,7 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
         s0 = prev[0][0]
         guesses = [complex(s0.real, abs(s0.imag)) * unit / prev[1]]
         if prev_mode is not None:
-            x = pulse.xi / pulse.L
-            modes = [np.interp(x, prev_mode[0], prev_mode[1].real)
-                     + 1j * np.interp(x, prev_mode[0], prev_mode[1].imag)]
+            modes = [_moved_mode(pulse.xi / pulse.L, *prev_mode)]
     pin = o["pin_translation"]
     res = pulse_spectrum(pulse, params, guesses=guesses, extra=o["extra"], tol=o["tol"],
                          label=lab, guess_modes=modes, pin_translation=pin)
@@ -300,11 +329,34 @@ def _chunk_worker(items, params, seed, opts, queue):
         queue.put((lab, res, ""))
 
 
-def split_chunks(labels, workers):
-    """`labels` (in order) cut into at most `workers` contiguous runs of near-equal length: each
-    worker tracks along its own run."""
-    k = max(1, min(int(workers), len(labels)))
-    edges = np.linspace(0, len(labels), k + 1).round().astype(int)
+#: Exponent of the cost model of :func:`split_chunks`: a pulse of N points costs ∝ N^COST_POWER
+#: (measured, stop 39, one core: 8 s per pulse at N = 1000–1250, 28 s own-N and 40 s clipped at
+#: N = 3542, i.e. 3.5–5 times for 3.5 times the points).
+COST_POWER = 1.2
+
+
+def split_chunks(labels, workers, points=None):
+    """`labels` (in order) cut into at most `workers` contiguous runs: each worker tracks along
+    its own run. With `points` (N of each pulse) the runs have near-equal estimated cost
+    (N^COST_POWER summed; the deep pulses cost 3–5 times the shallow ones), else near-equal
+    length."""
+    n = len(labels)
+    k = max(1, min(int(workers), n))
+    if points is None:
+        edges = np.linspace(0, n, k + 1).round().astype(int)
+    else:
+        w = np.asarray(points, float) ** COST_POWER
+        cum = np.concatenate([[0.0], np.cumsum(w)])
+        # cut j where the cumulative cost is nearest j/k of the total, at least one label per
+        # run
+        edges = [0]
+        for j in range(1, k):
+            t = j * cum[-1] / k
+            e = int(np.searchsorted(cum, t))
+            if e > 0 and (e > n or t - cum[e - 1] < cum[e] - t):
+                e -= 1
+            edges.append(min(max(e, edges[-1] + 1), n - (k - j)))
+        edges.append(n)
     return [labels[a:b] for a, b in zip(edges, edges[1:]) if b > a]
 
 
@@ -440,12 +492,16 @@ def _run_parallel(path, todo, params, seeds, opts, workers, threads, record):
     or the stored spectrum above the first, or nothing."""
     import multiprocessing
     import queue as queue_mod
+
+    import h5py
     import signal
     import threading
 
     from ..core.h5io import read_pulse
     from .count import _thread_env
-    chunks = split_chunks(todo, workers)
+    with h5py.File(path, "r") as h5:
+        points = [int(h5["pulses"][lab].attrs["n_points"]) for lab in todo]
+    chunks = split_chunks(todo, workers, points)
     ctx = multiprocessing.get_context("spawn")
     q = ctx.Queue()
     procs = []

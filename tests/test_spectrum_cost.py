@@ -1,0 +1,197 @@
+"""The cost of the family's spectrum (issue 17, item 5; stop 39): what each saving changes, and
+that it changes nothing else. The slope product and the fused assembly against independent
+numpy forms of the same matrices; Newton's vector finished with the factor in hand; a clip that
+failed on the pulse above not tried again; the mapped re-solves reuse their LU."""
+import math
+
+import numpy as np
+import pytest
+
+from slippulse.stability import eigensolve as es
+
+
+def _dense_slopes(xi):
+    """S with S u = slopes of the natural cubic spline, column by column from spline_slopes."""
+    from slippulse.steady.hilbert import spline_slopes
+    n = xi.size
+    return np.column_stack([spline_slopes(xi, np.eye(n)[:, k]) for k in range(n)])
+
+
+@pytest.mark.parametrize("n", [4, 9, 301])
+def test_add_times_slopes_is_B_times_the_slope_matrix(n):
+    from slippulse.steady.hilbert import add_times_slopes
+    rng = np.random.default_rng(n)
+    xi = np.cumsum(rng.uniform(1e-3, 2.0, n))          # spacing ratios up to 2000
+    S = _dense_slopes(xi)
+    B = rng.standard_normal((n + 3, n))
+    Bc = B + 1j * rng.standard_normal(B.shape)
+    out0 = rng.standard_normal((n + 3, n))
+    scale = np.abs(B) @ np.abs(S)
+    got = add_times_slopes(out0.copy(), B, xi)
+    assert np.max(np.abs(got - (out0 + B @ S)) / (1.0 + scale)) < 1e-13
+    got = add_times_slopes(out0.astype(complex), Bc, xi)
+    assert np.max(np.abs(got - (out0 + Bc @ S)) / (1.0 + scale)) < 1e-13
+    got = add_times_slopes(np.zeros((n + 3, n), complex), B, xi)     # real B, complex out
+    assert np.max(np.abs(got - B @ S) / (1.0 + scale)) < 1e-13
+    with pytest.raises(TypeError):
+        add_times_slopes(np.zeros((n + 3, n)), Bc, xi)
+
+
+def _reference_matrices(op, sigma, deriv=True):
+    """M(σ), M′(σ) of the operator from its parts with numpy products (the assembly before the
+    fused rows of stop 39): X = λW + (λσ/πc)H + (λγ/π)H₀, X D by times_D4."""
+    from slippulse.stability.spectrum_kernels import times_D4
+    el = op.elastic
+    lam, c, n = el.lam, op.c, op.n
+    cplx = complex(sigma).imag != 0.0
+    dt = complex if cplx else float
+    s_ = complex(sigma) if cplx else float(np.real(sigma))
+    Phi, dPhi = op._state(s_, np.eye(n, dtype=dt), True)
+    M = op.fphi[:, None] * Phi + op.phi_correction
+    M[np.diag_indices(n)] += op.fv
+    M = M + (lam / (math.pi * c)) * el.H
+    dM = op.fphi[:, None] * dPhi
+    if s_ != 0.0:
+        W, dW = el.kernel_matrices(s_, True)
+        X = lam * W + (lam * s_ / (math.pi * c)) * el.H + (lam * el.gamma(s_) / math.pi) * el.H0
+    else:
+        X, dW = np.zeros((n, n), dt), np.zeros((n, n), dt)
+    dX = lam * dW + (lam / (math.pi * c)) * el.H + (lam * el.gamma(1.0) / math.pi) * el.H0
+    a, B, da, dB = op._slip(s_)
+    XD, dXD = np.empty((n, n), dt), np.empty((n, n), dt)
+    times_D4(X.astype(dt), dX.astype(dt), a, B, op.cells[1], da, dB, XD, dXD, True)
+    M = (M - XD) / op.tau_d
+    if op.pin is not None:
+        M = M - np.outer(op.pin[0], op.pin[1])
+    return M, (dM - dXD) / op.tau_d
+
+
+@pytest.mark.parametrize("pin", [False, True])
+def test_the_fused_assembly_equals_the_assembly_from_its_parts(pulse12, params, pin):
+    from slippulse.stability.operators import StabilityOperator
+    op = StabilityOperator(pulse12.to_pulse(), params, pin_translation=pin)
+    u = op.rate_unit
+    for sigma in (0.0, 0.37 * u, (5.0 + 2.0j) * u):
+        M, dM = op.matrices(sigma)
+        R, dR = _reference_matrices(op, sigma)
+        assert M.dtype == R.dtype and dM.dtype == dR.dtype
+        assert np.max(np.abs(M - R)) <= 1e-14 * np.max(np.abs(R))
+        assert np.max(np.abs(dM - dR)) <= 1e-14 * np.max(np.abs(dR))
+        M1, none = op.matrices(sigma, deriv=False)
+        assert none is None and np.array_equal(M1, M)
+
+
+class _Pencil:
+    """M(σ) = A − σ I, A tridiagonal with a leading eigenvalue near 1 whose vector decays by
+    ten decades per ten rows, as the pulse's unstable mode far behind the pulse (|V₁| ≈ 1e-21
+    there against 1e-1 at the front), counting its assemblies."""
+
+    def __init__(self, n=40):
+        self.A = (np.diag(np.r_[1.0, np.full(n - 1, 3.0)]) + np.diag(np.full(n - 1, 0.2), -1)
+                  + np.diag(np.full(n - 1, 0.05), 1))
+        w, V = np.linalg.eig(self.A)
+        k = int(np.argmin(np.abs(w - 1.0)))
+        self.lam, self.v1 = float(w[k].real), V[:, k].real
+        self.n, self.rate_unit, self.calls = n, 1.0, 0
+
+    def matrices(self, sigma, deriv=True):
+        self.calls += 1
+        return self.A - sigma * np.eye(self.n), -np.eye(self.n)
+
+
+def test_newton_finishes_the_vector_with_the_factor_in_hand(monkeypatch):
+    """σ within the step criterion, the vector not: noise of 1e-30 where the mode is below it
+    (a mode interpolated from a coarser level: measured on the deep pulses, the backward error
+    after the first step is 1e-5 at rows where |V₁| ≈ 1e-21). The next solves reuse the factor
+    of M(σ_0): one assembly, where Newton without them (FROZEN_SOLVES = 0, the code before
+    stop 39) needs two; the same σ, and the true backward error below the tolerance."""
+    rng = np.random.default_rng(0)
+    op = _Pencil()
+    x0 = op.v1.copy()
+    x0[20:] += 1e-30 * rng.standard_normal(op.n - 20)
+    e = es.newton_eigen(op, op.lam + 4e-7, x0, tol=1e-6)
+    assert e.converged, e.message
+    assert op.calls == 1
+    assert abs(e.sigma - op.lam) < 1e-13
+    true = es._relres(op.matrices(e.sigma)[0], e.V)
+    assert true < 1e-6 and abs(e.residual - true) < 1e-9 + 1e-3 * true
+    monkeypatch.setattr(es, "FROZEN_SOLVES", 0)
+    op.calls = 0
+    old = es.newton_eigen(op, op.lam + 4e-7, x0, tol=1e-6)
+    assert old.converged and op.calls == 2 and abs(old.sigma - e.sigma) < 1e-13
+
+
+def test_frozen_solves_stop_when_sigma_leaves_the_criterion():
+    """Inverse iteration on the linearisation may only finish a vector: where σ moves beyond the
+    step criterion it hands back to Newton (not converged), with its new σ."""
+    op = _Pencil()
+    s0 = op.lam + 4e-7
+    M, dM = op.matrices(s0)
+    x = op.v1 + 1e-3
+    e = x / np.vdot(x, x)
+    hist = []
+    sig, _, _, ok = es._frozen_solves(es.Factor(M), M, dM, e, x / np.vdot(e, x), s0, 1.0,
+                                      1e-12, 1e-6, hist)
+    assert not ok and abs(sig - s0) > 1e-12 and hist == []
+
+
+def test_a_clip_that_failed_on_the_pulse_above_is_not_tried_again(tmp_path, pulse12, params,
+                                                                  monkeypatch):
+    """Level 0 goes straight to the pulse's own N where the neighbour above, of the same own N,
+    had its ladder start there (its clip failed): the deep pulses skip a re-solve bound to give
+    up. Where the neighbour's ladder started below its own N, or at another N, the clip is tried."""
+    from slippulse.stability import spectrum_family as sf
+    p = pulse12.to_pulse()
+    tried = []
+    real = sf._level0
+
+    def level0(pulse, prm, gmap, n0, creep=0):
+        tried.append(n0)
+        return real(pulse, prm, gmap, n0, creep)
+
+    monkeypatch.setattr(sf, "_level0", level0)
+    o = {"levels": 0, "min_points": 0, "level0_points": None, "max_points": 500,
+         "extra": False, "tol": 1e-6, "pin_translation": True, "target": None,
+         "rel_target": 0.0, "count_box": None, "count_evals": 1, "count_workers": 1,
+         "count_threads": 1, "path": str(tmp_path / "x.h5")}
+    guess = np.array([22.65 * p.c_p / p.L])
+    unit = p.c_p / p.L
+    for ladder, expect in (({700: 22.6, 990: 22.65}, [700]),     # its clip failed: own N
+                           ({500: 22.6, 707: 22.65}, [500]),     # its clip held: clip
+                           ({1000: 22.6, 1414: 22.65}, [500]),   # another own N: clip
+                           ({}, [500])):                         # no ladder: clip
+        tried.clear()
+        res, prev, _ = sf._pulse_result(p.label, p, params, (guess, unit, ladder), None, o)
+        assert tried == expect, (ladder, tried)
+        assert res.status == "converged" and res.n_points == expect[0]
+        assert res.leading.real / res.rate_unit == pytest.approx(22.65, rel=0.03)
+    assert sf._clip_failed_above(None, 700, p, 1) is False
+
+
+def test_mapped_resolves_reuse_their_LU_and_reach_the_same_pulse(pulse12, params, monkeypatch):
+    """The ladder's re-solves run chord iterations with each full step's LU (newton reuse=True):
+    fewer factorisations, the same tolerance, the same pulse to 1e-12."""
+    import scipy.linalg as sla
+
+    from slippulse.stability.refine import mapped_pulse
+    from slippulse.steady import newton as nw
+    from slippulse.steady import solver
+    from slippulse.steady.grid import GridMap
+    p = pulse12.to_pulse()
+    gmap = GridMap(p.xi)
+    count = [0]
+    real = sla.lu_factor
+
+    def spy(*a, **k):
+        count[0] += 1
+        return real(*a, **k)
+    monkeypatch.setattr(nw.sla, "lu_factor", spy)
+    sol = mapped_pulse(params, p, gmap, 990)
+    n_reuse = count[0]
+    count[0] = 0
+    ref = solver.resolve_on_grid(params, p, gmap(990), state_order=4)
+    assert sol.stats.converged and ref.stats.converged
+    assert n_reuse < count[0], (n_reuse, count[0])
+    q, r = sol.to_pulse(), ref.to_pulse()
+    assert abs(q.beta - r.beta) < 1e-12 and abs(q.L - r.L) < 1e-10 * r.L
+    assert np.max(np.abs(np.log(q.v) - np.log(r.v))) < 1e-10
