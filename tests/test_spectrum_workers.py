@@ -80,27 +80,31 @@ def test_split_chunks_are_contiguous_and_cover_every_label():
     assert split_chunks(labels[:2], 5) == [["p0"], ["p1"]]
 
 
-def test_split_chunks_balance_the_estimated_cost():
-    """A family of 70 shallow pulses (N = 1000) and 150 deep ones (N = 3542), as the 271-pulse
-    family: two runs of equal length would give one worker the deep pulses alone (63 min
-    against 53 estimated, stop 39); the cost model cuts where N^COST_POWER splits evenly."""
-    from slippulse.stability import spectrum_family as sf
-    labels = [f"p{k}" for k in range(220)]
-    points = [1000] * 70 + [3542] * 150
-    a, b = split_chunks(labels, 2, points)
-    assert a + b == labels
-    cost = [sum(n ** sf.COST_POWER for n in points[:len(a)]),
-            sum(n ** sf.COST_POWER for n in points[len(a):])]
-    assert abs(cost[0] - cost[1]) <= 3542 ** sf.COST_POWER
-    assert len(a) > 110                          # the shallow ones and some deep ones
-    # every run gets at least one label, in order
-    assert split_chunks(labels[:3], 3, [1, 1, 10 ** 6]) == [["p0"], ["p1"], ["p2"]]
-    assert split_chunks(labels[:3], 2, [10 ** 6, 1, 1]) == [["p0"], ["p1", "p2"]]
+def test_two_workers_claim_a_run_from_both_ends_once_each():
+    """Two workers on one run: one from the top, one from the bottom, each index exactly once,
+    in their own directions, whatever the interleaving; they stop where they meet."""
+    from slippulse.stability.spectrum_family import claim
+    rng = np.random.default_rng(4)
+    for n in (1, 2, 7, 40):
+        counter = [0, n - 1]
+        got = {1: [], -1: []}
+        while True:
+            step = int(rng.choice([1, -1]))
+            k = claim(counter, step)
+            if k is None:
+                assert claim(counter, -step) is None
+                break
+            got[step].append(k)
+        assert sorted(got[1] + got[-1]) == list(range(n))
+        assert got[1] == sorted(got[1]) and got[-1] == sorted(got[-1], reverse=True)
+        if got[1] and got[-1]:
+            assert max(got[1]) < min(got[-1])
 
 
 def test_two_workers_give_the_sequential_spectrum(tmp_path, pulse12, params, spectrum12):
-    """Two pulses on two spawned workers: the second starts from the default search, not from
-    the first; both must give the eigenvalue of the sequential solve (same grid, unpinned)."""
+    """Two pulses on two spawned workers, one from the top, one from the bottom: the second
+    starts from the default search, not from the first; both must give the eigenvalue of the
+    sequential solve (same grid, unpinned)."""
     from slippulse.core.h5io import write_pulse
     from slippulse.stability.spectrum import read_spectrum
     from slippulse.stability.spectrum_family import run_spectrum
@@ -151,3 +155,24 @@ def test_newton_onto_a_real_eigenvalue_never_carries_a_subnormal_imaginary_part(
     # a complex eigenvalue keeps its imaginary part, however small against 1e-13 it is not
     assert snap_real(1.0 + 1e-9j, 1.0) == 1.0 + 1e-9j
     assert snap_real(1.0 + 1e-300j, 1.0).imag == 0.0
+
+
+def test_a_worker_whose_parent_is_gone_stops(monkeypatch):
+    """A spawned worker outlives a SIGKILL or SIGTERM of the command (its `finally` does not
+    run): it checks its parent between pulses and stops once it has been re-parented."""
+    from slippulse.stability import spectrum_family as sf
+    done = []
+    monkeypatch.setattr(sf, "_pulse_result",
+                        lambda lab, *a, **k: (done.append(lab), (None, None, None))[1])
+    ppids = iter([100, 100, 100, 1, 1, 1])          # the parent dies after the second pulse
+    monkeypatch.setattr(sf.os, "getppid", lambda: next(ppids))
+
+    class Q:
+        def __init__(self):
+            self.items = []
+
+        def put(self, x):
+            self.items.append(x)
+    q = Q()
+    sf._chunk_worker([(f"p{k}", None) for k in range(4)], None, (None, None), {}, q)
+    assert done == ["p0", "p1"] and [x[0] for x in q.items] == ["p0", "p1"]

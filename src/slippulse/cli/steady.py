@@ -741,9 +741,11 @@ def register(sub) -> None:
                         "after the default search (about 3 min more at N = 3542)")
     p.add_argument("--workers", type=int, default=1, metavar="K",
                    help="compute the pulses on K processes at once (default 1): the pulses "
-                        "are cut into K contiguous runs, each tracked along on its own; the "
-                        "runs after the first start from the default search. Each holds about "
-                        "10 N x N complex matrices (4 GB at N = 5009)")
+                        "are cut into ceil(K/2) contiguous runs, each served by two processes, "
+                        "one tracking down from its top, one tracking up from its bottom, "
+                        "until they meet (so their work balances); those not starting at the "
+                        "top of the file start from the default search. Each holds about "
+                        "10 N x N matrices (2-4 GB at N = 5009)")
     p.add_argument("--threads", type=int, default=1, metavar="T",
                    help="BLAS, OpenMP and numba threads of each of the --workers (default 1)")
     p.add_argument("--figure", default=None, metavar="PNG",

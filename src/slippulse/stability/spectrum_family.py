@@ -156,13 +156,14 @@ def _level0(pulse, params, gmap, n0, creep=0):
 
 
 def _clip_failed_above(prev, n_own, source, levels):
-    """Whether level 0 goes straight to the pulse's own N: the neighbour above (tracking state
-    `prev`, its ladder {N: s L/c_p}) had the same own N and its ladder started there, so the
-    clip failed on it (or was not asked for), and this pulse's own N can carry the levels.
-    Along the family the pulses get longer, so a clip that failed above fails here as well: a
+    """Whether level 0 goes straight to the pulse's own N: the neighbour tracked from (tracking
+    state `prev`, its ladder {N: s L/c_p}) had the same own N and its ladder started there, so
+    the clip failed on it (or was not asked for), and this pulse's own N can carry the levels.
+    Down the family the pulses get longer, so a clip that failed above fails here as well: a
     deep pulse then skips a re-solve that would give up after :data:`LEVEL0_CREEP` iterations
     (4–6 s at N = 2828, measured at L = 3.3 km; BENCHMARKS.md "Stop 39"), and neighbouring
-    pulses keep one ladder."""
+    pulses keep one ladder. (A worker tracking up the family from its deepest pulse,
+    ``run_spectrum(workers=2)``, applies the same rule with the neighbour below.)"""
     ladder = prev[2] if prev is not None and len(prev) > 2 else None
     if not ladder or min(ladder) != int(n_own):
         return False
@@ -310,12 +311,48 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
     return res, prev, prev_mode
 
 
-def _chunk_worker(items, params, seed, opts, queue):
+def claim(counter, step):
+    """The next index of a run shared by two workers, one taking it from the top (step +1), the
+    other from the bottom (step −1); None once they have met. `counter` holds [next from the
+    top, next from the bottom] (a multiprocessing Array with its lock, or a list)."""
+    lock = counter.get_lock() if hasattr(counter, "get_lock") else _NoLock()
+    with lock:
+        lo, hi = counter[0], counter[1]
+        if lo > hi:
+            return None
+        if step > 0:
+            counter[0] = lo + 1
+            return lo
+        counter[1] = hi - 1
+        return hi
+
+
+class _NoLock:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+
+def _chunk_worker(items, params, seed, opts, queue, counter=None, step=1):
     """A worker of :func:`run_spectrum` with ``workers`` > 1: the pulses ``items`` ((label,
     pulse) in order), tracked from ``seed``; each result is put on ``queue`` as (label,
-    PulseSpectrum, ''), or the error that stopped it as (label, None, (is a UsageError, text))."""
+    PulseSpectrum, ''), or the error that stopped it as (label, None, (is a UsageError, text)).
+    With a shared `counter` (:func:`claim`) it takes the pulses one at a time from the top
+    (step +1) or from the bottom (step −1) of `items` until it meets its partner, tracking
+    along its own direction; without, all of them in order."""
     prev, prev_mode = seed
-    for lab, pulse in items:
+    order = iter(range(len(items))) if counter is None else \
+        iter(lambda: claim(counter, step), None)
+    parent = os.getppid()
+    for k in order:
+        if os.getppid() != parent:
+            # the parent is gone (killed: its `finally` did not run, and a daemonic child
+            # outlives a SIGKILL or SIGTERM of its parent): stop instead of computing on for
+            # nobody (measured, stop 39: two orphans computed on after `kill` of the command)
+            return
+        lab, pulse = items[k]
         try:
             res, prev, prev_mode = _pulse_result(lab, pulse, params, prev, prev_mode, opts)
         except UsageError as exc:                    # bad input: the parent's one-line error
@@ -329,34 +366,11 @@ def _chunk_worker(items, params, seed, opts, queue):
         queue.put((lab, res, ""))
 
 
-#: Exponent of the cost model of :func:`split_chunks`: a pulse of N points costs ∝ N^COST_POWER
-#: (measured, stop 39, one core: 8 s per pulse at N = 1000–1250, 28 s own-N and 40 s clipped at
-#: N = 3542, i.e. 3.5–5 times for 3.5 times the points).
-COST_POWER = 1.2
-
-
-def split_chunks(labels, workers, points=None):
-    """`labels` (in order) cut into at most `workers` contiguous runs: each worker tracks along
-    its own run. With `points` (N of each pulse) the runs have near-equal estimated cost
-    (N^COST_POWER summed; the deep pulses cost 3–5 times the shallow ones), else near-equal
-    length."""
-    n = len(labels)
-    k = max(1, min(int(workers), n))
-    if points is None:
-        edges = np.linspace(0, n, k + 1).round().astype(int)
-    else:
-        w = np.asarray(points, float) ** COST_POWER
-        cum = np.concatenate([[0.0], np.cumsum(w)])
-        # cut j where the cumulative cost is nearest j/k of the total, at least one label per
-        # run
-        edges = [0]
-        for j in range(1, k):
-            t = j * cum[-1] / k
-            e = int(np.searchsorted(cum, t))
-            if e > 0 and (e > n or t - cum[e - 1] < cum[e] - t):
-                e -= 1
-            edges.append(min(max(e, edges[-1] + 1), n - (k - j)))
-        edges.append(n)
+def split_chunks(labels, workers):
+    """`labels` (in order) cut into at most `workers` contiguous runs of near-equal length: each
+    worker tracks along its own run."""
+    k = max(1, min(int(workers), len(labels)))
+    edges = np.linspace(0, len(labels), k + 1).round().astype(int)
     return [labels[a:b] for a, b in zip(edges, edges[1:]) if b > a]
 
 
@@ -402,13 +416,19 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
     level0_points : level 0 has exactly this many points on the map, fewer than the pulse's
         own N included (overrides `min_points`); with `pin_translation` the deep pulses need
         no more than the shallow ones (docs/spectrum.md §5).
-    workers, threads : with workers > 1, the pulses to compute are cut into that many
-        contiguous runs (:func:`split_chunks`), each on a spawned process with `threads`
-        BLAS/OpenMP/numba threads that tracks along its run; this process writes each result
-        as it arrives. The first run starts as with one worker; the others from the default
-        search, which below MIN_RE c/L finds the leading real eigenvalue by the sign of det M
-        (:data:`slippulse.stability.spectrum.SCAN_LO`), at the cost of a few assemblies. Not
-        with ``count_workers`` > 1 (no pools inside the workers).
+    workers, threads : with workers > 1, the pulses to compute are cut into ⌈workers/2⌉
+        contiguous runs of near-equal length (:func:`split_chunks`), each served by two
+        spawned processes (one for the last run where `workers` is odd) with `threads`
+        BLAS/OpenMP/numba threads: one takes its pulses from the top, tracking down, the other
+        from the bottom, tracking up, one pulse at a time (:func:`claim`), until they meet, so
+        that their work balances whatever each pulse costs. This process writes each result as
+        it arrives. The worker from the top of the first run starts as with one worker; the
+        others from the default search, which below MIN_RE c/L finds the leading real
+        eigenvalue by the sign of det M (:data:`slippulse.stability.spectrum.SCAN_LO`), at the
+        cost of a few assemblies. Where they meet depends on the timing, and a pulse's Newton
+        starts (and, near where a clip to `max_points` starts failing, its ladder) on which of
+        the two reached it: the values agree within Newton's tolerance, the ladders within
+        their bars. Not with ``count_workers`` > 1 (no pools inside the workers).
     """
     from ..core.h5io import read_pulse
     t0 = time.perf_counter()
@@ -492,16 +512,16 @@ def _run_parallel(path, todo, params, seeds, opts, workers, threads, record):
     or the stored spectrum above the first, or nothing."""
     import multiprocessing
     import queue as queue_mod
-
-    import h5py
     import signal
     import threading
 
     from ..core.h5io import read_pulse
     from .count import _thread_env
-    with h5py.File(path, "r") as h5:
-        points = [int(h5["pulses"][lab].attrs["n_points"]) for lab in todo]
-    chunks = split_chunks(todo, workers, points)
+    # runs of near-equal length, each served by two workers from both ends (one for the last
+    # run where `workers` is odd): they meet where their work balances, whatever each pulse
+    # costs (a deep pulse 3–6 times a shallow one; a static cut by count left one worker 15 %
+    # longer on the 271-pulse family, by a cost model in N 30 %; stop 39)
+    runs = split_chunks(todo, (workers + 1) // 2)
     ctx = multiprocessing.get_context("spawn")
     q = ctx.Queue()
     procs = []
@@ -511,13 +531,22 @@ def _run_parallel(path, todo, params, seeds, opts, workers, threads, record):
     old_int = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
     try:
         with _thread_env(threads):
-            for chunk in chunks:
-                items = [(lab, read_pulse(path, lab)[0]) for lab in chunk]
-                start = seeds.get(chunk[0], (None, None))
-                p = ctx.Process(target=_chunk_worker,
-                                args=(items, params, start, opts, q), daemon=True)
-                p.start()
-                procs.append(p)
+            left_workers = workers
+            for run in runs:
+                items = [(lab, read_pulse(path, lab)[0]) for lab in run]
+                counter = ctx.Array("i", [0, len(items) - 1])
+                # from the top: tracked from the kept spectrum above (or the guess); from the
+                # bottom: from the search alone
+                ends = [(1, seeds.get(run[0], (None, None)))]
+                if left_workers >= 2 and len(items) > 1:
+                    ends.append((-1, (None, None)))
+                for step, start in ends:
+                    p = ctx.Process(target=_chunk_worker,
+                                    args=(items, params, start, opts, q, counter, step),
+                                    daemon=True)
+                    p.start()
+                    procs.append(p)
+                left_workers -= len(ends)
     finally:
         if main:
             signal.signal(signal.SIGINT, old_int)
