@@ -167,6 +167,19 @@ def test_a_clip_that_failed_on_the_pulse_above_is_not_tried_again(tmp_path, puls
         assert res.leading.real / res.rate_unit == pytest.approx(22.65, rel=0.03)
     assert sf._clip_failed_above(None, 700, p, 1) is False
 
+    # where the own N fails (creeping, as at 6.3-6.6 km), the clip is the fallback
+    def own_fails(pulse, prm, gmap, n0, creep=0):
+        tried.append((n0, creep))
+        if n0 == 700:
+            return pulse, "steady re-solve on the mapped grid (N = 700) did not converge: mock"
+        return real(pulse, prm, gmap, n0, creep)
+
+    monkeypatch.setattr(sf, "_level0", own_fails)
+    tried.clear()
+    res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
+    assert tried == [(700, sf.LEVEL0_CREEP), (500, 0)]
+    assert res.status == "converged" and res.n_points == 500
+
 
 def test_mapped_resolves_reuse_their_LU_and_reach_the_same_pulse(pulse12, params, monkeypatch):
     """The ladder's re-solves run chord iterations with each full step's LU (newton reuse=True):

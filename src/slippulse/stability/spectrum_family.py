@@ -247,10 +247,21 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
         n_own = int(source.n_points)
         fallback = level0_points is None and n0 < n_own
         if fallback and _clip_failed_above(prev, n_own, source, levels):
-            n0, fallback = n_own, False
-        pulse, why = _level0(pulse, params, gmap, n0, LEVEL0_CREEP if fallback else 0)
-        if not why:
-            levels = clipped_levels(levels, n0, n_own)
+            # own N first, the clip as the fallback (at 6.3-6.6 km the own N fails where the
+            # clip holds: td1.008397, measured in stop 39)
+            pulse, why = _level0(source, params, gmap, n_own, LEVEL0_CREEP)
+            if why:
+                clipped, why_clip = _level0(source, params, gmap, n0)
+                if why_clip:
+                    why = f"{why}; on the clipped N = {n0} too: {why_clip}"
+                else:
+                    pulse, why = clipped, ""
+                    levels = clipped_levels(levels, n0, n_own)
+            fallback = False
+        else:
+            pulse, why = _level0(pulse, params, gmap, n0, LEVEL0_CREEP if fallback else 0)
+            if not why:
+                levels = clipped_levels(levels, n0, n_own)
         if why and fallback:
             # the clip to max_points is too coarse for this pulse (the deep pulses beyond
             # L ≈ 2.5 km need their own N = 3542): level 0 on the pulse's own N instead
