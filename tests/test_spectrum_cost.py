@@ -177,8 +177,27 @@ def test_a_clip_that_failed_on_the_pulse_above_is_not_tried_again(tmp_path, puls
     monkeypatch.setattr(sf, "_level0", own_fails)
     tried.clear()
     res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
-    assert tried == [(700, sf.LEVEL0_CREEP), (500, 0)]
+    assert tried == [(700, sf.LEVEL0_CREEP), (500, sf.LEVEL0_CREEP)]
     assert res.status == "converged" and res.n_points == 500
+
+    # where the clip fails too, the own N without the creep stop is the last resort (a slow
+    # convergence, as at 6.0 km)
+    def creeping(pulse, prm, gmap, n0, creep=0):
+        tried.append((n0, creep))
+        if creep or n0 == 500:
+            return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
+        return real(pulse, prm, gmap, n0, creep)
+
+    monkeypatch.setattr(sf, "_level0", creeping)
+    tried.clear()
+    res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
+    assert tried == [(700, sf.LEVEL0_CREEP), (500, sf.LEVEL0_CREEP), (700, 0)]
+    assert res.status == "converged" and res.n_points == 700
+    monkeypatch.setattr(sf, "_level0", lambda pulse, prm, gmap, n0, creep=0: (
+        pulse, f"did not converge at {n0}/{creep}"))
+    res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
+    assert res.status == "failed" and "700/4" in res.message and "500/4" in res.message \
+        and "700/0" in res.message
 
 
 def test_mapped_resolves_reuse_their_LU_and_reach_the_same_pulse(pulse12, params, monkeypatch):

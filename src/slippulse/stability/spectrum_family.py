@@ -247,16 +247,19 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
         n_own = int(source.n_points)
         fallback = level0_points is None and n0 < n_own
         if fallback and _clip_failed_above(prev, n_own, source, levels):
-            # own N first, the clip as the fallback (at 6.3-6.6 km the own N fails where the
-            # clip holds: td1.008397, measured in stop 39)
+            # own N first, giving up when it creeps; then the clip (at 6.3-6.6 km the own N
+            # fails where the clip holds: td1.008397); then the own N without the creep stop,
+            # the last resort (td1.008428 converges only so, in 140 s; measured in stop 39)
             pulse, why = _level0(source, params, gmap, n_own, LEVEL0_CREEP)
             if why:
-                clipped, why_clip = _level0(source, params, gmap, n0)
-                if why_clip:
-                    why = f"{why}; on the clipped N = {n0} too: {why_clip}"
-                else:
+                clipped, why_clip = _level0(source, params, gmap, n0, LEVEL0_CREEP)
+                if not why_clip:
                     pulse, why = clipped, ""
                     levels = clipped_levels(levels, n0, n_own)
+                else:
+                    pulse, why_last = _level0(source, params, gmap, n_own)
+                    why = (f"{why}; on the clipped N = {n0}: {why_clip}; on the own N without "
+                           f"the creep stop: {why_last}") if why_last else ""
             fallback = False
         else:
             pulse, why = _level0(pulse, params, gmap, n0, LEVEL0_CREEP if fallback else 0)
