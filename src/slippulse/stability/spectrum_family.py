@@ -8,6 +8,7 @@ its neighbour), :func:`slippulse.stability.refine.refine_leading` on a ladder of
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from dataclasses import dataclass, field
@@ -329,7 +330,7 @@ def claim(counter, step):
     """The next index of a run shared by two workers, one taking it from the top (step +1), the
     other from the bottom (step −1); None once they have met. `counter` holds [next from the
     top, next from the bottom] (a multiprocessing Array with its lock, or a list)."""
-    lock = counter.get_lock() if hasattr(counter, "get_lock") else _NoLock()
+    lock = counter.get_lock() if hasattr(counter, "get_lock") else contextlib.nullcontext()
     with lock:
         lo, hi = counter[0], counter[1]
         if lo > hi:
@@ -339,14 +340,6 @@ def claim(counter, step):
             return lo
         counter[1] = hi - 1
         return hi
-
-
-class _NoLock:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
 
 
 def _chunk_worker(items, params, seed, opts, queue, counter=None, step=1):
@@ -533,8 +526,9 @@ def _run_parallel(path, todo, params, seeds, opts, workers, threads, record):
     from .count import _thread_env
     # runs of near-equal length, each served by two workers from both ends (one for the last
     # run where `workers` is odd): they meet where their work balances, whatever each pulse
-    # costs (a deep pulse 3–6 times a shallow one; a static cut by count left one worker 15 %
-    # longer on the 271-pulse family, by a cost model in N 30 %; stop 39)
+    # costs (a deep pulse 3–6 times a shallow one; on the 271-pulse family a static cut by
+    # count would leave one worker ≈ 10 % longer than the other, a cost model in N ≈ 35 %,
+    # estimated from the per-pulse times of stop 39)
     runs = split_chunks(todo, (workers + 1) // 2)
     ctx = multiprocessing.get_context("spawn")
     q = ctx.Queue()

@@ -591,6 +591,27 @@ def _row_times_D4(x, a, B, j0s, z, out):
             out[j0 + l] += zi * B[i, l]
 
 
+@njit(cache=True, inline="always")
+def _row_times_dD4(dx, z, a, B, j0s, da, dB, u, out):
+    """out = x′ D + x D′ for one row (D′ = (I−U)⁻¹(U′ D + B′)), with z = x (I − U)⁻¹ left by
+    :func:`_row_times_D4` on x; u is scratch of the row's length."""
+    n = dx.size
+    _row_times_D4(dx, a, B, j0s, u, out)                # X′ D
+    u[0] = 0.0                                          # Z U′, then · D
+    for j in range(1, n):
+        u[j] = z[j - 1] * da[j - 1]
+    zz = np.empty(n, out.dtype)
+    w = np.empty(n, out.dtype)
+    _row_times_D4(u, a, B, j0s, zz, w)
+    for i in range(n - 1):                              # + Z B′
+        zi = z[i]
+        j0 = j0s[i]
+        for l in range(4):
+            w[j0 + l] += zi * dB[i, l]
+    for k in range(n):
+        out[k] += w[k]
+
+
 @njit(parallel=True, cache=True)
 def times_D4(X, dX, a, B, j0s, da, dB, XD, dXD, deriv):
     """XD = X D(σ) and, if deriv, dXD = X′ D + X D′ (D′ = (I−U)⁻¹(U′ D + B′)), row by row, O(N²),
@@ -603,20 +624,8 @@ def times_D4(X, dX, a, B, j0s, da, dB, XD, dXD, deriv):
         _row_times_D4(X[r], a, B, j0s, z, t)
         XD[r] = t
         if deriv:
-            _row_times_D4(dX[r], a, B, j0s, u, t)        # X′ D
-            u[0] = 0.0                                    # Z U′, then · D
-            for j in range(1, n):
-                u[j] = z[j - 1] * da[j - 1]
-            zz = np.empty(n, XD.dtype)
-            w = np.empty(n, XD.dtype)
-            _row_times_D4(u, a, B, j0s, zz, w)
-            for i in range(n - 1):                       # + Z B′
-                zi = z[i]
-                j0 = j0s[i]
-                for l in range(4):
-                    w[j0 + l] += zi * dB[i, l]
-            for k in range(n):
-                dXD[r, k] = t[k] + w[k]
+            _row_times_dD4(dX[r], z, a, B, j0s, da, dB, u, t)
+            dXD[r] = t
 
 
 @njit(parallel=True, cache=True)
@@ -660,17 +669,6 @@ def stability_rows(W, dW, H, H0, cx, cdx, Phi, dPhi, corr, fphi, fv, ch, a, B, j
             if has_w:
                 for k in range(n):
                     x[k] += cdx[0] * dW[r, k]
-            _row_times_D4(x, a, B, j0s, u, t)            # X′ D
-            u[0] = 0.0                                    # Z U′, then · D
-            for j in range(1, n):
-                u[j] = z[j - 1] * da[j - 1]
-            zz = np.empty(n, Phi.dtype)
-            w = np.empty(n, Phi.dtype)
-            _row_times_D4(u, a, B, j0s, zz, w)
-            for i in range(n - 1):                       # + Z B′
-                zi = z[i]
-                j0 = j0s[i]
-                for l in range(4):
-                    w[j0 + l] += zi * dB[i, l]
+            _row_times_dD4(x, z, a, B, j0s, da, dB, u, t)
             for k in range(n):
-                dPhi[r, k] = (fr * dPhi[r, k] - (t[k] + w[k])) / tau
+                dPhi[r, k] = (fr * dPhi[r, k] - t[k]) / tau
