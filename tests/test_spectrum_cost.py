@@ -193,11 +193,25 @@ def test_a_clip_that_failed_on_the_pulse_above_is_not_tried_again(tmp_path, puls
     res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
     assert tried == [(700, sf.LEVEL0_CREEP), (500, sf.LEVEL0_CREEP), (700, 0)]
     assert res.status == "converged" and res.n_points == 700
+
+    # the clip without the creep stop is the last resort, after the own N without it (at
+    # 6.57 km the clip converges so, in 27 iterations, and the own N does not in 60; stop 40)
+    def clip_slow(pulse, prm, gmap, n0, creep=0):
+        tried.append((n0, creep))
+        if creep or n0 == 700:
+            return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
+        return real(pulse, prm, gmap, n0, creep)
+
+    monkeypatch.setattr(sf, "_level0", clip_slow)
+    tried.clear()
+    res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
+    assert tried == [(700, sf.LEVEL0_CREEP), (500, sf.LEVEL0_CREEP), (700, 0), (500, 0)]
+    assert res.status == "converged" and res.n_points == 500
     monkeypatch.setattr(sf, "_level0", lambda pulse, prm, gmap, n0, creep=0: (
         pulse, f"did not converge at {n0}/{creep}"))
     res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
     assert res.status == "failed" and "700/4" in res.message and "500/4" in res.message \
-        and "700/0" in res.message
+        and "500/0" in res.message and "700/0" in res.message
 
 
 def test_mapped_resolves_reuse_their_LU_and_reach_the_same_pulse(pulse12, params, monkeypatch):
@@ -227,3 +241,180 @@ def test_mapped_resolves_reuse_their_LU_and_reach_the_same_pulse(pulse12, params
     q, r = sol.to_pulse(), ref.to_pulse()
     assert abs(q.beta - r.beta) < 1e-12 and abs(q.L - r.L) < 1e-10 * r.L
     assert np.max(np.abs(np.log(q.v) - np.log(r.v))) < 1e-10
+
+
+# ---- stop 40: the re-solves' line search, the ladder's starts, the start vector, the heap ----
+
+class _Steep:
+    """Three unknowns (two like ln v, the last like β) and equations of very different steepness,
+    each row weighted by w (the same solution for every w)."""
+
+    def __init__(self, w):
+        self.w = np.asarray(w, float)
+
+    def _f(self, x):
+        y0, y1, b = x
+        return np.array([np.exp(3 * y0) - 20.0 + b, np.exp(y1) - np.exp(y0) - 0.5, b - 0.1 * y1])
+
+    def _j(self, x):
+        y0, y1, b = x
+        return np.array([[3 * np.exp(3 * y0), 0.0, 1.0], [-np.exp(y0), np.exp(y1), 0.0],
+                         [0.0, -0.1, 1.0]])
+
+    def residual(self, x):
+        return self.w * self._f(x)
+
+    def residual_and_jacobian(self, x):
+        return self.w * self._f(x), self.w[:, None] * self._j(x)
+
+    def valid(self, x):
+        return True
+
+
+def test_the_natural_line_search_does_not_depend_on_how_the_equations_are_scaled():
+    """Deuflhard's natural monotonicity test judges a step by the Newton correction J⁻¹r, which
+    a row scaling of the equations leaves unchanged: the same iterates whatever the weights.
+    The ‖r‖₂ test depends on them (here 7, 27 and 38 iterations from one start): a few steep
+    equations, as at the healing front of a re-solved deep pulse, cut every step."""
+    from slippulse.steady import newton as nw
+    x0 = np.array([-1.863, -1.276, -0.424])
+    runs = {}
+    for ls in ("natural", "residual"):
+        for w in ((1.0, 1.0, 1.0), (1e-4, 1.0, 1.0), (1.0, 1e4, 1.0)):
+            xs = []
+            x, st = nw.newton(_Steep(w), x0, tol=1e-11 * max(w), line_search=ls,
+                              callback=lambda k, x, m: xs.append(x.copy()))
+            assert st.converged, (ls, w, st.message)
+            runs[ls, w] = (st.iterations, np.array(xs), x)
+    nat = [runs[k] for k in runs if k[0] == "natural"]
+    for its, xs, x in nat[1:]:
+        assert its == nat[0][0]
+        assert np.max(np.abs(xs - nat[0][1])) < 1e-12
+        assert np.max(np.abs(x - nat[0][2])) < 1e-12
+    res_its = [runs[k][0] for k in runs if k[0] == "residual"]
+    assert max(res_its) > 3 * nat[0][0], res_its          # the test the natural one replaces
+    with pytest.raises(ValueError, match="line_search"):
+        nw.newton(_Steep((1, 1, 1)), x0, line_search="armijo")
+
+
+class _TwoNear(_Pencil):
+    """M(σ) = A − σ I with the leading eigenvalue 1 and a second one at 1.1 (as near the
+    imaginary axis the deep pulses' continuum lies near their small rate)."""
+
+    def __init__(self, n=12):
+        rng = np.random.default_rng(3)
+        Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        w = np.r_[1.0, 1.1, np.linspace(3.0, 5.0, n - 2)]
+        self.A = Q @ np.diag(w) @ Q.T
+        self.Q = Q
+        self.lam, self.v1 = 1.0, Q[:, 0]
+        self.n, self.rate_unit, self.calls = n, 1.0, 0
+
+
+def test_a_purified_start_vector_makes_the_first_step_second_order():
+    """From σ₀ 3 % off and a vector with a 30 % part of the neighbouring eigenvalue's mode, the
+    first Newton step lands far off (the vector misleads it); after inverse-iteration solves
+    with the first factor it lands O(|σ₀ − σ*|²) away, and Newton needs fewer assemblies.
+    The same eigenvalue either way."""
+    op = _TwoNear()
+    x0 = op.Q[:, 0] + 0.3 * op.Q[:, 1]
+    plain = es.newton_eigen(op, 1.03, x0, tol=1e-10)
+    calls_plain = op.calls
+    op.calls = 0
+    pure = es.newton_eigen(op, 1.03, x0, tol=1e-10, purify=es.PURIFY_SOLVES)
+    assert plain.converged and pure.converged
+    assert abs(plain.sigma - 1.0) < 1e-12 and abs(pure.sigma - 1.0) < 1e-12
+    first_plain, first_pure = abs(plain.history[0] - 1.0), abs(pure.history[0] - 1.0)
+    assert first_pure < 0.1 * first_plain, (first_pure, first_plain)
+    assert first_pure < 10 * 0.03 ** 2
+    assert op.calls < calls_plain, (op.calls, calls_plain)
+
+
+def test_the_ladder_start_is_extrapolated_from_the_two_pulses_before():
+    """Newton's start at each level: the neighbour's value moved linearly in τ_d through the
+    pulse before it, where both have the level and the steps are alike; else the neighbour's."""
+    from slippulse.stability.spectrum_family import EXTRAPOLATE_RATIO, _predicted_ladder
+
+    def s(t, n):                                     # a smooth family, one law per level
+        return 1e-4 * (1.0 + 50.0 * (t - 1.0086)) * (1.0 + 1e3 / n) + 3.0 * (t - 1.0086) ** 2
+
+    t2, t1, t0 = 1.008610, 1.008606, 1.008602
+    older = {3542: s(t2, 3542), 5009: s(t2, 5009)}
+    prev = (None, 1.0, {3542: s(t1, 3542), 5009: s(t1, 5009), 7083: 1.0}, t1, (t2, older))
+    got = _predicted_ladder(prev, t0)
+    for n in (3542, 5009):
+        assert abs(got[n] - s(t0, n)) < 1e-2 * abs(prev[2][n] - s(t0, n))   # O(h²) vs O(h)
+    assert got[7083] == 1.0                          # no level 7083 before: the neighbour's
+    far = t1 - (EXTRAPOLATE_RATIO + 0.5) * (t2 - t1)
+    assert _predicted_ladder(prev, far) == prev[2]   # a step too long: no extrapolation
+    back = t1 + 0.5 * (t2 - t1)
+    assert _predicted_ladder(prev, back) == prev[2]  # turned back: none
+    assert _predicted_ladder(prev[:3], t0) == prev[2]     # tracked from a stored spectrum
+    assert _predicted_ladder(None, t0) == {}
+
+
+def test_keep_freed_memory_lets_a_freed_array_reuse_its_pages():
+    """After keep_freed_memory() a 200 MB array freed and allocated again takes its pages from
+    the heap (few page faults); without, glibc hands it back to the system and the next one
+    faults every page in again (the 14 % system time of the 271-pulse run, stop 39)."""
+    import subprocess
+    import sys
+    if not sys.platform.startswith("linux"):
+        pytest.skip("glibc's mallopt")
+    code = """
+import resource, sys
+import numpy as np
+from slippulse.core.memory import keep_freed_memory
+ok = keep_freed_memory() if sys.argv[1] == '1' else True
+a = np.ones(25_000_000); del a
+f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+a = np.ones(25_000_000); del a
+print(int(ok), resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
+"""
+    out = {}
+    for flag in ("0", "1"):
+        r = subprocess.run([sys.executable, "-c", code, flag], capture_output=True, text=True,
+                           check=True)
+        ok, faults = map(int, r.stdout.split())
+        if not ok:
+            pytest.skip("no glibc mallopt here")
+        out[flag] = faults
+    pages = 200e6 / 4096
+    assert out["1"] < 0.05 * pages, out
+    assert out["0"] > 5 * out["1"], out
+
+
+def test_a_mapped_resolve_falls_back_to_the_residual_line_search(pulse12, params, monkeypatch):
+    """Where the natural line search does not converge (at 6.70 km it stalled at max|r| =
+    1.2e−5), the re-solve is made again with the ‖r‖₂ test; where both fail, the message says
+    both, and the solution is marked not converged."""
+    from slippulse.stability import refine
+    from slippulse.steady import solver
+    from slippulse.steady.grid import GridMap
+    p = pulse12.to_pulse()
+    gmap = GridMap(p.xi)
+    real = solver.resolve_on_grid
+    seen = []
+
+    def natural_fails(*a, line_search="residual", **k):
+        seen.append(line_search)
+        sol = real(*a, line_search=line_search, **k)
+        if line_search == "natural":
+            sol.stats.converged, sol.stats.message = False, "line search failed (mock)"
+        return sol
+
+    monkeypatch.setattr(solver, "resolve_on_grid", natural_fails)
+    sol = refine.mapped_pulse(params, p, gmap, 707)
+    assert seen == ["natural", "residual"] and sol.stats.converged
+    seen.clear()
+    monkeypatch.setattr(solver, "resolve_on_grid", lambda *a, line_search="residual", **k: (
+        seen.append(line_search), _unconverged(real(*a, line_search=line_search, **k),
+                                               line_search))[1])
+    sol = refine.mapped_pulse(params, p, gmap, 707)
+    assert seen == ["natural", "residual"] and not sol.stats.converged
+    assert "mock residual" in sol.stats.message and "mock natural" in sol.stats.message
+
+
+def _unconverged(sol, tag):
+    sol.stats.converged, sol.stats.message = False, f"mock {tag}"
+    return sol

@@ -354,6 +354,8 @@ def cmd_stability(args) -> int:
                                              DEFAULT_TARGET, MAX_SPECTRUM_POINTS,
                                              MIN_SPECTRUM_POINTS, check_family_file,
                                              run_spectrum)
+    from ..core.memory import keep_freed_memory
+    keep_freed_memory()          # N×N arrays reuse mapped pages (fewer page faults; stop 40)
     labels = args.labels or None
     if args.count_evals is None:
         args.count_evals = COUNT_EVALS

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.h5io import UNSTORED_STATE_ORDER, state_order_of
-from .eigensolve import (Eigen, det_sign, linearised_candidates, neutral_modes, newton_eigen,
-                         real_eigenvalues)
+from .eigensolve import (PURIFY_SOLVES, Eigen, det_sign, linearised_candidates, neutral_modes,
+                         newton_eigen, real_eigenvalues)
 from .operators import ElasticOperator, StabilityOperator, slope_matrix, symbol
 from .spectrum_store import MODE_FIELDS, SPECTRUM_GROUP, read_spectrum, write_spectrum
 
@@ -183,14 +183,14 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
     unit = op.rate_unit
     found, failures, iters = [], [], 0
 
-    def add(cand_sig, cand_vec, max_iter=12, floor=MIN_RE):
+    def add(cand_sig, cand_vec, max_iter=12, floor=MIN_RE, purify=0):
         nonlocal iters
         if not cand_sig.real > floor * unit:
             return
         if any(abs(cand_sig - f.sigma) < 1e-3 * max(abs(f.sigma), unit) for f in found):
             return
         eig = newton_eigen(op, cand_sig, cand_vec, tol=tol, min_re=floor * unit,
-                           max_iter=max_iter)
+                           max_iter=max_iter, purify=purify)
         iters += eig.iterations
         if not eig.converged:
             failures.append(f"from {cand_sig / unit:.4g} c/L: {eig.message}")
@@ -207,8 +207,8 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
         # to a tenth of its guess, which keeps Newton off the translation mode at σ = 0
         for g, v in zip(tracked, guess_modes):
             floor = min(MIN_RE, TRACK_FLOOR * g.real / unit)
-            if v is not None and floor > 0:
-                add(g, np.asarray(v, complex), floor=floor)
+            if v is not None and floor > 0:      # a mode from elsewhere: purified first
+                add(g, np.asarray(v, complex), floor=floor, purify=PURIFY_SOLVES)
     # Arnoldi at the tracked shifts (their candidates followed down to the tracked floor, the
     # two nearest: near τ_min the translation mode is the other one), then (if they gave
     # nothing) at the default shifts

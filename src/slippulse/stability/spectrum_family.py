@@ -175,6 +175,31 @@ def _clip_failed_above(prev, n_own, source, levels):
     return True
 
 
+#: Largest ratio of τ_d steps, (this pulse − the neighbour)/(the neighbour − the one before it),
+#: over which :func:`_predicted_ladder` extrapolates; beyond it the neighbour's values are used.
+EXTRAPOLATE_RATIO = 2.0
+
+
+def _predicted_ladder(prev, tau):
+    """{N: s L/c_p} expected at τ_d/τ_min = `tau` from the tracking state `prev`: the
+    neighbour's ladder, extrapolated linearly in τ_d through the ladder of the pulse tracked
+    before it wherever that has the same level (and the two τ_d steps go the same way, the new
+    one at most EXTRAPOLATE_RATIO times the old). Newton's start at each level: the deep
+    pulses' rates change by ≈ 1 % of s from one pulse to the next, as much as the step
+    criterion (1e−6 c/L against s ≈ 1e−4 c/L), so a start at the neighbour's value often costs
+    a second assembly of M(σ) that the extrapolated start saves (stop 40)."""
+    ladder = prev[2] if prev is not None and len(prev) > 2 else {}
+    if not ladder or len(prev) < 5 or prev[4] is None:
+        return dict(ladder)
+    t1 = prev[3]
+    t2, older = prev[4]
+    step, before = tau - t1, t1 - t2
+    if before == 0.0 or not 0.0 < step / before <= EXTRAPOLATE_RATIO:
+        return dict(ladder)
+    w = step / before
+    return {n: v + w * (v - older[n]) if n in older else v for n, v in ladder.items()}
+
+
 def _moved_mode(x, x_prev, V_prev):
     """The neighbour's mode V₁(ξ/L) moved onto this pulse's ξ/L: cubic spline inside its range,
     its end values outside (where the mode has decayed). Cubic, not linear: Newton's first step
@@ -249,18 +274,23 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
         fallback = level0_points is None and n0 < n_own
         if fallback and _clip_failed_above(prev, n_own, source, levels):
             # own N first, giving up when it creeps; then the clip (at 6.3-6.6 km the own N
-            # fails where the clip holds: td1.008397); then the own N without the creep stop,
-            # the last resort (td1.008428 converges only so, in 140 s; measured in stop 39)
+            # fails where the clip holds); then without the creep stop, the own N (td1.008428,
+            # 6.0 km, and td1.008393, 6.68 km, converge only so; stop 39 and 40) and last the
+            # clip (td1.008397, 6.57 km: converges so in 27 iterations, where the own N does
+            # not in 60). Not the clip before the own N: at td1.008393 the clip's level 0 has a
+            # spurious real eigenvalue at 1.9e-6 c/L, and its ladder fails (stop 40)
             pulse, why = _level0(source, params, gmap, n_own, LEVEL0_CREEP)
-            if why:
-                clipped, why_clip = _level0(source, params, gmap, n0, LEVEL0_CREEP)
-                if not why_clip:
-                    pulse, why = clipped, ""
-                    levels = clipped_levels(levels, n0, n_own)
-                else:
-                    pulse, why_last = _level0(source, params, gmap, n_own)
-                    why = (f"{why}; on the clipped N = {n0}: {why_clip}; on the own N without "
-                           f"the creep stop: {why_last}") if why_last else ""
+            attempts = ((n0, LEVEL0_CREEP, f"on the clipped N = {n0}"),
+                        (n_own, 0, "on the own N without the creep stop"),
+                        (n0, 0, f"on the clipped N = {n0} without the creep stop"))
+            for n_try, creep, where in attempts if why else ():
+                got, why_try = _level0(source, params, gmap, n_try, creep)
+                if not why_try:
+                    pulse, why = got, ""
+                    if n_try == n0:
+                        levels = clipped_levels(levels, n0, n_own)
+                    break
+                why += f"; {where}: {why_try}"
             fallback = False
         else:
             pulse, why = _level0(pulse, params, gmap, n0, LEVEL0_CREEP if fallback else 0)
@@ -280,9 +310,12 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
         return _failed(lab, pulse, why), prev, prev_mode
     unit = pulse.c_p / pulse.L
     guesses, modes = [], None
+    predicted = _predicted_ladder(prev, float(pulse.tau_d_ratio))
     if prev is not None and prev[0].size:
         s0 = prev[0][0]
         guesses = [complex(s0.real, abs(s0.imag)) * unit / prev[1]]
+        if s0.imag == 0.0 and int(pulse.n_points) in predicted:
+            guesses = [complex(predicted[int(pulse.n_points)]) * unit]
         if prev_mode is not None:
             modes = [_moved_mode(pulse.xi / pulse.L, *prev_mode)]
     pin = o["pin_translation"]
@@ -293,8 +326,7 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
                                      progress=level_progress, target=o["target"],
                                      pin_translation=pin, source=source,
                                      rel_target=o["rel_target"],
-                                     neighbour=prev[2] if prev is not None and len(prev) > 2
-                                     else None)
+                                     neighbour=predicted or None)
         if res.refined.status != "converged":
             res.status = "failed"
             res.message = f"refinement failed: {res.refined.message}"
@@ -320,8 +352,10 @@ def _pulse_result(lab, pulse, params, prev, prev_mode, o, level_progress=None):
         res.modes = []
         return res, prev, prev_mode
     ref = res.refined
+    older = (prev[3], prev[2]) if prev is not None and len(prev) > 3 and prev[2] else None
     prev = (res.sigmas, res.rate_unit,
-            _ladder(ref.n_points, ref.s_per_L_levels) if ref is not None else {})
+            _ladder(ref.n_points, ref.s_per_L_levels) if ref is not None else {},
+            float(pulse.tau_d_ratio), older)
     prev_mode = (pulse.xi / pulse.L, res.modes[0]["V"]) if res.modes else None
     return res, prev, prev_mode
 
@@ -349,6 +383,8 @@ def _chunk_worker(items, params, seed, opts, queue, counter=None, step=1):
     With a shared `counter` (:func:`claim`) it takes the pulses one at a time from the top
     (step +1) or from the bottom (step −1) of `items` until it meets its partner, tracking
     along its own direction; without, all of them in order."""
+    from ..core.memory import keep_freed_memory
+    keep_freed_memory()          # as the command's own process (fewer page faults; stop 40)
     prev, prev_mode = seed
     order = iter(range(len(items))) if counter is None else \
         iter(lambda: claim(counter, step), None)

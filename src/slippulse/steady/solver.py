@@ -200,13 +200,15 @@ def check_points(n_points: int) -> None:
 
 
 def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, hilbert="cubic",
-                  max_iter=60, state_order=STATE_ORDER, creep=0, reuse=False):
+                  max_iter=60, state_order=STATE_ORDER, creep=0, reuse=False,
+                  line_search="residual"):
     """One solve on a fixed grid from (y, β); the phase condition is placed on the guess's front.
 
     creep > 0 (Newton only): give up once max|r| has not halved over `creep` iterations
     (:func:`slippulse.steady.newton.newton`), for a caller that has another way on.
     reuse (Newton only): chord iterations with each full step's LU before a new Jacobian
-    (:func:`slippulse.steady.newton.newton`), for a guess already close (a re-solve)."""
+    (:func:`slippulse.steady.newton.newton`), for a guess already close (a re-solve).
+    line_search (Newton only): 'residual' or 'natural' (:func:`slippulse.steady.newton.newton`)."""
     v_st = params.v_stick(tau_d_ratio * params.tau_min)
     k, ymid = front_pin(xi, y, math.log(v_st))
     # pin at the node with the value the guess has there (keeps the pulse where it is)
@@ -216,6 +218,8 @@ def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, 
     extra = {"creep": int(creep)} if creep and method == "newton" else {}
     if reuse and method == "newton":
         extra["reuse"] = True
+    if line_search != "residual" and method == "newton":
+        extra["line_search"] = line_search
     x, stats = SOLVERS[method](prob, x0, tol=tol, max_iter=max_iter, **extra)
     return prob, x, stats
 
@@ -302,15 +306,16 @@ def regrid_guess(params, tau_d_ratio, xi, y, beta, n_points, spec: GridSpec = Gr
 
 
 def resolve_on_grid(params, pulse, xi_new, method="newton", tol=1e-13, state_order=STATE_ORDER,
-                    creep=0, reuse=False):
+                    creep=0, reuse=False, line_search="residual"):
     """The pulse re-solved on the grid `xi_new`, started from its ln v interpolated there and its
-    β (creep, reuse: as :func:`solve_on_grid`). Returns a :class:`SteadySolution`."""
+    β (creep, reuse, line_search: as :func:`solve_on_grid`). Returns a :class:`SteadySolution`."""
     t0 = time.perf_counter()
     xi = np.asarray(pulse.xi, float)
     v_st = params.v_stick(pulse.tau_d_ratio * params.tau_min)
     y = interpolate(xi, np.log(np.asarray(pulse.v, float)), xi_new, v_st)
     prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, xi_new, y, pulse.beta, method, tol,
-                                   state_order=state_order, creep=creep, reuse=reuse)
+                                   state_order=state_order, creep=creep, reuse=reuse,
+                                   line_search=line_search)
     return SteadySolution(prob, x, stats, time.perf_counter() - t0, 0)
 
 
