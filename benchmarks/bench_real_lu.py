@@ -1,6 +1,7 @@
 """The spectrum of some pulses by this code and by a base commit, side by side in one run
 (issue 17, item 5): stop 38's real arithmetic at real σ (base 3ee2570), stop 39's cheaper levels
-(base acf0fdd; BENCHMARKS.md "Stop 39").
+(base acf0fdd; BENCHMARKS.md "Stop 39"), stop 40's line search and starts (base a7fa25c,
+``--together``; BENCHMARKS.md "Stop 40").
 
     git worktree add --detach /tmp/base HEAD~1     # the code before the change
     python benchmarks/bench_real_lu.py FAMILY.h5 LABEL [LABEL ...] --base /tmp/base
@@ -26,6 +27,10 @@ HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src")
 
 
 def run(tree_src, family, label):
+    """One command on a fresh copy of `family`: `label` (a str), or a list of labels run
+    together (tracked from one to the next). Returns (wall, s L/c_p, s_err L/c_p, levels N),
+    the last three of the last label."""
+    labels = [label] if isinstance(label, str) else list(label)
     tmp = tempfile.mkdtemp(prefix="bench_real_lu_")
     try:
         path = os.path.join(tmp, "f.h5")
@@ -34,13 +39,13 @@ def run(tree_src, family, label):
                    OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1", NUMBA_NUM_THREADS="1")
         t0 = time.perf_counter()
         r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", path,
-                            "--labels", label, "--overwrite", "-q"], env=env,
+                            "--labels", *labels, "--overwrite", "-q"], env=env,
                            capture_output=True, text=True)
         wall = time.perf_counter() - t0
         if r.returncode != 0:
-            raise SystemExit(f"{tree_src}: {label}: exit {r.returncode}: {r.stderr[-400:]}")
+            raise SystemExit(f"{tree_src}: {labels}: exit {r.returncode}: {r.stderr[-400:]}")
         with h5py.File(path, "r") as h5:
-            a = h5[f"pulses/{label}/spectrum"].attrs
+            a = h5[f"pulses/{labels[-1]}/spectrum"].attrs
             return wall, float(a["s_per_L"]), float(a["s_err_per_L"]), \
                 [int(n) for n in a["refine_n_points"]]
     finally:
@@ -52,9 +57,21 @@ def main():
     ap.add_argument("family")
     ap.add_argument("labels", nargs="+")
     ap.add_argument("--base", required=True, help="a worktree of the code to compare with")
+    ap.add_argument("--together", action="store_true",
+                    help="run all LABELs in one command instead of one by one (tracked from one to the next, as "
+                         "in a family run: stop 40's starts extrapolated from two pulses need "
+                         "that), by each code; the values printed are the last label's")
     a = ap.parse_args()
     print(f"load average before: {os.getloadavg()}")
     tb = tn = 0.0
+    if a.together:
+        wb, sb, eb, _ = run(os.path.join(a.base, "src"), a.family, a.labels)
+        wn, sn, en, _ = run(HERE, a.family, a.labels)
+        print(f"{len(a.labels)} pulses in one command: base {wb:.1f} s, new {wn:.1f} s, ratio "
+              f"{wb / wn:.2f}x; last s L/c_p = {sb:.9g} ± {eb:.1g} | {sn:.9g} ± {en:.1g}; "
+              f"difference {abs(sb - sn) / max(eb, 1e-300):.1e} err")
+        print(f"load average after: {os.getloadavg()}")
+        return
     for lab in a.labels:
         wb, sb, eb, nb = run(os.path.join(a.base, "src"), a.family, lab)
         wn, sn, en, nn = run(HERE, a.family, lab)
