@@ -167,14 +167,18 @@ def test_a_clip_that_failed_on_the_pulse_above_is_not_tried_again(tmp_path, puls
         assert res.leading.real / res.rate_unit == pytest.approx(22.65, rel=0.03)
     assert sf._clip_failed_above(None, 700, p, 1) is False
 
-    # where the own N fails (creeping, as at 6.3-6.6 km), the clip is the fallback
-    def own_fails(pulse, prm, gmap, n0, creep=0):
-        tried.append((n0, creep))
-        if n0 == 700:
-            return pulse, "steady re-solve on the mapped grid (N = 700) did not converge: mock"
-        return real(pulse, prm, gmap, n0, creep)
+    def failing_where(fails):
+        """A level 0 that records each (N, creep) tried and fails where fails(N, creep)."""
+        def level0_mock(pulse, prm, gmap, n0, creep=0):
+            tried.append((n0, creep))
+            if fails(n0, creep):
+                return pulse, (f"steady re-solve on the mapped grid (N = {n0}) did not "
+                               "converge: mock")
+            return real(pulse, prm, gmap, n0, creep)
+        return level0_mock
 
-    monkeypatch.setattr(sf, "_level0", own_fails)
+    # where the own N fails (creeping, as at 6.3-6.6 km), the clip is the fallback
+    monkeypatch.setattr(sf, "_level0", failing_where(lambda n0, creep: n0 == 700))
     tried.clear()
     res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
     assert tried == [(700, sf.LEVEL0_CREEP), (500, sf.LEVEL0_CREEP)]
@@ -182,13 +186,7 @@ def test_a_clip_that_failed_on_the_pulse_above_is_not_tried_again(tmp_path, puls
 
     # where the clip fails too, the own N without the creep stop is the last resort (a slow
     # convergence, as at 6.0 km)
-    def creeping(pulse, prm, gmap, n0, creep=0):
-        tried.append((n0, creep))
-        if creep or n0 == 500:
-            return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
-        return real(pulse, prm, gmap, n0, creep)
-
-    monkeypatch.setattr(sf, "_level0", creeping)
+    monkeypatch.setattr(sf, "_level0", failing_where(lambda n0, creep: creep or n0 == 500))
     tried.clear()
     res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
     assert tried == [(700, sf.LEVEL0_CREEP), (500, sf.LEVEL0_CREEP), (700, 0)]
@@ -196,13 +194,7 @@ def test_a_clip_that_failed_on_the_pulse_above_is_not_tried_again(tmp_path, puls
 
     # the clip without the creep stop is the last resort, after the own N without it (at
     # 6.57 km the clip converges so, in 27 iterations, and the own N does not in 60; stop 40)
-    def clip_slow(pulse, prm, gmap, n0, creep=0):
-        tried.append((n0, creep))
-        if creep or n0 == 700:
-            return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
-        return real(pulse, prm, gmap, n0, creep)
-
-    monkeypatch.setattr(sf, "_level0", clip_slow)
+    monkeypatch.setattr(sf, "_level0", failing_where(lambda n0, creep: creep or n0 == 700))
     tried.clear()
     res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
     assert tried == [(700, sf.LEVEL0_CREEP), (500, sf.LEVEL0_CREEP), (700, 0), (500, 0)]

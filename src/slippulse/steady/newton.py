@@ -73,7 +73,8 @@ LINE_SEARCHES = ("residual", "natural")
 
 def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=None,
            reuse=False, creep=0, line_search="residual"):
-    """Damped Newton: J δ = −r by LU, step limited to |δy| ≤ max_dy, kept valid, backtracking on ‖r‖₂.
+    """Damped Newton: J δ = −r by LU, step limited to |δy| ≤ max_dy, kept valid, backtracking on ‖r‖₂
+    (or on the natural monotonicity test, ``line_search='natural'``).
 
     Converges when max|r| ≤ tol. Stops (not converged) when the line search fails or after
     `max_iter` iterations; near round-off a full step that does not reduce ‖r‖₂ but keeps
