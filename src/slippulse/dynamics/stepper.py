@@ -379,6 +379,29 @@ class PredictorCorrector:
         self.status = "finished"
         return self
 
+    def v_max(self) -> float:
+        """Largest slip rate on the grid, m/s (a device stepper reduces it where the field is)."""
+        return float(self.V.max())
+
+    def roll_frame(self, m: int, v_fill: float, phi_fill: float) -> None:
+        """Relabel the periodic ring by m > 0 whole cells (a_j ← a_{j+m}) and put the m cells
+        that enter at the right end at (v_fill, φ_fill), their slip and stress kept.
+
+        Fourier arrays rotate by e^{2πikm/N} (δ_k exactly; V_k is the transform of the reset V),
+        and so do the SOE accumulators (``SOEHistory.shift``). Used by ``seeding.follow_pulse``.
+        """
+        theta = 2.0 * math.pi * np.arange(self.n // 2 + 1) * m / self.n
+        ph = np.exp(1j * theta)
+        self.delta = np.roll(self.delta, -m)
+        self.V = np.roll(self.V, -m)
+        self.phi = np.roll(self.phi, -m)
+        self.tau = np.roll(self.tau, -m)
+        self.V[-m:] = v_fill
+        self.phi[-m:] = phi_fill
+        self.delta_k = self.delta_k * ph
+        self.V_k = self.fft.forward(self.V).copy()
+        self.history.shift(theta)
+
     # ------------------------------------------------------------------ physics
     def _functional(self, delta_k, vbar_k):
         """f = F⁻¹[−(μ|k|/2)(δ_k − H_k[V̄])], Pa."""

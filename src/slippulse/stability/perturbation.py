@@ -53,6 +53,7 @@ CASE_DEFAULTS = {
     "fit_lo": 1e-3,          # linear regime: |d| from fit_lo ...
     "fit_hi": 3e-2,          # ... to fit_hi (see fit_growth)
     "threads": 1,
+    "device": "cpu",         # "cpu" | "cupy" (a GPU, dynamics/device.py) | "numpy" (tests)
 }
 HISTORIES = {"cheap": {"x_min": 1e-6, "x_max": 1e6, "h": 0.8},
              "fine": {"x_min": 1e-8, "x_max": 1e8, "h": 0.5}}
@@ -77,6 +78,8 @@ def check_case(case: dict) -> dict:
         check_eps(c["eps"])
     if not isinstance(c["mode_file"], str):
         raise ParameterError("case key 'mode_file' must be a string (a file path, or '')")
+    if c["device"] not in ("cpu", "cupy", "numpy"):
+        raise ParameterError(f"device={c['device']!r} must be 'cpu', 'cupy' or 'numpy'")
     if c["history"] not in HISTORIES:
         raise ParameterError(f"history={c['history']!r} must be one of {sorted(HISTORIES)}")
     if not abs(float(c["eps"])) < 0.5:
@@ -417,7 +420,7 @@ def run_perturbation(case: dict, progress: bool = False):
                        history_options=HISTORIES[c["history"]], threads=int(c["threads"]),
                        lost_factor=float(c["lost_factor"]),
                        perturbation=None if eps == 0 else (c["perturbation"], eps),
-                       stop_check=stop)
+                       stop_check=stop, device=c["device"])
     return pulse, params, res, analyse(res, pulse, c)
 
 

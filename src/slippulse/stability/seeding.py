@@ -478,18 +478,7 @@ def follow_pulse(seed: SeededPulse, x_front: float) -> int:
     if m <= 0:
         _place_far_field(seed, x_front)
         return 0
-    theta = 2.0 * math.pi * np.arange(st.n // 2 + 1) * m / st.n
-    ph = np.exp(1j * theta)
-    law = st.law
-    st.delta = np.roll(st.delta, -m)
-    st.V = np.roll(st.V, -m)
-    st.phi = np.roll(st.phi, -m)
-    st.tau = np.roll(st.tau, -m)
-    st.V[-m:] = law.v_stick
-    st.phi[-m:] = law.phi_rest
-    st.delta_k = st.delta_k * ph
-    st.V_k = st.fft.forward(st.V).copy()
-    st.history.shift(theta)                    # SOE accumulators rotate (sbi.SOEHistory.shift)
+    st.roll_frame(m, st.law.v_stick, st.law.phi_rest)   # SOE accumulators rotate too
     seed.shift_cells += m
     _place_far_field(seed, x_front - m * st.dx)
     return m

@@ -204,7 +204,7 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
                  lost_factor: float = 20.0, history_start: str = "steady",
                  perturbation: tuple[str, float] | None = None,
                  stop_check=None, history: str = "soe",
-                 wrap_dislocation: bool = False, eigen=None) -> VerifyResult:
+                 wrap_dislocation: bool = False, eigen=None, device: str = "cpu") -> VerifyResult:
     """Seed ``pulse`` and propagate it over ``distance`` steady pulse lengths.
 
     Parameters
@@ -250,6 +250,10 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
         The pulse's unstable eigenmode (``eigenmode.leading_mode``): required by ``("mode", ε)``;
         its eigenvalue goes into ``info`` (:func:`eigen_info`) and is what :func:`drift_verdict`
         compares the drift with.
+    device : {"cpu", "cupy", "numpy"}
+        Where the steps run after seeding: "cpu" the host stepper; "cupy" a GPU
+        (``dynamics.device.DeviceStepper``, same scheme); "numpy" the device engine on the host
+        (bit-identical to "cpu"; for tests).
     stop_check : callable, optional
         ``stop_check(rows) -> str | None``, called after each measurement with the list of rows
         (t, X, L, v_max, lnv_error, slip); a string ends the run with that status (e.g. the
@@ -281,6 +285,9 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
         perturb_along_mode(seed, eigen, float(perturbation[1]), frame=MODE_FRAMES[perturbation[0]])
     elif perturbation is not None:
         perturb_seed(seed, pulse, *perturbation)
+    if device != "cpu":
+        from ..dynamics.device import DeviceStepper
+        seed.stepper = DeviceStepper.from_host(seed.stepper, device)
     # run: step to t_end = distance·L⁰/c_p⁰, sampling n_samples times
     rec = _Recorder(seed, pulse, params, distance, n_samples, n_snapshots)
     status = _run(seed, pulse, params, rec, follow, track_every, lost_factor, stop_check, progress)
@@ -296,7 +303,7 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
             "distance": float(distance), "travelled": float((X[-1] - X[0]) / pulse.L),
             "n": st.n, "length": st.length, "dx": st.dx, "ahead": spec.ahead,
             "behind": spec.behind, "far_field": far_field, "follow": bool(follow),
-            "history_start": history_start, "history": history,
+            "history_start": history_start, "history": history, "device": device,
             "wrap_dislocation": bool(wrap_dislocation),
             "perturbation": "none" if perturbation is None else str(perturbation[0]),
             "eps": 0.0 if perturbation is None else float(perturbation[1]),
@@ -372,7 +379,7 @@ def _run(seed, pulse, params, rec: _Recorder, follow, track_every, lost_factor, 
                 except ValueError as exc:
                     raise PulseLost(f"{_lost_how(st, pulse)}: {exc} at t = {st.t:.4g} s") from None
                 follow_pulse(seed, xr)
-            vtop = float(st.V.max())
+            vtop = st.v_max()
             if vtop > lost_factor * pulse.v_max:
                 raise PulseLost(f"grew: max V > {lost_factor:g} v_max0 at t = {st.t:.4g} s")
             if vtop < pulse.v_max / lost_factor:

@@ -1,0 +1,614 @@
+"""The SBI step on a GPU: the same predictor–corrector, friction solve and SOE history as
+:class:`~slippulse.dynamics.stepper.PredictorCorrector`, with the fields kept in device memory.
+
+A run is seeded on the host as always (``stability.seeding``, ``eigenmode``) and then handed over:
+``DeviceStepper.from_host(stepper, "cupy")``. From then on each step runs on the GPU (CuPy: cuFFT
+for the transforms, three CUDA kernels for the friction solve and the two SOE sums, elementwise
+array expressions for the rest). Nothing else changes: the driver still reads and writes the fields
+by name.
+
+Host view of the fields
+-----------------------
+``delta, V, phi, tau, delta_k, V_k`` are properties. Reading one downloads it once per step and
+returns a *read-only* copy (an in-place write would be lost, so it raises instead). Assigning one
+(``st.V = ...``) makes the host array the current value until the next step uploads it; it stays
+writeable until then (``seeding.follow_pulse`` assigns, then resets the entering cells in place).
+The loading ``law.tau_load`` is uploaded whenever it is a new object (``_place_far_field`` assigns
+a new array each time). The SOE accumulators move to the device at the first step and come back
+for ``state()`` and ``prefill_translating``.
+
+Backends
+--------
+``"cupy"``: the GPU. ``"numpy"``: the same engine on the host with the host's own kernels (numba
+friction solve and SOE sums, the stepper's FFT). It performs the very same floating-point
+operations as ``PredictorCorrector``, so it reproduces a host run bit for bit; it exists to test
+the engine's bookkeeping (field sync, frame shifts, Δt cache, loading upload) where there is no
+GPU. The CUDA kernels are the line-by-line counterparts of ``stepper._solve_point``,
+``friction.state_step`` and ``sbi._soe_past/_soe_commit``; ``tests/test_device.py`` compares a
+CuPy run with the host where a GPU is present (docs/dynamic.md §11).
+
+Scope: the rate-and-state interface with the SOE history (what the seeded runs use).
+"""
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+
+import numpy as np
+
+from ..core import friction as fr
+from ..core.params import ParameterError
+from . import sbi
+from .stepper import PredictorCorrector, RateStateInterface, solve_friction
+
+#: The fields a stepper owns; on a DeviceStepper they live on the device.
+FIELDS = ("delta", "V", "phi", "tau", "delta_k", "V_k")
+BACKENDS = ("cupy", "numpy")
+
+
+def cupy_unavailable() -> str | None:
+    """Why the CuPy backend cannot run here (None when it can)."""
+    try:
+        import cupy
+    except ImportError:
+        return "CuPy is not installed"
+    try:
+        if cupy.cuda.runtime.getDeviceCount() < 1:
+            return "no CUDA device"
+    except Exception as exc:  # noqa: BLE001 - the driver's own error is the message
+        return f"no usable CUDA device ({exc})"
+    return None
+
+
+# ----------------------------------------------------------------------------- backends
+
+
+class _NumpyBackend:
+    """The host's own kernels behind the backend interface (bit-identical to PredictorCorrector)."""
+
+    name = "numpy"
+
+    def __init__(self, fft, params):
+        self.xp = np
+        self._fft = fft
+        self._p = params
+
+    def asarray(self, a, dtype=None):
+        return np.array(a, dtype=dtype, copy=True)
+
+    def to_host(self, a):
+        return np.array(a, copy=True)
+
+    def rfft(self, u):
+        return self._fft.forward(u).copy()
+
+    def irfft(self, uk):
+        return self._fft.inverse(uk).copy()
+
+    def solve(self, tau_el, phi, v_guess, eta):
+        p = self._p
+        v = np.empty_like(tau_el)
+        it = solve_friction(tau_el, phi, v_guess, eta, p.sigma, *p.law_args, v)
+        return v, int(it)
+
+    def state_step(self, phi, w, dt):
+        return fr.state_step(phi, w, dt)
+
+    def heal_rate(self, v):
+        return fr.heal_rate(v, self._p.v_star, self._p.D)
+
+    def stiffness_min(self, v, phi, eta):
+        p = self._p
+        return float(np.min(p.sigma * fr.df_dv(v, phi, *p.law_args) + eta))
+
+    def abs_max(self, v):
+        return float(np.max(np.abs(v)))
+
+    def all_finite(self, *arrays):
+        return all(bool(np.all(np.isfinite(a))) for a in arrays)
+
+    def soe_past(self, E, Y, C, out):
+        sbi._soe_past(E, Y, C, out)
+
+    def soe_commit(self, E, G, Y, V, C, past_next):
+        sbi._soe_commit(E, G, Y, np.ascontiguousarray(V, dtype=complex), C, past_next)
+
+
+_CUDA_LAW = r"""
+__device__ double law_f(double v, double phi, double f0, double b, double alpha,
+                        double vs, double ps) {
+    double av = fabs(v);
+    return (1.0 + b * log1p(phi / ps)) * (f0 * av / sqrt(v * v + vs * vs)
+                                          + alpha * log1p(av / vs));
+}
+__device__ double law_dfdv(double v, double phi, double f0, double b, double alpha,
+                           double vs, double ps) {
+    double r2 = v * v + vs * vs;
+    return (1.0 + b * log1p(phi / ps)) * (f0 * vs * vs / (r2 * sqrt(r2)) + alpha / (vs + fabs(v)));
+}
+"""
+
+# stepper._solve_point, line by line
+_CUDA_SOLVE = r"""
+if (!(tau_el > 0.0)) { v = 0.0; it = 0; }
+else {
+    double A = 1.0 + b * log1p(phi / ps);
+    double x_hi = log(tau_el / eta);
+    double x_lo = log(tau_el / (sigma * A * (f0 + alpha) / vs + eta));
+    double x;
+    if (v_guess > 0.0) {
+        x = log(v_guess);
+        if (!(x_lo < x && x < x_hi)) x = 0.5 * (x_lo + x_hi);
+    } else {
+        x = 0.5 * (x_lo + x_hi);
+    }
+    int k;
+    int done = 0;
+    double res = 0.0;
+    for (k = 1; k < 200; k++) {
+        double vv = exp(x);
+        double F = sigma * law_f(vv, phi, f0, b, alpha, vs, ps) + eta * vv - tau_el;
+        if (fabs(F) <= 2.2e-16 * tau_el) { res = vv; done = 1; break; }
+        if (F > 0.0) x_hi = x; else x_lo = x;
+        double dF = vv * (sigma * law_dfdv(vv, phi, f0, b, alpha, vs, ps) + eta);
+        double xn = x - F / dF;
+        if (fabs(xn - x) < 1e-9) { res = exp(fmin(fmax(xn, x_lo), x_hi)); done = 1; break; }
+        if (!(x_lo < xn && xn < x_hi)) {
+            xn = 0.5 * (x_lo + x_hi);
+            if (x_hi - x_lo < 1e-15 * fmax(1.0, fabs(x))) { res = exp(xn); done = 1; break; }
+        }
+        x = xn;
+    }
+    if (!done) { res = exp(x); k = 199; }
+    v = res;
+    it = k;
+}
+"""
+
+# friction.state_step
+_CUDA_STATE = r"""
+double x = w * dt;
+if (x < 1e-300) { out = phi + dt; }
+else {
+    double pss = 1.0 / w;
+    double d = phi - pss;
+    if (fabs(d) <= pss) out = pss + d * exp(-x);
+    else out = phi * exp(-x) - dt * expm1(-x) / x;
+}
+"""
+
+# sbi._soe_past and sbi._soe_commit on the host layout Y[k, j, c] (complex, c = u, w)
+_CUDA_SOE = r"""
+extern "C" __global__ void soe_past(const double* E, const double* Y, const double* C,
+                                    double* out, long long nk, long long p) {
+    long long k = (long long)blockDim.x * blockIdx.x + threadIdx.x;
+    if (k >= nk) return;
+    double s1 = 0.0, s2 = 0.0;
+    for (long long j = 0; j < p; j++) {
+        long long ij = k * p + j;
+        double er = E[2 * ij], ei = E[2 * ij + 1];
+        double cr = C[2 * j], ci = C[2 * j + 1];
+        double cer = cr * er - ci * ei, cei = cr * ei + ci * er;
+        const double* y = Y + 4 * ij;
+        s1 += cer * y[0] - cei * y[1];
+        s2 += cer * y[2] - cei * y[3];
+    }
+    out[2 * k] = s1;
+    out[2 * k + 1] = s2;
+}
+
+extern "C" __global__ void soe_commit(const double* E, const double* G, double* Y,
+                                      const double* V, const double* C, double* past_next,
+                                      long long nk, long long p) {
+    long long k = (long long)blockDim.x * blockIdx.x + threadIdx.x;
+    if (k >= nk) return;
+    double u = V[2 * k], w = V[2 * k + 1];
+    double s1 = 0.0, s2 = 0.0;
+    for (long long j = 0; j < p; j++) {
+        long long ij = k * p + j;
+        double er = E[2 * ij], ei = E[2 * ij + 1];
+        double gr = G[2 * ij], gi = G[2 * ij + 1];
+        double* y = Y + 4 * ij;
+        double a_r = er * y[0] - ei * y[1] + gr * u;
+        double a_i = er * y[1] + ei * y[0] + gi * u;
+        double b_r = er * y[2] - ei * y[3] + gr * w;
+        double b_i = er * y[3] + ei * y[2] + gi * w;
+        y[0] = a_r; y[1] = a_i; y[2] = b_r; y[3] = b_i;
+        double cr = C[2 * j], ci = C[2 * j + 1];
+        double cer = cr * er - ci * ei, cei = cr * ei + ci * er;
+        s1 += cer * a_r - cei * a_i;
+        s2 += cer * b_r - cei * b_i;
+    }
+    past_next[2 * k] = s1;
+    past_next[2 * k + 1] = s2;
+}
+"""
+
+
+class _CupyBackend:
+    """CuPy arrays, cuFFT, and the CUDA kernels above."""
+
+    name = "cupy"
+    _BLOCK = 256
+
+    def __init__(self, n, params):
+        why = cupy_unavailable()
+        if why:
+            raise ParameterError(f"device='cupy' cannot run here: {why}")
+        import cupy as cp
+        self.xp = cp
+        self.n = int(n)
+        self._p = params
+        self._solve = cp.ElementwiseKernel(
+            "float64 tau_el, float64 phi, float64 v_guess, float64 eta, float64 sigma, "
+            "float64 f0, float64 b, float64 alpha, float64 vs, float64 ps",
+            "float64 v, int32 it", _CUDA_SOLVE, "slippulse_solve", preamble=_CUDA_LAW)
+        self._state = cp.ElementwiseKernel(
+            "float64 phi, float64 w, float64 dt", "float64 out", _CUDA_STATE, "slippulse_state")
+        self._heal = cp.ElementwiseKernel(
+            "float64 v, float64 vs, float64 D", "float64 w", "w = sqrt(v * v + vs * vs) / D",
+            "slippulse_heal")
+        self._stiff = cp.ElementwiseKernel(
+            "float64 v, float64 phi, float64 sigma, float64 f0, float64 b, float64 alpha, "
+            "float64 vs, float64 ps, float64 eta", "float64 s",
+            "s = sigma * law_dfdv(v, phi, f0, b, alpha, vs, ps) + eta", "slippulse_stiff",
+            preamble=_CUDA_LAW)
+        mod = cp.RawModule(code=_CUDA_SOE)
+        self._past = mod.get_function("soe_past")
+        self._commit = mod.get_function("soe_commit")
+
+    def asarray(self, a, dtype=None):
+        return self.xp.array(a, dtype=dtype, copy=True)
+
+    def to_host(self, a):
+        return self.xp.asnumpy(a)
+
+    def rfft(self, u):
+        return self.xp.fft.rfft(u)
+
+    def irfft(self, uk):
+        return self.xp.fft.irfft(uk, n=self.n)
+
+    def solve(self, tau_el, phi, v_guess, eta):
+        p = self._p
+        f0, b, alpha, vs, ps, _ = p.law_args
+        v, it = self._solve(tau_el, phi, v_guess, eta, p.sigma, f0, b, alpha, vs, ps)
+        return v, it.max()                  # a device scalar: no wait for the GPU here
+
+    def state_step(self, phi, w, dt):
+        return self._state(phi, w, float(dt))
+
+    def heal_rate(self, v):
+        return self._heal(v, self._p.v_star, self._p.D)
+
+    def stiffness_min(self, v, phi, eta):
+        p = self._p
+        f0, b, alpha, vs, ps, _ = p.law_args
+        return float(self._stiff(v, phi, p.sigma, f0, b, alpha, vs, ps, eta).min())
+
+    def abs_max(self, v):
+        return float(self.xp.abs(v).max())
+
+    def all_finite(self, *arrays):
+        xp = self.xp
+        ok = xp.isfinite(arrays[0]).all()
+        for a in arrays[1:]:
+            ok = ok & xp.isfinite(a).all()
+        return bool(ok)
+
+    def soe_past(self, E, Y, C, out):
+        nk, p = E.shape
+        grid = ((nk + self._BLOCK - 1) // self._BLOCK,)
+        self._past(grid, (self._BLOCK,), (E, Y, C, out, np.int64(nk), np.int64(p)))
+
+    def soe_commit(self, E, G, Y, V, C, past_next):
+        nk, p = E.shape
+        grid = ((nk + self._BLOCK - 1) // self._BLOCK,)
+        self._commit(grid, (self._BLOCK,), (E, G, Y, self.xp.ascontiguousarray(V), C, past_next,
+                                            np.int64(nk), np.int64(p)))
+
+
+def make_backend(name, fft, params):
+    if name == "numpy":
+        return _NumpyBackend(fft, params)
+    if name == "cupy":
+        return _CupyBackend(fft.n, params)
+    raise ParameterError(f"device={name!r} unknown; choose one of {list(BACKENDS)}")
+
+
+# ----------------------------------------------------------------------------- SOE history
+
+
+class DeviceSOEHistory:
+    """``sbi.SOEHistory`` with its accumulators on the device during stepping.
+
+    Wraps the host history the run was seeded with: ``prefill_translating`` and ``load_state``
+    act on the host object (the accumulators come back first if they are on the device);
+    ``begin_step``/``current``/``commit``/``shift`` act on the device (they go there first).
+    The per-Δt coefficients (E, G, w0) are computed by the host object, as on the host, and kept
+    on the device for the last ``cache_size`` distinct Δt.
+    """
+
+    name = "soe"
+    variable_dt = True
+
+    def __init__(self, host: sbi.SOEHistory, backend):
+        if not isinstance(host, sbi.SOEHistory):
+            raise ParameterError(f"a device run needs the 'soe' history, not {host.name!r}")
+        self.host = host
+        self.be = backend
+        xp = backend.xp
+        self.omega, self.nk, self.p = host.omega, host.nk, host.p
+        self.Z, self.C = host.Z, host.C
+        self._C = backend.asarray(host.C)
+        self.Y = None
+        self.on_device = False
+        self._cache = OrderedDict()
+        self.cache_size = host.cache_size
+        self._past = xp.zeros(self.nk, dtype=complex)
+        self._past_next = xp.zeros(self.nk, dtype=complex)
+        self._E = self._G = self._w0 = None
+        self._dt = None
+        self._next_dt = None
+
+    @property
+    def count(self) -> int:
+        return self.host.count
+
+    def _to_device(self):
+        if not self.on_device:
+            self.Y = self.be.asarray(self.host.Y)
+            self.on_device = True
+            self._next_dt = None
+
+    def _to_host(self):
+        if self.on_device:
+            self.host.Y[...] = self.be.to_host(self.Y)
+            self.Y = None
+            self.on_device = False
+            self._next_dt = None
+
+    def _set_dt(self, dt):
+        if self._dt == dt:
+            return
+        self._dt = dt
+        hit = self._cache.pop(dt, None)
+        if hit is None:
+            self.host._set_dt(dt)
+            h = self.host
+            hit = (self.be.asarray(h.E), self.be.asarray(h.G), self.be.asarray(h._w0))
+        self._cache[dt] = hit
+        while len(self._cache) > self.cache_size:
+            self._cache.pop(next(iter(self._cache)))
+        self._E, self._G, self._w0 = hit
+
+    def begin_step(self, dt):
+        dt = float(dt)
+        self._to_device()
+        if self._next_dt == dt:
+            self._past[...] = self._past_next
+        else:
+            self._set_dt(dt)
+            self.be.soe_past(self._E, self.Y, self._C, self._past)
+
+    def current(self, vbar_k):
+        return self._past + self._w0 * vbar_k
+
+    def commit(self, vbar_k, dt):
+        self._set_dt(float(dt))
+        self.be.soe_commit(self._E, self._G, self.Y, vbar_k, self._C, self._past_next)
+        self._next_dt = float(dt)
+        self.host.count += 1
+
+    def prefill_translating(self, *args, **kwargs):
+        self._to_host()
+        self.host.prefill_translating(*args, **kwargs)
+
+    def shift(self, theta) -> None:
+        """``SOEHistory.shift`` where the accumulators are (the same operations)."""
+        if not self.on_device:
+            self.host.shift(theta)
+            return
+        xp = self.xp
+        th = self.be.asarray(np.asarray(theta, dtype=float))
+        c = xp.cos(th)[:, None]
+        sn = xp.sin(th)[:, None]
+        yu = self.Y[:, :, 0].copy()
+        yw = self.Y[:, :, 1]
+        self.Y[:, :, 0] = c * yu - sn * yw
+        self.Y[:, :, 1] = sn * yu + c * yw
+        self._next_dt = None
+
+    @property
+    def xp(self):
+        return self.be.xp
+
+    def value(self) -> np.ndarray:
+        if not self.on_device:
+            return self.host.value()
+        xp = self.xp
+        aY = xp.einsum("j,kjc->kc", self._C, self.Y)
+        return self.be.to_host(aY[:, 0].real + 1j * aY[:, 1].real)
+
+    def state(self) -> dict:
+        Y = self.be.to_host(self.Y) if self.on_device else self.host.Y.copy()
+        return {"Y": Y, "count": np.int64(self.count)}
+
+    def load_state(self, st: dict):
+        self.Y = None
+        self.on_device = False
+        self.host.load_state(st)
+        self._dt = None
+        self._next_dt = None
+
+    @property
+    def nbytes(self) -> int:
+        return self.host.nbytes
+
+
+# ----------------------------------------------------------------------------- the stepper
+
+
+def _field(name):
+    def get(self):
+        h = self._host.get(name)
+        if h is not None:
+            return h
+        ro = self._ro.get(name)
+        if ro is None:
+            ro = self.be.to_host(self._dev[name])
+            ro.flags.writeable = False
+            self._ro[name] = ro
+        return ro
+
+    def put(self, value):
+        self._host[name] = np.asarray(value)
+        self._ro.pop(name, None)
+
+    return property(get, put, doc=f"{name} (host view; see the module notes)")
+
+
+class DeviceStepper(PredictorCorrector):
+    """``PredictorCorrector`` whose fields and SOE history live on a device (module notes).
+
+    Make one from a seeded host stepper with :meth:`from_host`; step it like the host one.
+    """
+
+    name = "pc2_device"
+
+    delta = _field("delta")
+    V = _field("V")
+    phi = _field("phi")
+    tau = _field("tau")
+    delta_k = _field("delta_k")
+    V_k = _field("V_k")
+
+    @classmethod
+    def from_host(cls, host: PredictorCorrector, backend: str = "cupy") -> "DeviceStepper":
+        """Take over a seeded host stepper (its fields, history, law, rule, clock and counters)."""
+        if not isinstance(host.law, RateStateInterface):
+            raise ParameterError("a device run needs the rate-and-state interface")
+        if host.history_name != "soe":
+            raise ParameterError(f"a device run needs history 'soe', not {host.history_name!r}")
+        obj = cls.__new__(cls)
+        d = dict(host.__dict__)
+        obj.__dict__.update({"_host": {}, "_ro": {}, "_dev": {}})
+        for key in FIELDS:
+            obj._host[key] = d.pop(key)
+        d.pop("iters", None)
+        obj.__dict__.update(d)
+        obj.be = make_backend(backend, host.fft, host.params)
+        obj.history = DeviceSOEHistory(host.history, obj.be)
+        obj._coef = obj.be.asarray(-0.5 * host.params.mu * host.kabs)
+        obj._tl_src = obj._tl_dev = None
+        return obj
+
+    @property
+    def backend(self) -> str:
+        return self.be.name
+
+    # ------------------------------------------------------------------ host/device sync
+    def _push(self):
+        """Upload the fields assigned on the host since the last step."""
+        for key, arr in self._host.items():
+            self._dev[key] = self.be.asarray(arr, dtype=complex if key.endswith("_k") else float)
+        self._host.clear()
+        self._ro.clear()
+
+    def _tau_load(self):
+        tl = self.law.tau_load
+        if tl is not self._tl_src:
+            self._tl_dev = float(tl) if np.ndim(tl) == 0 else self.be.asarray(tl, dtype=float)
+            self._tl_src = tl
+        return self._tl_dev
+
+    # ------------------------------------------------------------------ stepping
+    def v_max(self) -> float:
+        self._push()
+        return float(self.be.xp.max(self._dev["V"]))
+
+    def next_dt(self) -> float:
+        r = self.rule
+        if r.kind == "fixed":
+            return self.dt_cfl
+        self._push()
+        d = self._dev
+        vmax = self.be.abs_max(d["V"])
+        dt = min(r.dt_max, r.growth * self.dt_prev)
+        if vmax > 0:
+            dt = min(dt, r.xi * self.params.D / vmax)
+        stiff = self.be.stiffness_min(d["V"], d["phi"], self.law.eta)
+        dt = min(dt, r.xi_stab * float(2.0 * stiff / (0.5 * self.params.mu * self.kabs[-1])))
+        if dt <= self.dt_cfl:
+            return self.dt_cfl
+        j = math.floor(math.log(dt / self.dt_cfl) / math.log(r.ladder) + 1e-12)
+        return self.dt_cfl * r.ladder ** j
+
+    def step(self, dt: float | None = None) -> float:
+        if dt is None:
+            dt = self.next_dt()
+        self._step_impl(dt)
+        self.t += dt
+        self.nstep += 1
+        self.dt_prev = dt
+        if not self.be.all_finite(self._dev["V"], self._dev["tau"]):
+            self.status = "failed"
+            self.message = f"non-finite V or tau at step {self.nstep}, t={self.t:.6g} s"
+            raise FloatingPointError(self.message)
+        self.status = "running"
+        return dt
+
+    def _step_impl(self, dt):
+        """``PredictorCorrector._step_impl`` on the device, the same operations in the same order."""
+        self._push()
+        be, d, hist, eta = self.be, self._dev, self.history, self.law.eta
+        tl = self._tau_load()
+        hist.begin_step(dt)
+        V, Vk, phi, dk = d["V"], d["V_k"], d["phi"], d["delta_k"]
+        # predict
+        f_star = be.irfft(self._coef * (dk + dt * Vk - hist.current(Vk)))
+        w_n = be.heal_rate(V)
+        phi_star = be.state_step(phi, w_n, dt)
+        v_star, it1 = be.solve(tl + f_star, phi_star, V, eta)
+        # correct
+        vbar = 0.5 * (V + v_star)
+        vbar_k = 0.5 * (Vk + be.rfft(v_star))
+        delta_k = dk + dt * vbar_k
+        phi_new = be.state_step(phi, 0.5 * (w_n + be.heal_rate(v_star)), dt)
+        tau_el = tl + be.irfft(self._coef * (delta_k - hist.current(vbar_k)))
+        v_new, it2 = be.solve(tau_el, phi_new, v_star, eta)
+        # commit
+        hist.commit(vbar_k, dt)
+        d["delta"] = d["delta"] + dt * vbar
+        d["delta_k"] = delta_k
+        d["phi"] = phi_new
+        d["V"] = v_new
+        d["V_k"] = be.rfft(v_new)
+        d["tau"] = tau_el - eta * v_new
+        self._ro.clear()
+        self._its = (it1, it2)
+
+    @property
+    def iters(self) -> int:
+        """Largest friction-solve iteration count of the last step."""
+        its = self.__dict__.get("_its")
+        return 0 if its is None else max(int(i) for i in its)
+
+    def roll_frame(self, m: int, v_fill: float, phi_fill: float) -> None:
+        """``PredictorCorrector.roll_frame`` on the device."""
+        self._push()
+        be, d, xp = self.be, self._dev, self.be.xp
+        theta = 2.0 * math.pi * np.arange(self.n // 2 + 1) * m / self.n
+        ph = be.asarray(np.exp(1j * theta))
+        for key in ("delta", "V", "phi", "tau"):
+            d[key] = xp.roll(d[key], -m)
+        d["V"][-m:] = v_fill
+        d["phi"][-m:] = phi_fill
+        d["delta_k"] = d["delta_k"] * ph
+        d["V_k"] = be.rfft(d["V"])
+        self.history.shift(theta)
+        self._ro.clear()
+
+    def load_state(self, st: dict):
+        super().load_state(st)
+        self._dev.clear()
