@@ -11,10 +11,13 @@ Host view of the fields
 -----------------------
 ``delta, V, phi, tau, delta_k, V_k`` are properties. Reading one downloads it once per step and
 returns a *read-only* copy (an in-place write would be lost, so it raises instead). Assigning one
-(``st.V = ...``) makes the host array the current value until the next step uploads it; it stays
-writeable until then (``seeding.follow_pulse`` assigns, then resets the entering cells in place).
-The loading ``law.tau_load`` is uploaded whenever it is a new object (``_place_far_field`` assigns
-a new array each time). The SOE accumulators move to the device at the first step and come back
+(``st.V = ...``) makes the host array the current value until the next step or device query
+(``v_max``, ``peak_window``, ``roll_frame``) uploads it; it stays writeable until then.
+The loading ``law.tau_load`` is uploaded whenever it is a new object; ``place_load`` (the far
+field following the front) computes it on the device. ``peak_window`` downloads only the cells
+around the peak that the front measurement needs, and ``roll_frame`` shifts the ring on the device.
+Per step the engine waits for the device once (max |V|, the step rule's stiffness bound,
+finiteness and max V, fetched together). The SOE accumulators move to the device at the first step and come back
 for ``state()`` and ``prefill_translating``.
 
 Backends
@@ -110,6 +113,39 @@ class _NumpyBackend:
     def soe_past(self, E, Y, C, out):
         sbi._soe_past(E, Y, C, out)
 
+    # the fused operations of a step, in the host stepper's order of operations
+    def predict_rhs(self, coef, dk, Vk, past, w0, dt):
+        return coef * ((dk + dt * Vk) - (past + w0 * Vk))
+
+    def correct_rhs(self, coef, dk, Vk, Vsk, past, w0, dt):
+        vbar_k = 0.5 * (Vk + Vsk)
+        delta_k = dk + dt * vbar_k
+        return vbar_k, delta_k, coef * (delta_k - (past + w0 * vbar_k))
+
+    def predict_state(self, V, phi, dt):
+        w_n = self.heal_rate(V)
+        return w_n, fr.state_step(phi, w_n, dt)
+
+    def correct_state(self, V, v_star, phi, w_n, dt):
+        return 0.5 * (V + v_star), fr.state_step(phi, 0.5 * (w_n + self.heal_rate(v_star)), dt)
+
+    def solve_stress(self, tl, f, phi, v_guess, eta):
+        """V from σ f(V, φ) + ηV = τ_el = tl + f; returns (V, iterations, τ = τ_el − ηV)."""
+        tau_el = tl + f
+        v, it = self.solve(tau_el, phi, v_guess, eta)
+        return v, it, tau_el - eta * v
+
+    def advance(self, delta, vbar, dt):
+        return delta + dt * vbar
+
+    def stats(self, V, phi, tau, eta):
+        """(max |V|, min(σ ∂f/∂V + η), all finite, max V): what the step rule and driver ask."""
+        return (self.abs_max(V), self.stiffness_min(V, phi, eta), self.all_finite(V, tau),
+                float(V.max()))
+
+    def far_field(self, base, ff, a):
+        return base + (1.0 - a) * ff + a * np.roll(ff, 1)
+
     def soe_commit(self, E, G, Y, V, C, past_next):
         sbi._soe_commit(E, G, Y, np.ascontiguousarray(V, dtype=complex), C, past_next)
 
@@ -128,8 +164,9 @@ __device__ double law_dfdv(double v, double phi, double f0, double b, double alp
 }
 """
 
-# stepper._solve_point, line by line
+# stepper._solve_point, line by line (τ_el = tl + f; τ = τ_el − ηV is returned too)
 _CUDA_SOLVE = r"""
+double tau_el = tl + f;
 if (!(tau_el > 0.0)) { v = 0.0; it = 0; }
 else {
     double A = 1.0 + b * log1p(phi / ps);
@@ -163,17 +200,18 @@ else {
     v = res;
     it = k;
 }
+tau = tau_el - eta * v;
 """
 
 # friction.state_step
 _CUDA_STATE = r"""
-double x = w * dt;
-if (x < 1e-300) { out = phi + dt; }
-else {
+__device__ double state_step(double phi, double w, double dt) {
+    double x = w * dt;
+    if (x < 1e-300) return phi + dt;
     double pss = 1.0 / w;
     double d = phi - pss;
-    if (fabs(d) <= pss) out = pss + d * exp(-x);
-    else out = phi * exp(-x) - dt * expm1(-x) / x;
+    if (fabs(d) <= pss) return pss + d * exp(-x);
+    return phi * exp(-x) - dt * expm1(-x) / x;
 }
 """
 
@@ -239,20 +277,39 @@ class _CupyBackend:
         self.xp = cp
         self.n = int(n)
         self._p = params
+        law = _CUDA_LAW + _CUDA_STATE
         self._solve = cp.ElementwiseKernel(
-            "float64 tau_el, float64 phi, float64 v_guess, float64 eta, float64 sigma, "
+            "float64 tl, float64 f, float64 phi, float64 v_guess, float64 eta, float64 sigma, "
             "float64 f0, float64 b, float64 alpha, float64 vs, float64 ps",
-            "float64 v, int32 it", _CUDA_SOLVE, "slippulse_solve", preamble=_CUDA_LAW)
-        self._state = cp.ElementwiseKernel(
-            "float64 phi, float64 w, float64 dt", "float64 out", _CUDA_STATE, "slippulse_state")
-        self._heal = cp.ElementwiseKernel(
-            "float64 v, float64 vs, float64 D", "float64 w", "w = sqrt(v * v + vs * vs) / D",
-            "slippulse_heal")
+            "float64 v, int32 it, float64 tau", _CUDA_SOLVE, "slippulse_solve", preamble=law)
         self._stiff = cp.ElementwiseKernel(
             "float64 v, float64 phi, float64 sigma, float64 f0, float64 b, float64 alpha, "
             "float64 vs, float64 ps, float64 eta", "float64 s",
             "s = sigma * law_dfdv(v, phi, f0, b, alpha, vs, ps) + eta", "slippulse_stiff",
-            preamble=_CUDA_LAW)
+            preamble=law)
+        self._pred_rhs = cp.ElementwiseKernel(
+            "float64 coef, complex128 dk, complex128 Vk, complex128 past, float64 w0, float64 dt",
+            "complex128 out", "out = coef * ((dk + dt * Vk) - (past + w0 * Vk))",
+            "slippulse_pred_rhs")
+        self._corr_rhs = cp.ElementwiseKernel(
+            "float64 coef, complex128 dk, complex128 Vk, complex128 Vsk, complex128 past, "
+            "float64 w0, float64 dt", "complex128 vbar_k, complex128 delta_k, complex128 out",
+            "vbar_k = 0.5 * (Vk + Vsk); delta_k = dk + dt * vbar_k; "
+            "out = coef * (delta_k - (past + w0 * vbar_k))", "slippulse_corr_rhs")
+        self._pred_state = cp.ElementwiseKernel(
+            "float64 V, float64 phi, float64 vs, float64 D, float64 dt",
+            "float64 w_n, float64 phi_star",
+            "w_n = sqrt(V * V + vs * vs) / D; phi_star = state_step(phi, w_n, dt)",
+            "slippulse_pred_state", preamble=law)
+        self._corr_state = cp.ElementwiseKernel(
+            "float64 V, float64 vst, float64 phi, float64 w_n, float64 vs, float64 D, float64 dt",
+            "float64 vbar, float64 phi_new",
+            "vbar = 0.5 * (V + vst); "
+            "phi_new = state_step(phi, 0.5 * (w_n + sqrt(vst * vst + vs * vs) / D), dt)",
+            "slippulse_corr_state", preamble=law)
+        self._advance = cp.ElementwiseKernel(
+            "float64 delta, float64 vbar, float64 dt", "float64 out", "out = delta + dt * vbar",
+            "slippulse_advance")
         mod = cp.RawModule(code=_CUDA_SOE)
         self._past = mod.get_function("soe_past")
         self._commit = mod.get_function("soe_commit")
@@ -269,32 +326,40 @@ class _CupyBackend:
     def irfft(self, uk):
         return self.xp.fft.irfft(uk, n=self.n)
 
-    def solve(self, tau_el, phi, v_guess, eta):
+    def solve_stress(self, tl, f, phi, v_guess, eta):
         p = self._p
         f0, b, alpha, vs, ps, _ = p.law_args
-        v, it = self._solve(tau_el, phi, v_guess, eta, p.sigma, f0, b, alpha, vs, ps)
-        return v, it.max()                  # a device scalar: no wait for the GPU here
+        v, it, tau = self._solve(tl, f, phi, v_guess, eta, p.sigma, f0, b, alpha, vs, ps)
+        return v, it.max(), tau             # a device scalar: no wait for the GPU here
 
-    def state_step(self, phi, w, dt):
-        return self._state(phi, w, float(dt))
+    def predict_rhs(self, coef, dk, Vk, past, w0, dt):
+        return self._pred_rhs(coef, dk, Vk, past, w0, float(dt))
 
-    def heal_rate(self, v):
-        return self._heal(v, self._p.v_star, self._p.D)
+    def correct_rhs(self, coef, dk, Vk, Vsk, past, w0, dt):
+        return self._corr_rhs(coef, dk, Vk, Vsk, past, w0, float(dt))
 
-    def stiffness_min(self, v, phi, eta):
-        p = self._p
+    def predict_state(self, V, phi, dt):
+        return self._pred_state(V, phi, self._p.v_star, self._p.D, float(dt))
+
+    def correct_state(self, V, v_star, phi, w_n, dt):
+        return self._corr_state(V, v_star, phi, w_n, self._p.v_star, self._p.D, float(dt))
+
+    def advance(self, delta, vbar, dt):
+        return self._advance(delta, vbar, float(dt))
+
+    def stats(self, V, phi, tau, eta):
+        """The same four numbers as the numpy backend, in one transfer."""
+        xp, p = self.xp, self._p
         f0, b, alpha, vs, ps, _ = p.law_args
-        return float(self._stiff(v, phi, p.sigma, f0, b, alpha, vs, ps, eta).min())
+        stiff = self._stiff(V, phi, p.sigma, f0, b, alpha, vs, ps, eta)
+        # V ≥ 0 (the solve returns 0 or e^x), so max V = max |V|; a NaN or inf in V shows in its
+        # max, one in τ in its sum (|τ| ≲ 1e8 Pa: the sum of finite values cannot overflow)
+        vals = xp.stack([V.max(), stiff.min(), tau.sum()]).get()
+        vmax = float(vals[0])
+        return vmax, float(vals[1]), math.isfinite(vmax) and math.isfinite(vals[2]), vmax
 
-    def abs_max(self, v):
-        return float(self.xp.abs(v).max())
-
-    def all_finite(self, *arrays):
-        xp = self.xp
-        ok = xp.isfinite(arrays[0]).all()
-        for a in arrays[1:]:
-            ok = ok & xp.isfinite(a).all()
-        return bool(ok)
+    def far_field(self, base, ff, a):
+        return base + (1.0 - a) * ff + a * self.xp.roll(ff, 1)
 
     def soe_past(self, E, Y, C, out):
         nk, p = E.shape
@@ -394,6 +459,10 @@ class DeviceSOEHistory:
     def current(self, vbar_k):
         return self._past + self._w0 * vbar_k
 
+    def past_and_weight(self):
+        """The summed past and the current interval's weight: H = past + w0 V̄ (``current``)."""
+        return self._past, self._w0
+
     def commit(self, vbar_k, dt):
         self._set_dt(float(dt))
         self.be.soe_commit(self._E, self._G, self.Y, vbar_k, self._C, self._past_next)
@@ -410,7 +479,7 @@ class DeviceSOEHistory:
             self.host.shift(theta)
             return
         xp = self.xp
-        th = self.be.asarray(np.asarray(theta, dtype=float))
+        th = theta if isinstance(theta, xp.ndarray) else self.be.asarray(np.asarray(theta, float))
         c = xp.cos(th)[:, None]
         sn = xp.sin(th)[:, None]
         yu = self.Y[:, :, 0].copy()
@@ -464,14 +533,29 @@ def _field(name):
     def put(self, value):
         self._host[name] = np.asarray(value)
         self._ro.pop(name, None)
+        self._st = None
 
     return property(get, put, doc=f"{name} (host view; see the module notes)")
+
+
+class _OnDevice:
+    """A loading array that lives on the device (``law.tau_load`` after ``place_load``):
+    np.asarray(...) downloads it."""
+
+    def __init__(self, backend, a):
+        self._be, self.a = backend, a
+
+    def __array__(self, dtype=None, copy=None):
+        out = self._be.to_host(self.a)
+        return out if dtype is None else out.astype(dtype)
 
 
 class DeviceStepper(PredictorCorrector):
     """``PredictorCorrector`` whose fields and SOE history live on a device (module notes).
 
     Make one from a seeded host stepper with :meth:`from_host`; step it like the host one.
+    Per step it waits for the device once (:meth:`_stats`: max |V|, the stiffness bound of the
+    step rule, finiteness and max V, fetched together).
     """
 
     name = "pc2_device"
@@ -501,18 +585,30 @@ class DeviceStepper(PredictorCorrector):
         obj.history = DeviceSOEHistory(host.history, obj.be)
         obj._coef = obj.be.asarray(-0.5 * host.params.mu * host.kabs)
         obj._tl_src = obj._tl_dev = None
+        obj._ff_src = obj._ff_dev = None
+        obj._st = None
+        obj._its = None
         return obj
 
     @property
     def backend(self) -> str:
         return self.be.name
 
+    @property
+    def iters(self) -> int:
+        """Largest friction-solve iteration count of the last step."""
+        its = self.__dict__.get("_its")
+        return 0 if its is None else max(int(i) for i in its)
+
     # ------------------------------------------------------------------ host/device sync
     def _push(self):
         """Upload the fields assigned on the host since the last step."""
-        for key, arr in self._host.items():
-            self._dev[key] = self.be.asarray(arr, dtype=complex if key.endswith("_k") else float)
-        self._host.clear()
+        if self._host:
+            for key, arr in self._host.items():
+                self._dev[key] = self.be.asarray(arr, dtype=complex if key.endswith("_k")
+                                                 else float)
+            self._host.clear()
+            self._st = None
         self._ro.clear()
 
     def _tau_load(self):
@@ -522,22 +618,43 @@ class DeviceStepper(PredictorCorrector):
             self._tl_src = tl
         return self._tl_dev
 
-    # ------------------------------------------------------------------ stepping
-    def v_max(self) -> float:
-        self._push()
-        return float(self.be.xp.max(self._dev["V"]))
+    def _stats(self):
+        if self._st is None:
+            self._push()
+            d = self._dev
+            self._st = self.be.stats(d["V"], d["phi"], d["tau"], self.law.eta)
+        return self._st
 
+    # ------------------------------------------------------------------ the driver's queries
+    def v_max(self) -> float:
+        return self._stats()[3]
+
+    def peak_window(self, behind: int, ahead: int):
+        """``PredictorCorrector.peak_window``, downloading only the window."""
+        self._push()
+        V = self._dev["V"]
+        i = int(self.be.xp.argmax(V))
+        lo, hi = max(0, i - int(behind)), min(self.n, i + int(ahead) + 1)
+        return self.x[lo:hi], self.be.to_host(V[lo:hi])
+
+    def place_load(self, base: float, ff, a: float) -> None:
+        """``PredictorCorrector.place_load`` on the device (τ_ff uploaded once)."""
+        if ff is not self._ff_src:
+            self._ff_dev = self.be.asarray(ff, dtype=float)
+            self._ff_src = ff
+        tl = self.be.far_field(base, self._ff_dev, a)
+        self._tl_dev = tl
+        self.law.tau_load = self._tl_src = _OnDevice(self.be, tl) if self.be.name != "numpy" else tl
+
+    # ------------------------------------------------------------------ stepping
     def next_dt(self) -> float:
         r = self.rule
         if r.kind == "fixed":
             return self.dt_cfl
-        self._push()
-        d = self._dev
-        vmax = self.be.abs_max(d["V"])
+        vmax, stiff, _, _ = self._stats()
         dt = min(r.dt_max, r.growth * self.dt_prev)
         if vmax > 0:
             dt = min(dt, r.xi * self.params.D / vmax)
-        stiff = self.be.stiffness_min(d["V"], d["phi"], self.law.eta)
         dt = min(dt, r.xi_stab * float(2.0 * stiff / (0.5 * self.params.mu * self.kabs[-1])))
         if dt <= self.dt_cfl:
             return self.dt_cfl
@@ -551,7 +668,7 @@ class DeviceStepper(PredictorCorrector):
         self.t += dt
         self.nstep += 1
         self.dt_prev = dt
-        if not self.be.all_finite(self._dev["V"], self._dev["tau"]):
+        if not self._stats()[2]:
             self.status = "failed"
             self.message = f"non-finite V or tau at step {self.nstep}, t={self.t:.6g} s"
             raise FloatingPointError(self.message)
@@ -559,47 +676,44 @@ class DeviceStepper(PredictorCorrector):
         return dt
 
     def _step_impl(self, dt):
-        """``PredictorCorrector._step_impl`` on the device, the same operations in the same order."""
+        """``PredictorCorrector._step_impl`` on the device, the same operations in the same order
+        (fused into a few kernels on the GPU)."""
         self._push()
         be, d, hist, eta = self.be, self._dev, self.history, self.law.eta
         tl = self._tau_load()
         hist.begin_step(dt)
         V, Vk, phi, dk = d["V"], d["V_k"], d["phi"], d["delta_k"]
+        past, w0 = hist.past_and_weight()
         # predict
-        f_star = be.irfft(self._coef * (dk + dt * Vk - hist.current(Vk)))
-        w_n = be.heal_rate(V)
-        phi_star = be.state_step(phi, w_n, dt)
-        v_star, it1 = be.solve(tl + f_star, phi_star, V, eta)
+        f_star = be.irfft(be.predict_rhs(self._coef, dk, Vk, past, w0, dt))
+        w_n, phi_star = be.predict_state(V, phi, dt)
+        v_star, it1, _ = be.solve_stress(tl, f_star, phi_star, V, eta)
         # correct
-        vbar = 0.5 * (V + v_star)
-        vbar_k = 0.5 * (Vk + be.rfft(v_star))
-        delta_k = dk + dt * vbar_k
-        phi_new = be.state_step(phi, 0.5 * (w_n + be.heal_rate(v_star)), dt)
-        tau_el = tl + be.irfft(self._coef * (delta_k - hist.current(vbar_k)))
-        v_new, it2 = be.solve(tau_el, phi_new, v_star, eta)
+        vbar_k, delta_k, rhs = be.correct_rhs(self._coef, dk, Vk, be.rfft(v_star), past, w0, dt)
+        vbar, phi_new = be.correct_state(V, v_star, phi, w_n, dt)
+        v_new, it2, tau_new = be.solve_stress(tl, be.irfft(rhs), phi_new, v_star, eta)
         # commit
         hist.commit(vbar_k, dt)
-        d["delta"] = d["delta"] + dt * vbar
+        d["delta"] = be.advance(d["delta"], vbar, dt)
         d["delta_k"] = delta_k
         d["phi"] = phi_new
         d["V"] = v_new
         d["V_k"] = be.rfft(v_new)
-        d["tau"] = tau_el - eta * v_new
+        d["tau"] = tau_new
         self._ro.clear()
+        self._st = None
         self._its = (it1, it2)
-
-    @property
-    def iters(self) -> int:
-        """Largest friction-solve iteration count of the last step."""
-        its = self.__dict__.get("_its")
-        return 0 if its is None else max(int(i) for i in its)
 
     def roll_frame(self, m: int, v_fill: float, phi_fill: float) -> None:
         """``PredictorCorrector.roll_frame`` on the device."""
         self._push()
         be, d, xp = self.be, self._dev, self.be.xp
-        theta = 2.0 * math.pi * np.arange(self.n // 2 + 1) * m / self.n
-        ph = be.asarray(np.exp(1j * theta))
+        if be.name == "numpy":
+            theta = 2.0 * math.pi * np.arange(self.n // 2 + 1) * m / self.n
+            ph = np.exp(1j * theta)
+        else:
+            theta = 2.0 * math.pi * xp.arange(self.n // 2 + 1, dtype=xp.float64) * m / self.n
+            ph = xp.exp(1j * theta)
         for key in ("delta", "V", "phi", "tau"):
             d[key] = xp.roll(d[key], -m)
         d["V"][-m:] = v_fill
@@ -608,7 +722,9 @@ class DeviceStepper(PredictorCorrector):
         d["V_k"] = be.rfft(d["V"])
         self.history.shift(theta)
         self._ro.clear()
+        self._st = None
 
     def load_state(self, st: dict):
         super().load_state(st)
         self._dev.clear()
+        self._st = None

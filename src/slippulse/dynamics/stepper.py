@@ -383,6 +383,18 @@ class PredictorCorrector:
         """Largest slip rate on the grid, m/s (a device stepper reduces it where the field is)."""
         return float(self.V.max())
 
+    def peak_window(self, behind: int, ahead: int):
+        """(x, V) on the cells from ``behind`` before to ``ahead`` after the largest V (clipped
+        to the grid): what a front measurement needs, without the whole ring (views here)."""
+        i = int(np.argmax(self.V))
+        lo, hi = max(0, i - int(behind)), min(self.n, i + int(ahead) + 1)
+        return self.x[lo:hi], self.V[lo:hi]
+
+    def place_load(self, base: float, ff, a: float) -> None:
+        """Loading τ_load = base + τ_ff shifted by a ∈ [0, 1] cells toward +x (linear
+        interpolation between cells): the far field following the front (seeding.follow_pulse)."""
+        self.law.tau_load = base + (1.0 - a) * ff + a * np.roll(ff, 1)
+
     def roll_frame(self, m: int, v_fill: float, phi_fill: float) -> None:
         """Relabel the periodic ring by m > 0 whole cells (a_j ← a_{j+m}) and put the m cells
         that enter at the right end at (v_fill, φ_fill), their slip and stress kept.

@@ -496,8 +496,7 @@ def _place_far_field(seed: SeededPulse, x_front: float) -> None:
         return
     st = seed.stepper
     a = min(max((x_front - seed.x_front0) / st.dx, 0.0), 1.0)
-    ff = seed.tau_ff
-    st.law.tau_load = seed.tau_load0 + (1.0 - a) * ff + a * np.roll(ff, 1)
+    st.place_load(seed.tau_load0, seed.tau_ff, a)
 
 
 def write_seed(path: str, seed: SeededPulse, source: str = "", label: str = "") -> dict:

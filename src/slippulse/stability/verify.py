@@ -363,6 +363,8 @@ def _run(seed, pulse, params, rec: _Recorder, follow, track_every, lost_factor, 
     from tqdm import tqdm
 
     st, t_end = seed.stepper, rec.t_end
+    # cells behind and ahead of the peak in which the front is measured (3 L and 1 L)
+    window = (math.ceil(3.0 * pulse.L / st.dx), math.ceil(1.0 * pulse.L / st.dx))
     rec.record(0)
     bar = tqdm(total=t_end, unit="s", disable=not progress, file=sys.stderr,
                mininterval=0.5 if sys.stderr.isatty() else 10.0,
@@ -375,7 +377,10 @@ def _run(seed, pulse, params, rec: _Recorder, follow, track_every, lost_factor, 
             bar.update(min(dt, max(t_end - bar.n, 0.0)))
             if follow and st.nstep % track_every == 0:
                 try:
-                    xr, _, _ = front_position(st.x, st.V, params.v_star)
+                    try:     # the window around the peak holds both crossings unless the pulse
+                        xr, _, _ = front_position(*st.peak_window(*window), params.v_star)
+                    except ValueError:    # has grown past it: then the whole ring
+                        xr, _, _ = front_position(st.x, st.V, params.v_star)
                 except ValueError as exc:
                     raise PulseLost(f"{_lost_how(st, pulse)}: {exc} at t = {st.t:.4g} s") from None
                 follow_pulse(seed, xr)
