@@ -79,3 +79,19 @@ def test_cupy_kernels_agree_with_the_host(pulse12, params):
         np.testing.assert_allclose(dev.series[key], host.series[key], rtol=1e-9, err_msg=key)
     np.testing.assert_allclose(dev.snapshots[-1][2], host.snapshots[-1][2], rtol=1e-8,
                                atol=1e-12 * pulse.v_max)
+
+
+@pytest.mark.skipif(cupy_unavailable() is None, reason="CuPy and a GPU are present")
+def test_cli_device_cupy_without_a_gpu_says_why_and_writes_nothing(tmp_path, steady12_with_spectrum,
+                                                                   capsys):
+    import os
+
+    from slippulse.cli.app import main
+    out = str(tmp_path / "v.h5")
+    code = main(["dynamic", "verify", "--steady", steady12_with_spectrum, "--distance", "0.01",
+                 "--dx", "8e-3", "--samples", "4", "--out", out, "--no-progress",
+                 "--device", "cupy"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and "device='cupy' cannot run here" in err[0], err
+    assert not os.path.exists(out)

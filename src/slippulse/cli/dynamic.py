@@ -69,6 +69,9 @@ def register(subparsers) -> None:
                    help="add the isolated pulse's far field to the loading (default steady)")
     v.add_argument("--xi-stab", type=float, default=0.5, help="time.xi_stab of the adaptive rule")
     v.add_argument("--samples", type=int, default=100, help="measurements (default 100)")
+    v.add_argument("--device", choices=("cpu", "cupy"), default="cpu",
+                   help="where the steps run after seeding: cpu (default) or cupy, a CUDA GPU "
+                        "through CuPy (the same scheme, dynamics/device.py; docs/dynamic.md §11)")
     _mode_args(v)
     v.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     v.add_argument("--allow-unconverged", action="store_true",
@@ -336,7 +339,8 @@ def cmd_verify(args) -> int:
         res = verify_pulse(pulse, params, args.distance, spec, rule=rule,
                            far_field=args.far_field, n_samples=args.samples,
                            progress=not args.no_progress, eigen=eigen,
-                           perturbation=(args.perturb, args.eps) if seeded else None)
+                           perturbation=(args.perturb, args.eps) if seeded else None,
+                           device=args.device)
     except ParameterError as exc:
         raise UsageError(str(exc))
     write_result(out, res, params, source=os.path.abspath(args.steady), label=label,

@@ -3,9 +3,9 @@
 
 A run is seeded on the host as always (``stability.seeding``, ``eigenmode``) and then handed over:
 ``DeviceStepper.from_host(stepper, "cupy")``. From then on each step runs on the GPU (CuPy: cuFFT
-for the transforms, three CUDA kernels for the friction solve and the two SOE sums, elementwise
-array expressions for the rest). Nothing else changes: the driver still reads and writes the fields
-by name.
+for the transforms, CUDA kernels for the friction solve and the two SOE sums, fused elementwise
+kernels for the spectral right-hand sides and the state updates). Nothing else changes: the driver
+still reads and writes the fields by name.
 
 Host view of the fields
 -----------------------
@@ -17,8 +17,8 @@ The loading ``law.tau_load`` is uploaded whenever it is a new object; ``place_lo
 field following the front) computes it on the device. ``peak_window`` downloads only the cells
 around the peak that the front measurement needs, and ``roll_frame`` shifts the ring on the device.
 Per step the engine waits for the device once (max |V|, the step rule's stiffness bound,
-finiteness and max V, fetched together). The SOE accumulators move to the device at the first step and come back
-for ``state()`` and ``prefill_translating``.
+finiteness and max V, fetched together). The SOE accumulators move to the device at the first
+step and come back for ``state()`` and ``prefill_translating``.
 
 Backends
 --------
@@ -27,8 +27,9 @@ friction solve and SOE sums, the stepper's FFT). It performs the very same float
 operations as ``PredictorCorrector``, so it reproduces a host run bit for bit; it exists to test
 the engine's bookkeeping (field sync, frame shifts, Δt cache, loading upload) where there is no
 GPU. The CUDA kernels are the line-by-line counterparts of ``stepper._solve_point``,
-``friction.state_step`` and ``sbi._soe_past/_soe_commit``; ``tests/test_device.py`` compares a
-CuPy run with the host where a GPU is present (docs/dynamic.md §11).
+``friction.state_step`` and ``sbi._soe_past/_soe_commit`` (compiled as C they give the numba
+kernels' results bit for bit); ``tests/test_device.py`` compares a CuPy run with the host where
+a GPU is present (docs/dynamic.md §11).
 
 Scope: the rate-and-state interface with the SOE history (what the seeded runs use).
 """
