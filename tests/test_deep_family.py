@@ -346,8 +346,8 @@ def _stalling_march(monkeypatch, n_start):
 
 
 @pytest.mark.parametrize("case", ["passes", "check fails", "re-solve fails", "off"])
-def test_the_deep_march_re_lays_the_grid_where_the_corrector_stalls(monkeypatch, tmp_path, params,
-                                                                   pulse12, case):
+def test_the_deep_march_refines_the_healing_front_where_the_corrector_stalls(
+        monkeypatch, tmp_path, params, pulse12, case):
     """Where the corrector fails at ds_min (mocked), the "auto" march re-solves its pulse with the
     healing front's cells split (DeepSettings.relay), grid-checks and writes it like every deep
     pulse, and goes on from it; a refined pulse that fails its check is written failed and ends

@@ -322,7 +322,7 @@ def _arc_bridge(params, out, guess, current, stop, n_points, spec, deep, rep, pr
 #: "auto": above this β the family goes on by the deep march (τ_d ≈ 1.0125 τ_min, L ≈ 114 m,
 #: where the deformed-grid march of docs/analysis.md started; below it the β-steps converge).
 DEEP_BETA = 0.99
-#: "auto": the most re-laid grids in one run where the deep march's corrector stalls
+#: "auto": the most healing-front refinements in one run where the deep march's corrector stalls
 #: (:func:`_relay`)
 RELAYS = 20
 #: "auto": points of the adapted grid the deep march starts on (then deformed with the pulse;
@@ -330,7 +330,7 @@ RELAYS = 20
 DEEP_POINTS = 2000
 #: "auto": the deep march's settings (those of ``steady/deep_march.py --stretch``, measured to
 #: L = 1.56 km without a failed step, docs/analysis.md); where its corrector fails at ds_min, the
-#: grid is re-laid (``relay``, issue 18 item 4).
+#: healing front's cells are refined and the march goes on (``relay``, issue 18 item 4).
 AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25, relay=RELAYS)
 
 
@@ -488,8 +488,8 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
     relays, relaid_at = 0, None
     while march.status == "running":
         if march.step() is not None:
-            # the corrector on the deformed grid stalled at ds_min: re-lay the grid (at most
-            # settings.relay times, never twice without an accepted step between) and go on
+            # the corrector on the deformed grid stalled at ds_min: refine the healing front (at
+            # most settings.relay times, never twice without an accepted step between), go on
             if relays < settings.relay and relaid_at != march.n_steps:
                 relays, relaid_at = relays + 1, march.n_steps
                 if _relay(params, march, settings, write, rep, progress, log):

@@ -5,10 +5,13 @@ Measured at the stall of the 271-pulse family (L = 6744 m, N = 3542, docs/analys
 corrector's Newton creeps at the healing front (the largest residual and the largest correction,
 +0.5 to +1.2 in ln v, on the ~10 nodes of its steep drop, cells of 0.38–0.5 m): each step has to
 move the front relative to its nodes, and ds = 0.0002 needs 42 iterations (25 allowed). With the
-front's cells halved, 10. Hence :func:`refine_front`: the pulse re-solved on its own grid with the
-cells of the healing front's steep drop subdivided (nested: the grid check's 2N − 1 refinement
-then refines the same family of grids). :func:`relay_pulse` (a freshly adapted grid) is the other
-way measured there; its pulse could not be grid-checked (below).
+healing zone's cells halved, 10; with only the 65 cells of the steep drop split in 4, 7. The pulse
+there is not grid-converged either (its nested check: ΔL/L = 4.7e−4). Hence :func:`refine_front`:
+the pulse re-solved on its own grid with the cells of the healing front's steep drop subdivided
+(nested: the grid check's 2N − 1 refinement then refines the same family of grids); split in 4
+there it passes its check (3.5e−5), split in 2 its re-solve did not converge (homotopy stage 4/4,
+max|r| = 1.7e−6). :func:`relay_pulse` (a freshly adapted grid) is the other way measured there;
+its pulse could not be grid-checked (below).
 """
 from __future__ import annotations
 
