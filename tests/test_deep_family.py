@@ -325,3 +325,83 @@ def test_the_deep_march_writes_a_pulse_per_spacing_of_L_and_its_last(monkeypatch
         grown = np.array(written[:-1]) / np.array([1000.0] + written[:-2])
         assert grown.size >= 2 and np.all(grown >= 1 + spacing)
         assert len(written) < steps / 3
+
+
+def _stalling_march(monkeypatch, n_start):
+    """DeepMarch._attempt fails (a mocked stall of the corrector) while the march is on a grid of
+    ``n_start`` nodes (the start's, deformed), and is the real one on any other (a refined one)."""
+    real = DeepMarch._attempt
+    calls = {"failed": 0, "real": 0}
+
+    def attempt(self):
+        if self._base.xi.size == n_start:
+            calls["failed"] += 1
+            return False, None, "mocked: not converged after 25 iterations", (math.nan,
+                                                                               math.nan), self.q
+        calls["real"] += 1
+        return real(self)
+
+    monkeypatch.setattr(DeepMarch, "_attempt", attempt)
+    return calls
+
+
+@pytest.mark.parametrize("case", ["passes", "check fails", "re-solve fails", "off"])
+def test_the_deep_march_refines_the_healing_front_where_the_corrector_stalls(
+        monkeypatch, tmp_path, params, pulse12, case):
+    """Where the corrector fails at ds_min (mocked), the "auto" march re-solves its pulse with the
+    healing front's cells split (DeepSettings.relay), grid-checks and writes it like every deep
+    pulse, and goes on from it; a refined pulse that fails its check is written failed and ends
+    the march, as does a re-solve that does not converge (nothing written); relay=0: the march
+    ends at the stall as before."""
+    from slippulse.steady.continuation import family
+    from slippulse.steady.continuation.gridcheck import as_both
+    from slippulse.steady.continuation.report import FamilyReport
+    start = as_both(params, pulse12)
+    calls = _stalling_march(monkeypatch, start.xi.size)
+    if case == "re-solve fails":
+        monkeypatch.setattr(family, "refine_front", lambda *a, **k: (
+            None, math.inf, math.inf, "healing front refined: the re-solve did not "
+                                      "converge (mocked)"))
+    out = str(tmp_path / "fam.h5")
+    rep = FamilyReport()
+    tol = GridTolerance(1e-30, 1e-30) if case == "check fails" else GRID_TOLERANCE
+    n_max = 2 * 700 - 1
+    write = family._CheckedWriter(params, out, rep, tol, n_max, None)
+    settings = dataclasses.replace(family.AUTO_DEEP, ds=0.008, ds_min=0.004,
+                                   relay=0 if case == "off" else 3)
+    L0 = start.to_pulse().L
+    family._auto_deep(params, out, (start.xi, start.x[:-2], start.beta, 1.2), 1.0, rep, None,
+                      write, None, L0 * 1.004, n_max, tol, None, settings=settings)
+    labels = list_pulses(out) if os.path.exists(out) else []
+    pulses = [read_pulse(out, lab)[0] for lab in labels]
+    # the stall: ds halved from 0.008 below 0.004, two failed attempts on the start's grid
+    assert calls["failed"] == 2
+    if case == "off":
+        assert rep.stopped_early and "ds fell below" in rep.stop_reason and not labels
+        assert calls["real"] == 0
+        return
+    if case == "re-solve fails":
+        assert rep.stopped_early and "did not converge (mocked)" in rep.stop_reason
+        assert not labels and calls["real"] == 0
+        return
+    relaid = [p for p in pulses if p.extra.get("relaid")]
+    assert len(relaid) == 1
+    r = relaid[0]
+    # re-solved on the start's grid with the healing front's cells split (nested), then checked
+    assert "grid_check_passed" in r.extra and r.extra["continuation"] == "arclength"
+    assert r.xi.size > 700 and np.isin(start.xi, r.xi).all()
+    assert abs(r.tau_d_ratio - 1.2) < 1e-6
+    assert math.isfinite(r.extra["relay_dL_rel"]) and math.isfinite(r.extra["relay_dbeta"])
+    if case == "check fails":
+        assert not r.converged and r.extra["status"] == "failed"
+        assert not r.extra["grid_check_passed"] and rep.stopped_early
+        assert "failed its grid check" in rep.stop_reason and calls["real"] == 0
+        assert rep.written == []
+        return
+    # passed: written as good, and the march went on from it on the new grid to max_length
+    assert r.converged and r.extra["grid_check_passed"]
+    assert abs(r.extra["grid_check_dL_rel"]) <= GRID_TOLERANCE.L
+    assert calls["real"] >= 1 and rep.limit_reached and not rep.stopped_early
+    assert rep.deep_steps >= 1 and len(rep.written) >= 2
+    assert all(p.converged and p.extra["grid_check_passed"] for p in pulses)
+    assert max(p.L for p in pulses) >= L0 * 1.004

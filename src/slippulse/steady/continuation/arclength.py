@@ -98,6 +98,14 @@ class DeepSettings:
         written pulse (0: every accepted step); the pulse the march ends on is always written.
         Deep in the family a step moves L by 0.2-0.4 % and its grid check costs 2-5 steps
         (docs/steady.md), so a spacing of ~1 % takes the march deeper per hour.
+    relay : the "auto" march only: where the corrector on the deformed grid fails at ``ds_min``,
+        re-solve the current pulse with the cells of its healing front's steep drop split into
+        2**``relay_levels`` (:func:`~slippulse.steady.continuation.relay.refine_front`: nested,
+        the other nodes kept), grid-check it like every written pulse, write it, and go on
+        deforming the refined grid from it; a refined pulse that does not converge or does not
+        pass its check ends the march as before (the failed check written failed). Nothing
+        changes before the first failure. At most ``relay`` refinements in a run (0: off), and
+        none twice without an accepted step between.
     """
 
     ds: float = 0.1
@@ -116,3 +124,5 @@ class DeepSettings:
     back_zone: float = 0.05
     homotopy: int = 8
     spacing: float = 0.0
+    relay: int = 0
+    relay_levels: int = 2

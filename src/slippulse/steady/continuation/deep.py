@@ -209,6 +209,17 @@ class DeepMarch:
             self.status = "running"
             self._update_status()
 
+    def restart(self, sol: SteadySolution, ds: float) -> None:
+        """Continue a march that failed (or any other) from ``sol`` (x = (y, β, q), e.g. the pulse
+        re-laid on a new grid where the corrector stalled, :func:`~.relay.relay_pulse`) with the
+        step ``ds``: its grid becomes the march's, the status "running" (or "finished"/"stopped"
+        if ``sol`` is already there), the orientation of the tangent and κ kept."""
+        self._accept(sol)
+        self._L_grid = self.L
+        self.ds = float(ds)
+        self.status, self.message = "running", ""
+        self._update_status()
+
 
 def march_arclength(params, start, n_points, spec=GridSpec(), deep=DeepSettings(), progress=None,
                     rep=None, why=None, n_of=None, handoff=None):

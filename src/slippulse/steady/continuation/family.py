@@ -14,6 +14,7 @@ from ...core.params import ParameterError, Parameters
 from ..solver import MAX_POINTS, GridSpec, solve_pulse
 from .arclength import DeepSettings
 from .deep import DeepMarch, march_arclength
+from .relay import refine_front
 from .gridcheck import as_both, check_grid_2n, check_pulse
 from .tolerance import GRID_TOLERANCE, GridTolerance
 from .natural import (FAMILY_POINTS, FAMILY_POINTS_BETA, _Base, _beta_bridge, _judge, _targets,
@@ -98,7 +99,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     def go_deep(start_sol, resolve, previous=None):
         _auto_deep(params, out, start_sol, stop, rep, progress, write, deep_points if resolve
                    else None, max_length, n_max, tolerance, spec,
-                   settings=auto_deep_settings(deep_settings), previous=previous)
+                   settings=auto_deep_settings(deep_settings), previous=previous, log=log)
         rep.wall_time = time.perf_counter() - t0
         return rep
 
@@ -321,12 +322,16 @@ def _arc_bridge(params, out, guess, current, stop, n_points, spec, deep, rep, pr
 #: "auto": above this β the family goes on by the deep march (τ_d ≈ 1.0125 τ_min, L ≈ 114 m,
 #: where the deformed-grid march of docs/analysis.md started; below it the β-steps converge).
 DEEP_BETA = 0.99
+#: "auto": the most healing-front refinements in one run where the deep march's corrector stalls
+#: (:func:`_relay`)
+RELAYS = 20
 #: "auto": points of the adapted grid the deep march starts on (then deformed with the pulse;
 #: the per-pulse check refines the body or doubles N as needed).
 DEEP_POINTS = 2000
 #: "auto": the deep march's settings (those of ``steady/deep_march.py --stretch``, measured to
-#: L = 1.56 km without a failed step, docs/analysis.md).
-AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25)
+#: L = 1.56 km without a failed step, docs/analysis.md); where its corrector fails at ds_min, the
+#: healing front's cells are refined and the march goes on (``relay``, issue 18 item 4).
+AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25, relay=RELAYS)
 
 
 def auto_deep_settings(deep_settings: DeepSettings | None = None) -> DeepSettings:
@@ -390,7 +395,7 @@ class _CheckedWriter:
             for label in list_pulses(out):
                 self.taken[label] = read_pulse(out, label)[0].tau_d_ratio
 
-    def __call__(self, sol, pulse, method):
+    def __call__(self, sol, pulse, method, extra=None):
         # the local refinements are for the deformed grids of the deep march (the error sits in
         # the stretched body, or, beyond 2 km, at the leading edge, which the deformation moves
         # rigidly while it steepens: located before refining); adapted grids are refined
@@ -405,6 +410,8 @@ class _CheckedWriter:
         p = res.sol.to_pulse()
         p.extra.update(res.attrs(self.tol))
         p.extra["continuation"] = method
+        if extra:
+            p.extra.update(extra)
         self.rep.checks += 1
         if not res.passed:
             p.converged = False
@@ -422,8 +429,39 @@ class _CheckedWriter:
         return res
 
 
+def _relay(params, march, settings, write, rep, progress, log=None) -> bool:
+    """The fallback of the "auto" march where the corrector on the deformed grid failed at
+    ``ds_min``: the march's current pulse re-solved with its healing front's steep cells split
+    (:func:`~.relay.refine_front`, ``settings.relay_levels``), grid-checked and written by
+    ``write`` like every deep pulse (with ``relaid`` and the change from the unrefined pulse at
+    fixed τ_d, ``relay_dbeta``, ``relay_dL_rel``); if it passes, the march restarts from the
+    checked pulse (its grid then deformed as before) with ds = 2 ``ds_min``. Returns whether the
+    march goes on; otherwise ``march`` is left failed, its message saying why (a refined pulse
+    that failed its check is written failed, as any other)."""
+    sol = march.sol
+    q = float(sol.x[-1])
+    new, dbeta, dL_rel, msg = refine_front(params, sol, levels=settings.relay_levels)
+    rep.record(float(new.x[-1]) if new is not None else q, new is not None, msg)
+    if progress:
+        progress(q, new.to_pulse() if new is not None else None, msg)
+    if log:
+        log(f"corrector stalled at tau_d/tau_min={q:.7f} (L={march.L:.1f} m): {msg}")
+    if new is None:
+        march.message += f"; then {msg}"
+        return False
+    pulse = new.to_pulse()
+    res = write(new, pulse, "arclength", extra={"relaid": True, "relay_dbeta": float(dbeta),
+                                                "relay_dL_rel": float(dL_rel)})
+    if not res.passed:
+        march.message += (f"; then {msg}, but the refined pulse failed its grid check "
+                          f"({res.message})")
+        return False
+    march.restart(res.sol, 2.0 * settings.ds_min)
+    return True
+
+
 def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_length, n_max,
-               tol, spec, settings=AUTO_DEEP, previous=None):
+               tol, spec, settings=AUTO_DEEP, previous=None, log=None):
     """The deep part of the "auto" family: from ``start`` = (xi, y, β, q) — re-solved at its τ_d
     on ``resolve_n`` adapted points unless None (then taken on its own grid) — the
     pseudo-arclength march on the deformed grid (:class:`DeepMarch`, :data:`AUTO_DEEP`), every
@@ -447,8 +485,16 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
     if previous is not None:              # a resumed march: go on at the pace it had
         march.resume_step(*previous)
     last_L = march.L
+    relays, relaid_at = 0, None
     while march.status == "running":
         if march.step() is not None:
+            # the corrector on the deformed grid stalled at ds_min: refine the healing front (at
+            # most settings.relay times, never twice without an accepted step between), go on
+            if relays < settings.relay and relaid_at != march.n_steps:
+                relays, relaid_at = relays + 1, march.n_steps
+                if _relay(params, march, settings, write, rep, progress, log):
+                    last_L = march.L
+                    continue
             break
         if march.status == "running" and march.L < last_L * (1.0 + settings.spacing):
             continue                  # a continuation step, not written (settings.spacing)
