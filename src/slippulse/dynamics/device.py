@@ -481,12 +481,7 @@ class DeviceSOEHistory:
             return
         xp = self.xp
         th = theta if isinstance(theta, xp.ndarray) else self.be.asarray(np.asarray(theta, float))
-        c = xp.cos(th)[:, None]
-        sn = xp.sin(th)[:, None]
-        yu = self.Y[:, :, 0].copy()
-        yw = self.Y[:, :, 1]
-        self.Y[:, :, 0] = c * yu - sn * yw
-        self.Y[:, :, 1] = sn * yu + c * yw
+        sbi.rotate_accumulators(self.Y, xp.cos(th), xp.sin(th))
         self._next_dt = None
 
     @property
@@ -649,32 +644,13 @@ class DeviceStepper(PredictorCorrector):
 
     # ------------------------------------------------------------------ stepping
     def next_dt(self) -> float:
-        r = self.rule
-        if r.kind == "fixed":
+        if self.rule.kind == "fixed":
             return self.dt_cfl
         vmax, stiff, _, _ = self._stats()
-        dt = min(r.dt_max, r.growth * self.dt_prev)
-        if vmax > 0:
-            dt = min(dt, r.xi * self.params.D / vmax)
-        dt = min(dt, r.xi_stab * float(2.0 * stiff / (0.5 * self.params.mu * self.kabs[-1])))
-        if dt <= self.dt_cfl:
-            return self.dt_cfl
-        j = math.floor(math.log(dt / self.dt_cfl) / math.log(r.ladder) + 1e-12)
-        return self.dt_cfl * r.ladder ** j
+        return self._rule_dt(vmax, float(2.0 * stiff / (0.5 * self.params.mu * self.kabs[-1])))
 
-    def step(self, dt: float | None = None) -> float:
-        if dt is None:
-            dt = self.next_dt()
-        self._step_impl(dt)
-        self.t += dt
-        self.nstep += 1
-        self.dt_prev = dt
-        if not self._stats()[2]:
-            self.status = "failed"
-            self.message = f"non-finite V or tau at step {self.nstep}, t={self.t:.6g} s"
-            raise FloatingPointError(self.message)
-        self.status = "running"
-        return dt
+    def _finite(self) -> bool:
+        return self._stats()[2]
 
     def _step_impl(self, dt):
         """``PredictorCorrector._step_impl`` on the device, the same operations in the same order

@@ -513,12 +513,7 @@ class SOEHistory(HistoryPolicy):
         (Y⁽ᵘ⁾, Y⁽ʷ⁾) ← (cos θ Y⁽ᵘ⁾ − sin θ Y⁽ʷ⁾, sin θ Y⁽ᵘ⁾ + cos θ Y⁽ʷ⁾). Exact (the convolution is
         linear and translation invariant); the pre-summed past of the next step is recomputed.
         """
-        c = np.cos(theta)[:, None]
-        sn = np.sin(theta)[:, None]
-        yu = self.Y[:, :, 0].copy()
-        yw = self.Y[:, :, 1]
-        self.Y[:, :, 0] = c * yu - sn * yw
-        self.Y[:, :, 1] = sn * yu + c * yw
+        rotate_accumulators(self.Y, np.cos(theta), np.sin(theta))
         self._next_dt = None
 
     def value(self) -> np.ndarray:
@@ -538,6 +533,17 @@ class SOEHistory(HistoryPolicy):
     @property
     def nbytes(self) -> int:
         return self.Y.nbytes + sum(e.nbytes + g.nbytes for e, g, _ in self._cache.values())
+
+
+def rotate_accumulators(Y, cos_theta, sin_theta) -> None:
+    """(Y⁽ᵘ⁾, Y⁽ʷ⁾) ← (cos θ Y⁽ᵘ⁾ − sin θ Y⁽ʷ⁾, sin θ Y⁽ᵘ⁾ + cos θ Y⁽ʷ⁾) in place, per mode k
+    (Y[k, j, c]; numpy or CuPy arrays): the SOE accumulators under a spatial shift."""
+    c = cos_theta[:, None]
+    sn = sin_theta[:, None]
+    yu = Y[:, :, 0].copy()
+    yw = Y[:, :, 1]
+    Y[:, :, 0] = c * yu - sn * yw
+    Y[:, :, 1] = sn * yu + c * yw
 
 
 class QuasiDynamicHistory(HistoryPolicy):

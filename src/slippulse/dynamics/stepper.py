@@ -337,12 +337,18 @@ class PredictorCorrector:
         r = self.rule
         if r.kind == "fixed":
             return self.dt_cfl
-        vmax = float(np.max(np.abs(self.V)))
+        stab = (self.law.stability_dt(self.V, self.phi, self.kabs[-1])
+                if isinstance(self.law, RateStateInterface) else None)
+        return self._rule_dt(float(np.max(np.abs(self.V))), stab)
+
+    def _rule_dt(self, vmax: float, stab: float | None) -> float:
+        """The adaptive rule's Δt from max |V| and the stability bound (None: no bound)."""
+        r = self.rule
         dt = min(r.dt_max, r.growth * self.dt_prev)
         if vmax > 0:
             dt = min(dt, r.xi * self.params.D / vmax)
-        if isinstance(self.law, RateStateInterface):
-            dt = min(dt, r.xi_stab * self.law.stability_dt(self.V, self.phi, self.kabs[-1]))
+        if stab is not None:
+            dt = min(dt, r.xi_stab * stab)
         if dt <= self.dt_cfl:
             return self.dt_cfl
         j = math.floor(math.log(dt / self.dt_cfl) / math.log(r.ladder) + 1e-12)
@@ -357,7 +363,7 @@ class PredictorCorrector:
         self.t += dt
         self.nstep += 1
         self.dt_prev = dt
-        if not (np.all(np.isfinite(self.V)) and np.all(np.isfinite(self.tau))):
+        if not self._finite():
             self.status = "failed"
             self.message = f"non-finite V or tau at step {self.nstep}, t={self.t:.6g} s"
             raise FloatingPointError(self.message)
@@ -378,6 +384,10 @@ class PredictorCorrector:
                 callback(self)
         self.status = "finished"
         return self
+
+    def _finite(self) -> bool:
+        """Whether V and τ are finite everywhere (checked after every step)."""
+        return bool(np.all(np.isfinite(self.V)) and np.all(np.isfinite(self.tau)))
 
     def v_max(self) -> float:
         """Largest slip rate on the grid, m/s (a device stepper reduces it where the field is)."""
