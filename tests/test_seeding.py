@@ -115,6 +115,23 @@ def test_follow_pulse_is_an_exact_relabelling(pulse1500, params):
     assert d.max() < 1e-9 * params.sigma
 
 
+def test_slip_potency_is_the_stepped_integral_of_the_potency_rate(pulse12, params):
+    """Σ δ Δx (``slip_potency``) grows by the time integral of Σ V Δx as the scheme steps it
+    (trapezoid of the step's end values, to O(Δt²)), and a frame roll permutes δ and keeps it."""
+    s = seed_pulse(pulse12.to_pulse(), params, DomainSpec(dx=8e-3, ahead=2.0, behind=2.0))
+    st = s.stepper
+    S0, integral = st.slip_potency(), 0.0
+    for _ in range(40):
+        p0 = float(np.sum(st.V)) * st.dx
+        dt = st.step()
+        integral += 0.5 * dt * (p0 + float(np.sum(st.V)) * st.dx)
+    assert st.slip_potency() - S0 == pytest.approx(integral, rel=1e-3)
+    assert abs(st.slip_potency() - S0 - integral) > 0     # a different quadrature, not the same sum
+    S1 = st.slip_potency()
+    follow_pulse(s, s.x_front0 + 5.5 * st.dx)
+    assert st.slip_potency() == pytest.approx(S1, rel=1e-13)
+
+
 def test_seed_from_file_round_trip(tmp_path, pulse12, params):
     path = str(tmp_path / "fam.h5")
     pu = pulse12.to_pulse()

@@ -122,6 +122,45 @@ def test_mode_pair_growth_fits_the_whole_regime_through_an_oscillation():
     assert math.isnan(mode_pair_growth(plus, minus, eps, skip=1.95)["s_per_L"])
 
 
+def test_offset_fit_recovers_an_integrated_exponential_that_the_log_fit_misses():
+    """r = A e^{st} + B + an integrated oscillation: fit_growth_offset recovers s to 1e-5 and B;
+    the log-linear fit of the same r (no offset) is off by more than 1 %."""
+    from slippulse.stability.perturbation import fit_growth_offset
+    t = np.linspace(0.0, 10.0, 801)
+    s = 0.3
+    r = 2.0 * np.exp(s * t) - 1.5 + 1e-3 * np.exp(s * t) * np.sin(2 * np.pi * t / 0.04)
+    f = fit_growth_offset(t, r)
+    assert f["s"] == pytest.approx(s, rel=1e-5)
+    assert f["B"] == pytest.approx(-1.5, rel=1e-3)
+    assert abs(f["s"] - s) <= f["s_err"] + 1e-12
+    assert abs(fit_growth(t, r, lo=0.0, hi=np.inf)["s"] / s - 1) > 0.01
+    assert math.isnan(fit_growth_offset(t[:4], r[:4])["s"])
+
+
+def test_mode_pair_growth_on_the_slip_potency():
+    """S± = S₀(t) ± ε(A e^{st} + B), scaled by the potency of one transit: mode_pair_growth fits
+    A e^{st} + B; pair_growth refuses the integrated observable; without potency_rate it says so."""
+    from slippulse.stability.perturbation import mode_pair_growth
+    t = np.linspace(0, 3, 121)
+    s, eps = 0.3, 3e-3
+    S0 = 5.0 * t + 0.2
+    resp = eps * (0.4 * np.exp(s * t) - 0.3)
+    vmax = 0.5 * eps * np.exp(s * t)
+    pr = np.full_like(t, 5.0)
+    plus = dict(_series(t, vmax, L=2.0, c=4.0), potency_rate=pr, slip_potency=S0 + resp)
+    minus = dict(_series(t, -vmax, L=2.0, c=4.0), potency_rate=pr, slip_potency=S0 - resp)
+    g = mode_pair_growth(plus, minus, eps, observable="slip_potency")
+    assert g["s_per_s"] == pytest.approx(s, rel=1e-6)
+    assert g["s_per_L"] == pytest.approx(s * 0.5, rel=1e-6)
+    assert g["r"][-1] == pytest.approx(resp[-1] / (5.0 * 0.5), rel=1e-9)
+    assert "A e^{st} + B" in g["regime"]
+    with pytest.raises(ValueError, match="mode_pair_growth"):
+        pair_growth(plus, minus, eps, observable="slip_potency")
+    del plus["potency_rate"]
+    with pytest.raises(ValueError, match="potency_rate"):
+        mode_pair_growth(plus, minus, eps, observable="slip_potency")
+
+
 def test_potency_rate_does_not_see_whole_cell_shifts():
     """A whole-cell shift of the frame permutes the periodic grid: Σ V Δx is unchanged to
     rounding (no interpolation), and it is the integral of V."""

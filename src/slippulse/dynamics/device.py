@@ -625,6 +625,11 @@ class DeviceStepper(PredictorCorrector):
     def v_max(self) -> float:
         return self._stats()[3]
 
+    def slip_potency(self) -> float:
+        """``PredictorCorrector.slip_potency``, summed on the device (one scalar back)."""
+        self._push()
+        return float(self.be.xp.sum(self._dev["delta"])) * self.dx
+
     def peak_window(self, behind: int, ahead: int):
         """``PredictorCorrector.peak_window``, downloading only the window."""
         self._push()

@@ -393,6 +393,12 @@ class PredictorCorrector:
         """Largest slip rate on the grid, m/s (a device stepper reduces it where the field is)."""
         return float(self.V.max())
 
+    def slip_potency(self) -> float:
+        """Σ δ Δx over the whole periodic ring, m²: the time integral of the potency rate Σ V Δx as
+        the scheme advances it (δ += Δt V̄ each step). A frame roll permutes δ and keeps it, so
+        this too does not see the frame (a device stepper sums it where the field is)."""
+        return float(np.sum(self.delta)) * self.dx
+
     def peak_window(self, behind: int, ahead: int):
         """(x, V) on the cells from ``behind`` before to ``ahead`` after the largest V (clipped
         to the grid): what a front measurement needs, without the whole ring (views here)."""

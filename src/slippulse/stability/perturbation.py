@@ -226,9 +226,11 @@ def _plateau(t, lr, tol, efold):
     return np.arange(first, n), float(0.5 * (seg.max() - seg.min()))
 
 
-#: Observables of a ±ε pair (:func:`pair_growth`): the v_max error, and the frame-free
-#: potency rate Σ V Δx (``verify.potency_rate``, relative to its mean at t = 0).
-PAIR_OBSERVABLES = ("v_max_error", "potency_rate")
+#: Observables of a ±ε pair (:func:`pair_growth`): the v_max error, the frame-free potency
+#: rate Σ V Δx (``verify.potency_rate``, relative to its mean at t = 0), and the slip potency
+#: Σ δ Δx (its time integral as the scheme steps it, in units of the potency of one transit
+#: F̄₀ L⁰/c_p⁰; mode-seeded pairs only, :func:`mode_pair_growth`).
+PAIR_OBSERVABLES = ("v_max_error", "potency_rate", "slip_potency")
 
 
 def _observable(series: dict, name: str, ref: float | None = None):
@@ -238,7 +240,100 @@ def _observable(series: dict, name: str, ref: float | None = None):
         raise ValueError(f"observable={name!r} must be one of {PAIR_OBSERVABLES}")
     if name not in series:
         raise ValueError(f"the run has no {name!r} series (written before it was recorded)")
+    if name == "slip_potency":
+        return series[name] / ref
     return series[name] / ref - 1.0
+
+
+def _pair_response(plus: dict, minus: dict, observable: str):
+    """(t, r, q, n, v_max error of the −ε run on t) of a ±ε pair: r = (d₊ − d₋)/2 and
+    q = (d₊ + d₋)/2 of the observable (:data:`PAIR_OBSERVABLES`) on the +ε run's first n times
+    (the −ε run interpolated linearly onto them)."""
+    tm = minus["t"]
+    n = int(np.searchsorted(plus["t"], tm[-1], side="right"))
+    t = plus["t"][:n]
+    ref = None
+    if observable != "v_max_error" and observable in plus and observable in minus:
+        if observable == "slip_potency":
+            if "potency_rate" not in plus or "potency_rate" not in minus:
+                raise ValueError("the run has no 'potency_rate' series to scale 'slip_potency'")
+            a = plus["attrs"]
+            ref = (0.5 * (float(plus["potency_rate"][0]) + float(minus["potency_rate"][0]))
+                   * float(a["L"]) / float(a["c_p"]))
+        else:
+            ref = 0.5 * (float(plus[observable][0]) + float(minus[observable][0]))
+    obs_p, obs_m = _observable(plus, observable, ref), _observable(minus, observable, ref)
+    dm = np.interp(t, tm, obs_m)       # samples differ by < one time step
+    vm = np.interp(t, tm, minus["v_max_error"])
+    return t, 0.5 * (obs_p[:n] - dm), 0.5 * (obs_p[:n] + dm), n, vm
+
+
+def fit_growth_offset(x, r, min_points: int = 5) -> dict:
+    """r = A e^{s x} + B by nonlinear least squares (``scipy.optimize.least_squares``).
+
+    The model of an integrated response: the slip potency of a mode-seeded pair is the time
+    integral of its potency rate, so the seed's decaying mismatch leaves a constant B behind
+    (∫ e^{−λt} dt), and a constant start offset does too. The start is the log-linear fit of |r|.
+    The uncertainty of s is the larger of its standard error (from the Jacobian and the residual
+    variance) and half the difference of the slopes fitted on the two halves of the samples.
+
+    Returns
+    -------
+    dict
+        s, s_err, x0, x1, n, A, B (at x = x0), rms (residual rms relative to max |r|); s = NaN
+        with fewer than ``min_points`` (≥ 5) finite samples or a fit that fails.
+    """
+    from scipy.optimize import least_squares
+
+    x = np.asarray(x, dtype=float)
+    r = np.asarray(r, dtype=float)
+    ok = np.isfinite(x) & np.isfinite(r)
+    x, r = x[ok], r[ok]
+    out = {"s": math.nan, "s_err": math.nan, "x0": math.nan, "x1": math.nan, "n": int(x.size),
+           "A": math.nan, "B": math.nan, "rms": math.nan}
+    if x.size < max(min_points, 5):
+        return out
+
+    def fit(xs, rs):
+        x0, w = xs[0], xs[-1] - xs[0]
+        u = (xs - x0) / w                     # scaled: s·w e-folds over the window
+        scale = float(np.max(np.abs(rs))) or 1.0
+        y = rs / scale
+        k0 = np.polyfit(u, np.log(np.maximum(np.abs(y), 1e-300)), 1)[0]
+
+        def res(p):
+            return p[0] * np.exp(p[2] * u) + p[1] - y
+
+        def jac(p):
+            e = np.exp(p[2] * u)
+            return np.column_stack([e, np.ones_like(u), p[0] * u * e])
+
+        e0 = np.exp(k0 * u)
+        a0, b0 = np.linalg.lstsq(np.column_stack([e0, np.ones_like(u)]), y, rcond=None)[0]
+        sol = least_squares(res, [a0, b0, k0], jac=jac, method="lm", xtol=1e-14, ftol=1e-14)
+        if not sol.success or not np.all(np.isfinite(sol.x)):
+            return None
+        dof = max(u.size - 3, 1)
+        var = float(np.sum(sol.fun ** 2)) / dof
+        try:
+            cov = np.linalg.inv(sol.jac.T @ sol.jac) * var
+            se = math.sqrt(max(cov[2, 2], 0.0)) / w
+        except np.linalg.LinAlgError:
+            se = math.nan
+        return (sol.x[2] / w, se, sol.x[0] * scale, sol.x[1] * scale,
+                math.sqrt(var) * scale / float(np.max(np.abs(rs))))
+
+    f = fit(x, r)
+    if f is None or not math.isfinite(f[1]):
+        return out
+    s, se, A, B, rms = f
+    h = x.size // 2
+    halves = [fit(x[p], r[p]) for p in (slice(0, h + 1), slice(h, None)) if x[p].size >= 5]
+    halves = [hh for hh in halves if hh is not None]
+    spread = abs(halves[0][0] - halves[1][0]) / 2 if len(halves) == 2 else math.nan
+    out.update(s=float(s), s_err=float(max(se, spread)) if math.isfinite(spread) else float(se),
+               x0=float(x[0]), x1=float(x[-1]), A=float(A), B=float(B), rms=float(rms))
+    return out
 
 
 def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: float = 0.05,
@@ -283,17 +378,11 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: f
         regime), mode (the antisymmetric deviation field per unit r, averaged over the regime, or
         None), mode_xi, mode_spread, r, q, t.
     """
+    if observable == "slip_potency":
+        raise ValueError("observable='slip_potency' is an integrated response (A e^{st} + B): "
+                         "use mode_pair_growth, for mode-seeded pairs")
     tm = minus["t"]
-    n = int(np.searchsorted(plus["t"], tm[-1], side="right"))
-    t = plus["t"][:n]
-    ref = None
-    if observable != "v_max_error" and observable in plus and observable in minus:
-        ref = 0.5 * (float(plus[observable][0]) + float(minus[observable][0]))
-    obs_p, obs_m = _observable(plus, observable, ref), _observable(minus, observable, ref)
-    dm = np.interp(t, tm, obs_m)       # samples differ by < one time step
-    r = 0.5 * (obs_p[:n] - dm)
-    q = 0.5 * (obs_p[:n] + dm)
-    vm = np.interp(t, tm, minus["v_max_error"])
+    t, r, q, n, vm = _pair_response(plus, minus, observable)
     a = plus["attrs"]
     conv = float(a["L"]) / float(a["c_p"])
     out = {"s_per_s": math.nan, "s_per_s_err": math.nan, "s_per_L": math.nan,
@@ -354,16 +443,20 @@ def mode_pair_growth(plus: dict, minus: dict, eps: float, observable: str = "pot
     |v_max/v_max⁰ − 1| of the two runs exceeds d_max. Uncertainty: the larger of the standard
     error and half the difference of the slopes over the two halves (:func:`fit_growth`).
 
+    ``observable="slip_potency"``: r is the antisymmetric slip potency Σ δ Δx, the time integral
+    of the potency rate, fitted as A e^{st} + B (:func:`fit_growth_offset`). Integrating divides
+    the grid-crossing oscillation (one cell of travel, frequency ω = 2πc_p/Δx) by ω/s relative
+    to the growth: ~10⁴ at 1.04 τ_min on 8 mm, where it dominated the potency rate's residual
+    (docs/stability.md §10.9).
+
     Returns
     -------
     dict
         s_per_s, s_per_s_err, s_per_L, s_per_L_err, t0, t1, n, regime, r, t.
     """
-    g = pair_growth(plus, minus, eps, d_max=d_max, observable=observable)
-    t, r = g["t"], g["r"]
+    t, r, _, _, vm = _pair_response(plus, minus, observable)
     a = plus["attrs"]
     conv = float(a["L"]) / float(a["c_p"])
-    vm = np.interp(t, minus["t"], minus["v_max_error"])
     big = np.maximum(np.abs(plus["v_max_error"][:t.size]), np.abs(vm))
     bad = np.nonzero((big > d_max) | ~np.isfinite(r))[0]
     i1 = int(bad[0]) if bad.size else t.size
@@ -373,10 +466,19 @@ def mode_pair_growth(plus: dict, minus: dict, eps: float, observable: str = "pot
            "regime": f"too short (fewer than {min_points} samples after {skip:g} L)", "r": r, "t": t}
     if idx.size < min_points:
         return out
-    f = fit_growth(t[idx], r[idx], lo=0.0, hi=np.inf, min_points=min_points)
+    if observable == "slip_potency":
+        f = fit_growth_offset(t[idx], r[idx], min_points=min_points)
+        how = "A e^{st} + B"
+        if not math.isfinite(f["s"]):
+            out["regime"] = "no fit (A e^{st} + B did not converge)"
+            return out
+    else:
+        f = fit_growth(t[idx], r[idx], lo=0.0, hi=np.inf, min_points=min_points)
+        how = "ln|r|"
     out.update(s_per_s=f["s"], s_per_s_err=f["s_err"], s_per_L=f["s"] * conv,
                s_per_L_err=f["s_err"] * conv, t0=f["x0"], t1=f["x1"], n=f["n"],
-               regime=f"mode-seeded: least squares from {skip:g} L to the end of the linear regime")
+               regime=f"mode-seeded: least squares of {how} from {skip:g} L to the end of the "
+                      "linear regime")
     return out
 
 
@@ -529,7 +631,8 @@ PAIR_COLUMNS = ("label", "tau_d_ratio", "eps", "dx", "xi_stab", "ahead", "behind
                 "perturbation", "s_per_L", "s_per_L_err", "s_per_s", "s_per_s_err", "t0", "t1",
                 "n", "regime", "sym_ratio", "mode_spread", "fate_plus", "fate_minus",
                 "wall_time", "eigen_s_per_L", "rel_to_eigen",
-                "s_per_L_potency_rate", "s_per_L_err_potency_rate", "rel_to_eigen_potency_rate")
+                "s_per_L_potency_rate", "s_per_L_err_potency_rate", "rel_to_eigen_potency_rate",
+                "s_per_L_slip_potency", "s_per_L_err_slip_potency", "rel_to_eigen_slip_potency")
 
 
 def pair_table(rows: list[dict]) -> list[dict]:
@@ -554,9 +657,12 @@ def pair_table(rows: list[dict]) -> list[dict]:
         for obs in PAIR_OBSERVABLES[1:]:
             # the frame-free potency rate (runs written before it have none: nan); mode-seeded
             # pairs by the whole-regime fit (mode_pair_growth), the others by the plateau rule
-            fit = mode_pair_growth if c["perturbation"] in ("mode", "mode_front") else pair_growth
+            # the slip potency (an integrated response) by the mode-seeded fit only
+            mode_seeded = c["perturbation"] in ("mode", "mode_front")
+            fit = mode_pair_growth if mode_seeded else pair_growth
+            have = obs in sp and obs in sm and (mode_seeded or obs != "slip_potency")
             gi = (fit(sp, sm, float(rp["eps"]), observable=obs)
-                  if obs in sp and obs in sm else {"s_per_L": math.nan, "s_per_L_err": math.nan})
+                  if have else {"s_per_L": math.nan, "s_per_L_err": math.nan})
             row[f"s_per_L_{obs}"], row[f"s_per_L_err_{obs}"] = gi["s_per_L"], gi["s_per_L_err"]
             row[f"rel_to_eigen_{obs}"] = (gi["s_per_L"] / se - 1.0 if math.isfinite(se) and se
                                           else math.nan)

@@ -39,7 +39,7 @@ LNV_WINDOW = (-1.25, 0.25)
 SERIES = ("c_p_error", "v_max_error", "L_error", "lnv_error")
 #: Other series written by :func:`write_result`, with units.
 EXTRA_SERIES = {"L": "m", "v_max": "m/s", "slip": "m", "distance": "1", "c_p": "m/s",
-                "potency_rate": "m^2/s"}
+                "potency_rate": "m^2/s", "slip_potency": "m^2"}
 #: Window and sampling of the stored deviation field y − y⁰ (in L⁰ relative to the front).
 DEV_WINDOW = (-1.5, 0.5)
 DEV_POINTS = 201
@@ -335,6 +335,7 @@ class _Recorder:
         self.t_snap = set(np.round(np.linspace(0, n_samples, n_snapshots)).astype(int))
         self.n_samples = n_samples
         self.rows, self.devs, self.snapshots, self.potency = [], [], [], []
+        self.slip_potency = []
         self.rel_dev = np.linspace(DEV_WINDOW[0], DEV_WINDOW[1], DEV_POINTS) * pulse.L
         self.slip_fix = 0.0
 
@@ -352,6 +353,7 @@ class _Recorder:
         self.devs.append(deviation_field(st, xr, self.steady_y, self.xi_front, self.rel_dev,
                                          self.v_star))
         self.potency.append(potency_rate(st))
+        self.slip_potency.append(st.slip_potency())
         if j in self.t_snap:
             self.snapshots.append((st.t, st.x - xr, st.V.copy()))
 
@@ -429,6 +431,8 @@ def _measure(rec: _Recorder, pulse):
               "deviation": np.array(rec.devs), "deviation_xi": rec.rel_dev / pulse.L}
     if rec.potency:
         series["potency_rate"] = np.array(rec.potency)
+    if rec.slip_potency:
+        series["slip_potency"] = np.array(rec.slip_potency)
     q = min(max(1, (t.size - 1) // 4), t.size - 1)
     with np.errstate(invalid="ignore", divide="ignore"):
         cp_end = (X[-1] - X[-1 - q]) / (t[-1] - t[-1 - q]) / pulse.c_p - 1.0 if q > 0 else np.nan
@@ -527,6 +531,8 @@ SERIES_LONG_NAMES = {
     "slip": "slip across the pulse", "distance": "distance travelled, in steady pulse lengths L0",
     "c_p": "pulse speed over the last sampling interval",
     "potency_rate": "sum of V dx over the periodic grid (frame-free)",
+    "slip_potency": "sum of slip dx over the periodic grid (frame-free; the time integral of "
+                    "potency_rate as the scheme steps it)",
 }
 
 
