@@ -106,6 +106,17 @@ class DeepSettings:
         pass its check ends the march as before (the failed check written failed). Nothing
         changes before the first failure. At most ``relay`` refinements in a run (0: off), and
         none twice without an accepted step between.
+    predictor : ``stretch`` only: how the step predicts the deformed grid and ln v on it.
+        "tangent": the grid's front zone moved by the change of L along the family tangent, the
+        nodal ln v kept (the predictor of stops ≤ 41). "length": moved by the change of L per ds
+        of the last accepted step (the tangent's fell ≈ 13 % short at 7.2 km, so the healing
+        front landed about a cell off its nodes every step and the corrector crept). "secant"
+        (the "auto" march's): "length", and the nodal ln v along the secant through the last two
+        pulses, once the last step was itself "length" or "secant" on the same grid (N kept: no
+        grid check refinement, front refinement, replace or restart between). Without that
+        history each falls back to the one before it (a march started or resumed from a file
+        begins with "tangent"). Measured from the 7187 m pulse, 12 steps each (docs/steady.md §8):
+        "tangent" 41 m, "length" 194 m, "secant" 251 m of L.
     """
 
     ds: float = 0.1
@@ -126,3 +137,4 @@ class DeepSettings:
     spacing: float = 0.0
     relay: int = 0
     relay_levels: int = 2
+    predictor: str = "tangent"

@@ -48,11 +48,28 @@ class DeepMarch:
     n_steps, n_attempts, n_failed, n_iterations : accepted steps, attempts, failed attempts,
         Newton iterations (all attempts).
     message : the last attempt's message (the reason, once failed).
+    last_predictor : the predictor of the last attempt on the deformed grid: "tangent", "length"
+        or "secant" (``settings.predictor``, which see; "length"/"secant" need the history they
+        name and fall back to the lower order without it).
+
+    Notes
+    -----
+    The predictors of ``settings.stretch`` (issue 18, measured from the 7187 m pulse, N = 4370):
+    with "tangent" the grid's front zone is moved by the change of L the family tangent predicts,
+    which falls ≈ 13 % short of the change the corrector then finds (2.97 m against 3.42 m per
+    step of ds = 0.0002): every step the healing front lands ≈ 0.45 m (about one cell) off its
+    nodes, ln v changes by ≈ 0.7 at the nodes of its steep drop, and the damped Newton creeps
+    (15 iterations a step). "length" moves it by the change of L per ds of the last accepted step
+    (3 iterations); "secant" also predicts ln v node by node along the secant through the last two
+    pulses of the same deformed grid (starting residual 8e−8 instead of 5e−5; 2–3 iterations).
     """
 
     def __init__(self, params, start, n_points=None, spec=GridSpec(), settings=DeepSettings(),
                  stop=-math.inf, max_length=None, on_attempt=None, n_of=None):
         self.params, self.spec, self.settings = params, spec, settings
+        if settings.predictor not in ("tangent", "length", "secant"):
+            raise ValueError(f"predictor={settings.predictor!r} is invalid: must be 'tangent', "
+                             f"'length' or 'secant'")
         self.stop = stop
         self.max_length = settings.max_length if max_length is None else max_length
         self.on_attempt = on_attempt
@@ -80,6 +97,13 @@ class DeepMarch:
         self.status = "running"
         self.message = ""
         self.n_steps = self.n_attempts = self.n_failed = self.n_iterations = 0
+        self.last_predictor = "tangent"
+        # the history of the "length" and "secant" predictors: dL/ds of the last accepted step
+        # (kept by replace/restart: those re-solve the same pulse on another grid); (x, ds) of the
+        # pulse before the current one and the step from it, kept only while the current grid is
+        # that pulse's deformed (same nodes, each on the same feature) by a "length" step
+        self._rate = None
+        self._prev = None
 
     def resume_step(self, beta_prev, q_prev):
         """Set ds to the step from the pulse before the start, (β_prev, τ_d/τ_min = q_prev), to
@@ -125,9 +149,20 @@ class DeepMarch:
                 # deform the grid with the pulse, nodal ln v kept (no interpolation)
                 x_pin = base.xi[base.pin_index]
                 x_left = pulse_length(base.xi, np.exp(x[:-2]), P.v_star)[1]
-                xn = stretch_grid(base.xi, x_pin, math.expm1(ds * dlnL) * self.L,
+                shift, self.last_predictor = math.expm1(ds * dlnL) * self.L, "tangent"
+                if s.predictor in ("length", "secant") and self._rate is not None:
+                    # the change of L per ds of the last step, where the tangent's falls short
+                    shift, self.last_predictor = ds * self._rate, "length"
+                xn = stretch_grid(base.xi, x_pin, shift,
                                   s.front_zone * self.L, x_left, s.back_zone * self.L)
                 yn, k, ky, H = x[:-2].copy(), base.pin_index, base.y_pin, None
+                if (s.predictor == "secant" and self.last_predictor == "length"
+                        and self._prev is not None and self._prev[0].size == x.size):
+                    # ln v node by node along the secant through the last two pulses
+                    x_prev, ds_prev = self._prev
+                    ys = x[:-2] + (ds / ds_prev) * (x[:-2] - x_prev[:-2])
+                    if np.all(np.isfinite(ys)):
+                        yn, self.last_predictor = ys, "secant"
             elif same:
                 xn, yn, H = base.xi, yp, base.H
                 k, ky = base.pin_index, base.y_pin
@@ -175,7 +210,13 @@ class DeepMarch:
                 return self.message
         if new.problem.xi is not self._base.xi:
             self._L_grid = new.to_pulse().L
+        # the history: a nodal secant only across a step that kept the front on its nodes
+        lineage = (s.stretch and new.problem.n == self._base.n
+                   and self.last_predictor in ("length", "secant"))
+        self._prev = (self._x, self.ds) if lineage else None
+        L_old = self.L
         self._accept(new)
+        self._rate = (self.L - L_old) / self.ds
         if new.stats.iterations <= 6:
             self.ds = min(1.5 * self.ds, s.ds_max)
         elif new.stats.iterations > 10:
@@ -202,7 +243,9 @@ class DeepMarch:
 
     def replace(self, sol: SteadySolution) -> None:
         """Continue from ``sol`` (x = (y, β, q); e.g. the refined pulse of a grid check) instead of
-        the current pulse: its grid becomes the march's."""
+        the current pulse: its grid becomes the march's (the nodal secant starts afresh; dL/ds of
+        the last step is kept)."""
+        self._prev = None
         self._accept(sol)
         self._L_grid = self.L
         if self.status in ("finished", "stopped"):
@@ -213,7 +256,9 @@ class DeepMarch:
         """Continue a march that failed (or any other) from ``sol`` (x = (y, β, q), e.g. the pulse
         re-laid on a new grid where the corrector stalled, :func:`~.relay.relay_pulse`) with the
         step ``ds``: its grid becomes the march's, the status "running" (or "finished"/"stopped"
-        if ``sol`` is already there), the orientation of the tangent and κ kept."""
+        if ``sol`` is already there), the orientation of the tangent and κ kept, and dL/ds of the
+        last step (the nodal secant starts afresh)."""
+        self._prev = None
         self._accept(sol)
         self._L_grid = self.L
         self.ds = float(ds)
