@@ -274,11 +274,11 @@ def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, 
         write_pulse(out, dataclasses.replace(base, tau_d_ratio=q, beta=b, converged=ok,
                                              extra={"continuation": method}), params)
     pulses = [read_pulse(out, lab)[0] for lab in list_pulses(out)]
-    assert _previous_arclength(pulses, 1.17) == (0.03, 1.18)      # not the unconverged 1.175
+    assert _previous_arclength(pulses, 1.17) == (0.03, 1.18, base.L)  # not the unconverged 1.175
     assert _previous_arclength(pulses, 1.19) is None              # above it: a tau_d pulse only
     rep = FamilyReport()
     assert _resume(params, out, rep).q == 1.17
-    assert rep.resumed_previous == (0.03, 1.18) and rep.resumed_method == "arclength"
+    assert rep.resumed_previous == (0.03, 1.18, base.L) and rep.resumed_method == "arclength"
 
 
 class _StubMarch:
@@ -483,5 +483,11 @@ def test_the_secant_predictor_of_the_deep_march(params, monkeypatch):
     assert ms.step() is None and ms.last_predictor == "length"
     fresh = DeepMarch(params, ms.sol, settings=ms.settings)
     assert fresh.step() is None and fresh.last_predictor == "tangent"
+    # a march resumed from a file: dL/ds of the step between the two last pulses seeds "length"
+    resumed = DeepMarch(params, fresh.sol, settings=ms.settings)
+    resumed.resume_step(ms.beta, ms.q, ms.L)
+    dist = math.hypot(math.log((1 - fresh.beta) / (1 - ms.beta)), (fresh.q - ms.q) / resumed.kappa)
+    assert resumed._rate == pytest.approx((fresh.L - ms.L) / dist, rel=1e-12)
+    assert resumed.step() is None and resumed.last_predictor == "length"
     with pytest.raises(ValueError, match="predictor"):
         DeepMarch(params, ms.sol, settings=DeepSettings(stretch=True, predictor="nodal"))

@@ -114,8 +114,8 @@ class DeepSettings:
         (the "auto" march's): "length", and the nodal ln v along the secant through the last two
         pulses, once the last step was itself "length" or "secant" on the same grid (N kept: no
         grid check refinement, front refinement, replace or restart between). Without that
-        history each falls back to the one before it (a march started or resumed from a file
-        begins with "tangent"). Measured from the 7187 m pulse, 12 steps each (docs/steady.md §8):
+        history each falls back to the one before it (a new march begins with "tangent"; one
+        resumed from a file with "length", :meth:`~.deep.DeepMarch.resume_step`). Measured from the 7187 m pulse, 12 steps each (docs/steady.md §8):
         "tangent" 41 m, "length" 194 m, "secant" 251 m of L.
     """
 

@@ -105,17 +105,22 @@ class DeepMarch:
         self._rate = None
         self._prev = None
 
-    def resume_step(self, beta_prev, q_prev):
+    def resume_step(self, beta_prev, q_prev, L_prev=None):
         """Set ds to the step from the pulse before the start, (β_prev, τ_d/τ_min = q_prev), to
         the start, measured in this march's plane (ln(1−β), q/κ) and clipped to
         [ds_min, ds_max]: a march that resumes from a file goes on at the pace it had, instead
-        of from ``settings.ds`` (which fails and halves several times deep in the family)."""
+        of from ``settings.ds`` (which fails and halves several times deep in the family).
+        With that pulse's length ``L_prev`` (m), its change of L per ds also seeds the "length"
+        predictor (``settings.predictor``), so the first step moves the grid's front zone by it
+        instead of by the tangent's."""
         s = self.settings
         da = math.log(1.0 - self.beta) - math.log(1.0 - beta_prev)
         dq = (self.q - q_prev) / self.kappa
         ds = math.hypot(da, dq)
         if math.isfinite(ds) and ds > 0:
             self.ds = min(max(ds, s.ds_min), s.ds_max)
+            if L_prev is not None and math.isfinite(L_prev):
+                self._rate = (self.L - L_prev) / ds
         return self.ds
 
     def _n_now(self):

@@ -224,14 +224,14 @@ def _resume(params, out, rep: FamilyReport):
 
 
 def _previous_arclength(pulses, q_last):
-    """(β, τ_d/τ_min) of the deepest converged arclength pulse of ``pulses`` above ``q_last``
+    """(β, τ_d/τ_min, L) of the deepest converged arclength pulse of ``pulses`` above ``q_last``
     (the step before the one a resumed march starts from), or None."""
     above = [p for p in pulses if p.converged and p.extra.get("continuation") == "arclength"
              and p.tau_d_ratio > q_last + 1e-12]
     if not above:
         return None
     p = min(above, key=lambda p: p.tau_d_ratio)
-    return p.beta, p.tau_d_ratio
+    return p.beta, p.tau_d_ratio, p.L
 
 
 def _attempt(params, tau_d_ratio, rep: FamilyReport, progress, **solve_args):
@@ -470,8 +470,9 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
     accepted pulse (with ``settings.spacing``: the first after L has grown by that fraction, and
     the last) grid-checked and written by ``write``; the march goes on from the checked
     (refined) pulse. Ends at ``stop``, at ``max_length`` (clean: ``rep.limit_reached``), or where
-    the march fails (``rep.stop``). ``previous`` = (β, q) of the step before ``start`` (a resumed
-    march): the first ds is that step's (:meth:`DeepMarch.resume_step`)."""
+    the march fails (``rep.stop``). ``previous`` = (β, q, L) of the pulse before ``start`` (a resumed
+    march): the first ds is that step's, its dL/ds the first predicted change of L
+    (:meth:`DeepMarch.resume_step`)."""
     xi, y, beta, q = start
     if resolve_n is not None:
         sol = solve_pulse(params, q, n_points=resolve_n, guess=(xi, y, beta), passes=0,

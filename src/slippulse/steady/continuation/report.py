@@ -20,7 +20,7 @@ class FamilyReport:
     hint: str = ""                                   # what would take it further
     wall_time: float = 0.0
     resumed_method: str = ""                         # how the pulse resumed from was computed
-    resumed_previous: tuple | None = None            # (β, q) of the arclength pulse above it
+    resumed_previous: tuple | None = None            # (β, q, L) of the arclength pulse above it
     checks: int = 0                                  # grid checks ("auto")
     failed_checks: list = field(default_factory=list)  # (tau_d_ratio, message): written failed
     deep_steps: int = 0                              # accepted steps of the deep march
