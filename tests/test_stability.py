@@ -161,6 +161,27 @@ def test_mode_pair_growth_on_the_slip_potency():
         mode_pair_growth(plus, minus, eps, observable="slip_potency")
 
 
+def test_mode_pair_growth_ends_where_the_mean_state_drifts():
+    """The pair's mean potency rate drifts (q = 1e-3 (e^{2t} − 1)) and the rate of r changes once
+    |q| > 0.005 (t > ln 6/2 = 0.90): the regime ends there and s is the early one; with the bound
+    lifted the fit takes in the late rate."""
+    from slippulse.stability.perturbation import mode_pair_growth
+    t = np.linspace(0, 2, 201)
+    s, eps = 1.0, 1e-3
+    drift = 1e-3 * np.expm1(2.0 * t)
+    tc = np.log(6.0) / 2.0
+    late = np.where(t > tc, 0.5 * (t - tc), 0.0)
+    r = 1e-4 * np.exp(s * t + late)
+    vmax = 1e-3 * np.exp(s * t)
+    plus = dict(_series(t, vmax), potency_rate=3.0 * (1 + drift + r))
+    minus = dict(_series(t, -vmax), potency_rate=3.0 * (1 + drift - r))
+    g = mode_pair_growth(plus, minus, eps)
+    assert tc - 0.02 <= g["t1"] <= tc + 1e-12
+    assert g["s_per_s"] == pytest.approx(s, rel=1e-6)
+    g = mode_pair_growth(plus, minus, eps, drift_max=1.0)
+    assert g["t1"] == pytest.approx(2.0) and g["s_per_s"] > 1.05 * s
+
+
 def test_potency_rate_does_not_see_whole_cell_shifts():
     """A whole-cell shift of the frame permutes the periodic grid: Σ V Δx is unchanged to
     rounding (no interpolation), and it is the integral of V."""
