@@ -489,5 +489,8 @@ def test_the_secant_predictor_of_the_deep_march(params, monkeypatch):
     dist = math.hypot(math.log((1 - fresh.beta) / (1 - ms.beta)), (fresh.q - ms.q) / resumed.kappa)
     assert resumed._rate == pytest.approx((fresh.L - ms.L) / dist, rel=1e-12)
     assert resumed.step() is None and resumed.last_predictor == "length"
+    # above predictor_ds_max the march is the tangent's, history or not
+    ms.ds = 2.0 * ms.settings.predictor_ds_max
+    assert ms.step() is None and ms.last_predictor == "tangent"
     with pytest.raises(ValueError, match="predictor"):
         DeepMarch(params, ms.sol, settings=DeepSettings(stretch=True, predictor="nodal"))

@@ -117,6 +117,11 @@ class DeepSettings:
         history each falls back to the one before it (a new march begins with "tangent"; one
         resumed from a file with "length", :meth:`~.deep.DeepMarch.resume_step`). Measured from the 7187 m pulse, 12 steps each (docs/steady.md §8):
         "tangent" 41 m, "length" 194 m, "secant" 251 m of L.
+    predictor_ds_max : "length" and "secant" only for steps ds ≤ this (else "tangent"). They were
+        measured to help at ds ≤ 0.002 (at 7.2 km; steps of 0.003–0.0045 failed with them); with
+        them at every ds, the march from scratch (ds 0.01–0.4 above 1.009 τ_min) failed its large
+        steps, halved ds again and again and had written 36 deep pulses by 611 m where the
+        tangent had needed 18 to 1.78 km (stop 42). Above it the march is the tangent's.
     """
 
     ds: float = 0.1
@@ -138,3 +143,4 @@ class DeepSettings:
     relay: int = 0
     relay_levels: int = 2
     predictor: str = "tangent"
+    predictor_ds_max: float = 0.002

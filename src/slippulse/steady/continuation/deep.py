@@ -155,7 +155,8 @@ class DeepMarch:
                 x_pin = base.xi[base.pin_index]
                 x_left = pulse_length(base.xi, np.exp(x[:-2]), P.v_star)[1]
                 shift, self.last_predictor = math.expm1(ds * dlnL) * self.L, "tangent"
-                if s.predictor in ("length", "secant") and self._rate is not None:
+                if (s.predictor in ("length", "secant") and self._rate is not None
+                        and ds <= s.predictor_ds_max):
                     # the change of L per ds of the last step, where the tangent's falls short
                     shift, self.last_predictor = ds * self._rate, "length"
                 xn = stretch_grid(base.xi, x_pin, shift,
