@@ -36,7 +36,6 @@ Scope: the rate-and-state interface with the SOE history (what the seeded runs u
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
 
 import numpy as np
 
@@ -409,7 +408,7 @@ class DeviceSOEHistory:
         self._C = backend.asarray(host.C)
         self.Y = None
         self.on_device = False
-        self._cache = OrderedDict()
+        self._cache = {}
         self.cache_size = host.cache_size
         self._past = xp.zeros(self.nk, dtype=complex)
         self._past_next = xp.zeros(self.nk, dtype=complex)
@@ -438,15 +437,14 @@ class DeviceSOEHistory:
         if self._dt == dt:
             return
         self._dt = dt
-        hit = self._cache.pop(dt, None)
-        if hit is None:
-            self.host._set_dt(dt)
-            h = self.host
-            hit = (self.be.asarray(h.E), self.be.asarray(h.G), self.be.asarray(h._w0))
-        self._cache[dt] = hit
-        while len(self._cache) > self.cache_size:
-            self._cache.pop(next(iter(self._cache)))
-        self._E, self._G, self._w0 = hit
+        self._E, self._G, self._w0 = sbi.lru_lookup(self._cache, dt, self.cache_size,
+                                                    lambda: self._upload_factors(dt))
+
+    def _upload_factors(self, dt):
+        """The host history's (E, G, w0) of Δt = dt, on the device."""
+        self.host._set_dt(dt)
+        h = self.host
+        return self.be.asarray(h.E), self.be.asarray(h.G), self.be.asarray(h._w0)
 
     def begin_step(self, dt):
         dt = float(dt)

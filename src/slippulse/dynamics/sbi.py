@@ -413,6 +413,18 @@ class WindowHistory(HistoryPolicy):
         return self.hist.nbytes + self.W.nbytes
 
 
+def lru_lookup(cache: dict, key, size: int, make):
+    """``cache[key]``, made by ``make()`` on a miss; the entry moves to the most recently used end
+    (dicts keep insertion order) and the least recently used ones beyond ``size`` are dropped."""
+    hit = cache.pop(key, None)
+    if hit is None:
+        hit = make()
+    cache[key] = hit
+    while len(cache) > size:
+        cache.pop(next(iter(cache)))
+    return hit
+
+
 class SOEHistory(HistoryPolicy):
     """Sum-of-exponentials history. K(T) ≈ Re Σ_j a_j e^{z_j T} (``soe_nodes``) and K is real, so
     with V_k = u + i w (u, w real)
@@ -447,21 +459,20 @@ class SOEHistory(HistoryPolicy):
         if self._dt == dt:
             return
         self._dt = dt
-        hit = self._cache.pop(dt, None)
-        if hit is None:
-            zw = self.Z[None, :] * self.omega[:, None] * dt
-            E = np.exp(zw)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                G = np.expm1(zw) / (self.Z[None, :] * self.omega[:, None])
-            zero = self.omega == 0.0
-            G[zero] = 0.0          # mode k = 0 carries no elastic stress (μ|k| = 0)
-            E[zero] = 0.0
-            E[np.abs(E) < 1e-250] = 0.0   # no subnormal arithmetic (100× slower); effect < 1e-250
-            hit = (E, G, self._w0_for(dt))
-        self._cache[dt] = hit                       # most recently used last
-        while len(self._cache) > self.cache_size:
-            self._cache.pop(next(iter(self._cache)))
-        self.E, self.G, self._w0 = hit
+        self.E, self.G, self._w0 = lru_lookup(self._cache, dt, self.cache_size,
+                                              lambda: self._factors(dt))
+
+    def _factors(self, dt):
+        """(E, G, w0) of the step Δt = dt."""
+        zw = self.Z[None, :] * self.omega[:, None] * dt
+        E = np.exp(zw)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            G = np.expm1(zw) / (self.Z[None, :] * self.omega[:, None])
+        zero = self.omega == 0.0
+        G[zero] = 0.0          # mode k = 0 carries no elastic stress (μ|k| = 0)
+        E[zero] = 0.0
+        E[np.abs(E) < 1e-250] = 0.0   # no subnormal arithmetic (100× slower); effect < 1e-250
+        return E, G, self._w0_for(dt)
 
     def begin_step(self, dt):
         dt = float(dt)
