@@ -204,6 +204,8 @@ def test_case_validation_names_the_key():
         check_case({"steady": "f.h5", "label": "td1.2000", "history": "window"})
     with pytest.raises(ParameterError, match="label"):
         check_case({"steady": "f.h5"})
+    with pytest.raises(ParameterError, match="wall_limit"):
+        check_case({"steady": "f.h5", "label": "td1.2000", "wall_limit": -1})
 
 
 @pytest.fixture(scope="module")
@@ -227,6 +229,20 @@ def pair12(steady12, tmp_path_factory):
         out = str(d / f"eps{eps}.h5")
         rows.append(dict(case, **run_case(case, out)))
     return rows
+
+
+def test_a_wall_limited_run_stops_where_it_is_and_is_written(steady12, pair12, tmp_path):
+    """wall_limit: the run stops at its first measurement past the limit (seeding counted), with
+    its status saying so, and its file holds the series up to there, equal to the unlimited
+    run's (the same steps)."""
+    case = dict(TINY, steady=steady12, label="td1.2000", eps=3e-3, wall_limit=1e-9)
+    out = str(tmp_path / "w.h5")
+    row = run_case(case, out)
+    assert row["status"].startswith("stopped: wall limit") and row["fate"] == "undecided"
+    full = read_series(pair12[0]["file"])
+    s = read_series(out)
+    assert 1 <= s["distance"].size < 5 and row["travelled"] < 0.05
+    assert np.array_equal(s["v_max_error"], full["v_max_error"][:s["distance"].size])
 
 
 def test_perturbed_pair_departs_both_ways_at_one_rate(pair12):

@@ -54,6 +54,9 @@ CASE_DEFAULTS = {
     "fit_hi": 3e-2,          # ... to fit_hi (see fit_growth)
     "threads": 1,
     "device": "cpu",         # "cpu" | "cupy" (a GPU, dynamics/device.py) | "numpy" (tests)
+    "wall_limit": 0.0,       # s of wall time (seeding included) after which the run stops
+                             # where it is and is written, status "stopped: wall limit ..."
+                             # (0: none); for machines lent for a fixed time
 }
 HISTORIES = {"cheap": {"x_min": 1e-6, "x_max": 1e6, "h": 0.8},
              "fine": {"x_min": 1e-8, "x_max": 1e8, "h": 0.5}}
@@ -93,6 +96,8 @@ def check_case(case: dict) -> dict:
         raise ParameterError("fit_hi must be > fit_lo")
     if not float(c["grow_L"]) > 1 or not float(c["lost_factor"]) > 1:
         raise ParameterError("grow_L and lost_factor must be > 1")
+    if not 0 <= float(c["wall_limit"]) < math.inf:
+        raise ParameterError(f"wall_limit={c['wall_limit']!r} must be finite and >= 0 (s; 0: none)")
     return c
 
 
@@ -520,10 +525,13 @@ def run_perturbation(case: dict, progress: bool = False):
     spec = DomainSpec(dx=float(c["dx"]), ahead=float(c["ahead"]), behind=float(c["behind"]))
     rule = TimeStepRule(kind="adaptive", beta_cfl=float(c["beta_cfl"]), xi_stab=float(c["xi_stab"]))
     grow_L = float(c["grow_L"])
+    wall_limit, wall0 = float(c["wall_limit"]), time.perf_counter()
 
     def stop(rows):
         if rows[-1][2] > grow_L * pulse.L:
             return f"grew: L > {grow_L:g} L0"
+        if wall_limit > 0 and time.perf_counter() - wall0 > wall_limit:
+            return f"wall limit {wall_limit:g} s"
         return None
 
     eps = float(c["eps"])
