@@ -182,6 +182,68 @@ def test_mode_pair_growth_ends_where_the_mean_state_drifts():
     assert g["t1"] == pytest.approx(2.0) and g["s_per_s"] > 1.05 * s
 
 
+def test_pair_rate_at_zero_drift_recovers_the_rate_of_the_undrifted_state():
+    """The pair's mean state drifts (q = −2e−3 (e^{0.3t} − 1)) and the pair's rate moves with it,
+    s(q) = s₀ + kq (rate +50 % at the end): the fit of A exp(s₀t + kQ) + B recovers s₀ and k,
+    where the whole-run fit of A e^{st} + B is off by more than 10 %."""
+    from slippulse.stability.perturbation import mode_pair_growth, pair_rate_at_zero_drift
+    t = np.linspace(0.0, 6.0, 2401)                 # L/c_p = 0.5: 12 L of travel
+    s0, k, eps = 0.4, -20.0, 3e-3
+    q = -2e-3 * np.expm1(0.3 * t)
+    Q = -2e-3 * (np.expm1(0.3 * t) / 0.3 - t)       # ∫ q dt
+    R = np.exp(s0 * t + k * Q)                      # rate s0 + k q
+    pr_p, pr_m = 5.0 * (1 + q), 5.0 * (1 + q)
+    S0 = 5.0 * (t + Q)
+    plus = dict(_series(t, 0.1 * eps * R, L=2.0, c=4.0), potency_rate=pr_p,
+                slip_potency=S0 + eps * (R - 0.7))
+    minus = dict(_series(t, -0.1 * eps * R, L=2.0, c=4.0), potency_rate=pr_m,
+                 slip_potency=S0 - eps * (R - 0.7))
+    z = pair_rate_at_zero_drift(plus, minus, start=1.0)
+    assert z["x0"] == pytest.approx(1.0, abs=0.01) and z["x1"] == pytest.approx(12.0)
+    assert z["s_per_L"] == pytest.approx(s0 * 0.5, rel=1e-6)
+    assert z["slope_per_L"] == pytest.approx(k * 0.5, rel=1e-4)
+    whole = mode_pair_growth(plus, minus, eps, observable="slip_potency", drift_max=1.0)
+    assert abs(whole["s_per_L"] / (s0 * 0.5) - 1) > 0.10
+    # the log-linear route for a rate observable: the same line
+    pr = dict(plus, potency_rate=5.0 * (1 + q + eps * R)), dict(minus, potency_rate=5.0 * (1 + q - eps * R))
+    zr = pair_rate_at_zero_drift(*pr, start=1.0, observable="potency_rate")
+    assert zr["s_per_L"] == pytest.approx(s0 * 0.5, rel=1e-3)
+    # without a spread of the drift, or with too few samples: no intercept
+    flat = np.full_like(t, 5.0)
+    assert math.isnan(pair_rate_at_zero_drift(dict(plus, potency_rate=flat),
+                                              dict(minus, potency_rate=flat), start=1.0)["s_per_L"])
+    assert math.isnan(pair_rate_at_zero_drift(plus, minus, start=11.99)["s_per_L"])
+    with pytest.raises(ValueError, match="potency_rate"):
+        pair_rate_at_zero_drift({k_: v for k_, v in plus.items() if k_ != "potency_rate"}, minus,
+                                start=1.0)
+
+
+def test_the_pair_table_carries_the_zero_drift_rate(monkeypatch):
+    """pair_table: a mode-seeded pair gets the zero-drift columns from pair_rate_at_zero_drift
+    (from ZERO_DRIFT_START), relative to the eigenvalue of its row."""
+    from slippulse.stability import perturbation as pt
+    t = np.linspace(0.0, 6.0, 2401)
+    s0, k, eps = 0.4, -20.0, 3e-3
+    q = -2e-3 * np.expm1(0.3 * t)
+    Q = -2e-3 * (np.expm1(0.3 * t) / 0.3 - t)
+    R = np.exp(s0 * t + k * Q)
+    series = {f: dict(_series(t, sg * 0.1 * eps * R, L=2.0, c=4.0), potency_rate=5.0 * (1 + q),
+                      slip_potency=5.0 * (t + Q) + sg * eps * (R - 0.7))
+              for f, sg in (("p.h5", 1.0), ("m.h5", -1.0))}
+    monkeypatch.setattr(pt, "read_series", lambda f: series[f])
+    base = {"steady": "f.h5", "label": "td1.0400", "perturbation": "mode_front",
+            "tau_d_ratio": 1.04, "eigen_s_per_L": 0.25, "wall_time": 1.0}
+    rows = [dict(base, file="p.h5", eps=eps, fate="grew"),
+            dict(base, file="m.h5", eps=-eps, fate="arrested")]
+    (row,) = pt.pair_table(rows)
+    z = pt.pair_rate_at_zero_drift(series["p.h5"], series["m.h5"], start=pt.ZERO_DRIFT_START)
+    assert row["s_per_L_zero_drift"] == z["s_per_L"] == pytest.approx(0.2, rel=1e-6)
+    assert row["rel_to_eigen_zero_drift"] == pytest.approx(0.2 / 0.25 - 1)
+    assert set(pt.PAIR_COLUMNS) >= {"s_per_L_zero_drift", "s_per_L_err_zero_drift"}
+    (generic,) = pt.pair_table([dict(r, perturbation="excess") for r in rows])
+    assert math.isnan(generic["s_per_L_zero_drift"])
+
+
 def test_potency_rate_does_not_see_whole_cell_shifts():
     """A whole-cell shift of the frame permutes the periodic grid: Σ V Δx is unchanged to
     rounding (no interpolation), and it is the integral of V."""
