@@ -663,7 +663,9 @@ def register(sub) -> None:
                    help="auto: write (and grid-check) a deep-march pulse only once L has grown "
                         "by this fraction since the last one, e.g. 0.01 (default 0: every "
                         "arclength step; beyond 4 km a step moves L by 0.2-0.4 %% and its grid "
-                        "check costs several steps)")
+                        "check costs several steps). A checked pulse also hands its grid back to "
+                        "the march, so a wide spacing lets the deformed grid drift: at 0.04 the "
+                        "check at 2.5 km had to double N to 6863 (docs/steady.md §8)")
     p.add_argument("--max-length", type=float, default=math.inf,
                    help="stop (exit 0) once the pulse length exceeds this (m; default no limit)")
     p.add_argument("--no-grid-check", action="store_true",
