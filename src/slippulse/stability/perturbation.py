@@ -273,6 +273,19 @@ def _pair_response(plus: dict, minus: dict, observable: str):
     return t, 0.5 * (obs_p[:n] - dm), 0.5 * (obs_p[:n] + dm), n, vm
 
 
+def _regime_end(plus: dict, vm, d_max: float, *bad) -> int:
+    """End of a ±ε pair's linear regime: the first sample where the larger |v_max/v_max⁰ − 1| of
+    the two runs (the −ε run's ``vm`` from :func:`_pair_response`) exceeds ``d_max`` or one of the
+    masks ``bad`` holds; the number of samples where none does."""
+    n = vm.size
+    big = np.maximum(np.abs(plus["v_max_error"][:n]), np.abs(vm))
+    stop = big > d_max
+    for m in bad:
+        stop |= m
+    i = np.flatnonzero(stop)
+    return int(i[0]) if i.size else n
+
+
 def fit_growth_offset(x, r, min_points: int = 5) -> dict:
     """r = A e^{s x} + B by nonlinear least squares (``scipy.optimize.least_squares``).
 
@@ -395,9 +408,7 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: f
            "sym_ratio": math.nan, "mode": None, "mode_spread": math.nan, "r": r, "q": q, "t": t,
            "eps": abs(eps), "regime": "none"}
     ar = np.abs(r)
-    big = np.maximum(np.abs(plus["v_max_error"][:n]), np.abs(vm))
-    bad = np.nonzero((big > d_max) | ~np.isfinite(r))[0]
-    i1 = int(bad[0]) if bad.size else n
+    i1 = _regime_end(plus, vm, d_max, ~np.isfinite(r))
     if i1 < 2:
         return out
     idx, spread = _plateau(t[:i1], np.log(np.maximum(ar[:i1], 1e-300)), tol, efold)
@@ -474,12 +485,10 @@ def mode_pair_growth(plus: dict, minus: dict, eps: float, observable: str = "pot
     t, r, _, _, vm = _pair_response(plus, minus, observable)
     a = plus["attrs"]
     conv = float(a["L"]) / float(a["c_p"])
-    big = np.maximum(np.abs(plus["v_max_error"][:t.size]), np.abs(vm))
     drift = np.zeros_like(t)
     if "potency_rate" in plus and "potency_rate" in minus:
         drift = np.abs(_pair_response(plus, minus, "potency_rate")[2])
-    bad = np.nonzero((big > d_max) | (drift > drift_max) | ~np.isfinite(r))[0]
-    i1 = int(bad[0]) if bad.size else t.size
+    i1 = _regime_end(plus, vm, d_max, drift > drift_max, ~np.isfinite(r))
     idx = np.nonzero((t[:i1] >= skip * conv) & (r[:i1] != 0))[0]
     out = {"s_per_s": math.nan, "s_per_s_err": math.nan, "s_per_L": math.nan,
            "s_per_L_err": math.nan, "t0": math.nan, "t1": math.nan, "n": int(idx.size),
@@ -536,9 +545,7 @@ def pair_rate_at_zero_drift(plus: dict, minus: dict, start: float, d_max: float 
     _, _, q, _, _ = _pair_response(plus, minus, "potency_rate")     # on the same times
     a = plus["attrs"]
     conv = float(a["L"]) / float(a["c_p"])
-    big = np.maximum(np.abs(plus["v_max_error"][:t.size]), np.abs(vm))
-    bad = np.nonzero((big > d_max) | ~np.isfinite(r) | ~np.isfinite(q))[0]
-    i1 = int(bad[0]) if bad.size else t.size
+    i1 = _regime_end(plus, vm, d_max, ~np.isfinite(r), ~np.isfinite(q))
     idx = np.nonzero(t[:i1] >= start * conv)[0]
     out = {"s_per_L": math.nan, "s_per_L_err": math.nan, "slope_per_L": math.nan,
            "x0": math.nan, "x1": math.nan, "n": int(idx.size), "q0": math.nan, "q1": math.nan}
