@@ -465,11 +465,12 @@ def test_checks_start_with_the_homotopy_after_one_needed_it(monkeypatch):
     asked = []
     crept = iter([False, True] + [True] * family.HOMOTOPY_FIRST + [False, False])
 
-    def check(params, sol, tol, n_max, log=None, body_levels=0, locate=False, plain=True):
+    def check(params, sol, tol, n_max, log=None, body_levels=0, locate=False, plain=True,
+              warm=None):
         asked.append(plain)
         homotopy = next(crept)
         return SimpleNamespace(passed=False, homotopy=homotopy, message="mock", sol=sol,
-                               attrs=lambda tol: {})
+                               attrs=lambda tol: {}, warm=None)
 
     monkeypatch.setattr(family, "check_pulse", check)
     monkeypatch.setattr(family, "write_pulse", lambda *a, **k: None)

@@ -417,7 +417,9 @@ DS = 0.001
 def _predictor_march(params, start, predictor, n, monkeypatch):
     """``n`` steps of the deformed-grid march at the fixed ds = DS from ``start`` with
     ``predictor``: the march, and per step (predictor, max|r| at the predicted point, Newton
-    iterations, the shift of the grid's front zone, L before the step)."""
+    iterations, the shift of the grid's front zone, L before the step). Without reuse of the
+    corrector's LU (``reuse_lu=False``): its chord iterations would take the Newton iterations
+    that measure the predictor."""
     from slippulse.steady.continuation import deep
     seen, shifts = [], []
     real, real_grid = deep.newton, deep.stretch_grid
@@ -434,7 +436,7 @@ def _predictor_march(params, start, predictor, n, monkeypatch):
     monkeypatch.setattr(deep, "stretch_grid", stretch_grid)
     m = DeepMarch(params, start, settings=DeepSettings(ds=DS, ds_max=DS, ds_min=0.25 * DS,
                                                        max_iter=20, stretch=True,
-                                                       predictor=predictor))
+                                                       predictor=predictor, reuse_lu=False))
     rows = []
     for _ in range(n):
         L0 = m.L

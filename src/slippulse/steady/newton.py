@@ -25,6 +25,8 @@ class SolveStats:
     t_residual: float = 0.0
     chord_iterations: int = 0
     homotopy: bool = False          # the solve went through the residual homotopy (solve_robust)
+    lu: object = None               # keep=True: the last LU factorization (scipy lu_factor)
+    jacobian: object = None         # keep=True: the Jacobian at the returned x, when formed there
 
 
 def _max_abs(r):
@@ -72,7 +74,7 @@ LINE_SEARCHES = ("residual", "natural")
 
 
 def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=None,
-           reuse=False, creep=0, line_search="residual"):
+           reuse=False, creep=0, line_search="residual", keep=False):
     """Damped Newton: J δ = −r by LU, step limited to |δy| ≤ max_dy, kept valid, backtracking on ‖r‖₂
     (or on the natural monotonicity test, ``line_search='natural'``).
 
@@ -103,12 +105,25 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=No
     of an LU each (measured at L = 3.8 km, N = 5009: 15 iterations with 'residual', 3 with
     'natural', the same solution; BENCHMARKS.md "Stop 40"). The converged tolerance on max|r|
     is the same.
+
+    ``keep=True``: the returned stats carry ``lu``, the last LU factorization used (the one
+    passed in when none was formed), and ``jacobian``, the Jacobian at the returned x when it was
+    formed there (None after chord iterations converged): a continuation reuses them for the
+    next tangent and the next corrector's chord iterations (:class:`~.continuation.deep.DeepMarch`).
     """
     if line_search not in LINE_SEARCHES:
         raise ValueError(f"line_search={line_search!r}: must be one of {LINE_SEARCHES}")
-    natural = line_search == "natural"
+    x, st = _newton(problem, x0, tol, max_iter, max_dy, callback, lu, reuse, creep,
+                    line_search == "natural")
+    if not keep:
+        st.lu = st.jacobian = None
+    return x, st
+
+
+def _newton(problem, x0, tol, max_iter, max_dy, callback, lu, reuse, creep, natural):
     x = np.array(x0, dtype=float)
     st = SolveStats(False, "", 0, np.inf)
+    st.lu = lu
     if lu is not None:
         t0 = time.perf_counter()
         x, m, st.chord_iterations = chord(problem, x, lu, tol)
@@ -120,6 +135,7 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=No
     t0 = time.perf_counter()
     r, J = problem.residual_and_jacobian(x)
     st.t_jacobian += time.perf_counter() - t0
+    st.jacobian = J
     norm = np.linalg.norm(r)
     for it in range(1, max_iter + 1):
         st.max_residual = _max_abs(r)
@@ -135,8 +151,10 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=No
             st.iterations = it - 1
             return x, st
         t0 = time.perf_counter()
+        st.jacobian = None                      # overwritten by its LU
         try:
             lu = sla.lu_factor(J, overwrite_a=True, check_finite=False)
+            st.lu = lu
             dx = -sla.lu_solve(lu, r, check_finite=False)
         except (ValueError, np.linalg.LinAlgError) as exc:
             st.message = f"linear solve failed: {exc}"
@@ -192,7 +210,7 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=No
             st.chord_iterations += k
             if m <= tol:
                 st.max_residual = m
-                st.history.append(m)
+                st.history.append(m)      # x moved by chord iterations: no Jacobian at x
                 st.converged, st.iterations = True, it
                 st.message = (f"converged: max|r|={m:.2e} ({st.chord_iterations} chord "
                               "iterations)")
@@ -200,6 +218,7 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=No
         t0 = time.perf_counter()
         r, J = problem.residual_and_jacobian(x)
         st.t_jacobian += time.perf_counter() - t0
+        st.jacobian = J
         norm = np.linalg.norm(r)
     st.max_residual = _max_abs(r)
     st.converged = st.max_residual <= tol

@@ -13,7 +13,8 @@ from ..measures import pulse_length
 from ..equations import SteadyProblem
 from ..newton import SolveStats, newton
 from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess
-from .arclength import ArclengthProblem, DeepSettings, family_tangent
+from .arclength import (ArclengthProblem, DeepSettings, family_tangent, tangent_by_refinement,
+                        unit_tangent)
 from .natural import _judge
 from .stretch import _stretch, stretch_grid
 
@@ -104,6 +105,35 @@ class DeepMarch:
         # that pulse's deformed (same nodes, each on the same feature) by a "length" step
         self._rate = None
         self._prev = None
+        # reuse (settings.reuse_lu): the LU the last accepted corrector factored, the Jacobian at
+        # its pulse (None when chord iterations converged it), its arclength problem, and the
+        # tangent at the current pulse once computed
+        self._lu = self._jac = self._arc = self._n = None
+        self._candidate = (None, None, None)
+
+    def _forget(self):
+        """Drop what was kept of the last corrector (the current pulse changed grid or was replaced)."""
+        self._lu = self._jac = self._arc = self._n = None
+
+    def _tangent(self):
+        """The unit family tangent at the current pulse (:func:`family_tangent`), once per pulse;
+        with ``settings.reuse_lu`` by refinement with the last corrector's LU
+        (:func:`tangent_by_refinement`), oriented along the previous tangent."""
+        if self._n is not None:
+            return self._n
+        base, x, n = self._base, self._x, None
+        if self._lu is not None and self._lu[0].shape[0] == x.size:
+            A = self._jac if self._jac is not None else self._arc.residual_and_jacobian(x)[1]
+            n = tangent_by_refinement(A, self._lu)
+            if n is not None:
+                c_b, c_q, _ = self._orient
+                n = unit_tangent(n if c_b * n[-2] + c_q * n[-1] >= 0 else -n, self.beta,
+                                 self.kappa)
+        self._jac = None
+        if n is None:
+            n = family_tangent(base, x, self._orient)
+        self._n = n
+        return n
 
     def resume_step(self, beta_prev, q_prev, L_prev=None):
         """Set ds to the step from the pulse before the start, (β_prev, τ_d/τ_min = q_prev), to
@@ -131,7 +161,7 @@ class DeepMarch:
         (t_a, t_Q))."""
         P, s, base, x = self.params, self.settings, self._base, self._x
         beta, q, ds = self.beta, self.q, self.ds
-        n = family_tangent(base, x, self._orient)
+        n = self._tangent()
         t_a, t_Q = -n[-2] / (1.0 - beta), n[-1] / self.kappa
         self._orient = (n[-2], n[-1], self.kappa)
         # predict: a + ds t_a, q + ds κ t_Q; ln v by stretching the last pulse behind its leading
@@ -181,9 +211,14 @@ class DeepMarch:
         else:
             nb = SteadyProblem(P, qp, xn, k, ky, free="both", H=H)
             arc = ArclengthProblem(nb, math.log(1.0 - beta), q, t_a, t_Q, self.kappa, ds)
+            x0 = np.concatenate([yn, [bp, qp]])
+            lu = (self._lu if s.reuse_lu and self._lu is not None
+                  and self._lu[0].shape[0] == x0.size else None)
             t0 = time.perf_counter()
-            xs, st = newton(arc, np.concatenate([yn, [bp, qp]]), tol=1e-13, max_iter=s.max_iter)
+            xs, st = newton(arc, x0, tol=1e-13, max_iter=s.max_iter, lu=lu, keep=s.reuse_lu)
             new = SteadySolution(nb, xs, st, time.perf_counter() - t0, 1)
+            self._candidate = (st.lu, st.jacobian, arc)
+            st.lu = st.jacobian = None
             ok, msg = st.converged, st.message
             self.n_iterations += st.iterations
             if ok and not _judge(new)[1]:
@@ -216,6 +251,8 @@ class DeepMarch:
                 return self.message
         if new.problem.xi is not self._base.xi:
             self._L_grid = new.to_pulse().L
+        self._lu, self._jac, self._arc = self._candidate if s.reuse_lu else (None, None, None)
+        self._n = None
         # the history: a nodal secant only across a step that kept the front on its nodes
         lineage = (s.stretch and new.problem.n == self._base.n
                    and self.last_predictor in ("length", "secant"))
@@ -252,6 +289,7 @@ class DeepMarch:
         the current pulse: its grid becomes the march's (the nodal secant starts afresh; dL/ds of
         the last step is kept)."""
         self._prev = None
+        self._forget()
         self._accept(sol)
         self._L_grid = self.L
         if self.status in ("finished", "stopped"):
@@ -265,6 +303,7 @@ class DeepMarch:
         if ``sol`` is already there), the orientation of the tangent and κ kept, and dL/ds of the
         last step (the nodal secant starts afresh)."""
         self._prev = None
+        self._forget()
         self._accept(sol)
         self._L_grid = self.L
         self.ds = float(ds)

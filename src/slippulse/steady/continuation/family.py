@@ -373,6 +373,10 @@ def _check_auto_args(params, out, tol, n_max, deep_points, max_length):
                                  f"another --out")
 
 
+#: The deep march's grid checks start from the last check's fine pulse, transported, and its LU
+#: (check_pulse ``warm``; BENCHMARKS.md "Stop 44").
+WARM_CHECKS = True
+
 #: After a grid check whose plain Newton re-solve crept (and the homotopy finished it), this many
 #: checks start with the homotopy before plain Newton is tried again (docs/steady.md, stop 36).
 HOMOTOPY_FIRST = 4
@@ -393,6 +397,8 @@ class _CheckedWriter:
         # the next HOMOTOPY_FIRST checks start with the homotopy (check_pulse(plain=False)); then
         # plain Newton is tried again
         self.homotopy_first = 0
+        # the last deep check's (x, x_fine, LU): the next check's warm start (check_pulse)
+        self.warm = ()
         if os.path.exists(out):
             for label in list_pulses(out):
                 self.taken[label] = read_pulse(out, label)[0].tau_d_ratio
@@ -404,7 +410,9 @@ class _CheckedWriter:
         # everywhere (N doubled)
         res = check_pulse(self.params, sol, self.tol, self.n_max, log=self.log,
                           body_levels=2 if method == "arclength" else 0,
-                          locate=method == "arclength", plain=self.homotopy_first == 0)
+                          locate=method == "arclength", plain=self.homotopy_first == 0,
+                          warm=self.warm if method == "arclength" and WARM_CHECKS else None)
+        self.warm = res.warm if res.warm is not None else ()
         if self.homotopy_first:
             self.homotopy_first -= 1
         elif res.homotopy:

@@ -24,15 +24,15 @@ REUSE_LU = True
 
 
 def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
-                  nested=False, stages=0, cells=None, reuse=None, plain=True):
+                  nested=False, stages=0, cells=None, reuse=None, plain=True, warm=None):
     """:func:`grid_change` as the family's criterion reads it: (fine, |Δβ|, |ΔL|/L)."""
     fine, dbeta, dL_rel = grid_change(params, sol, n_points, spec, max_iter, nested, stages, cells,
-                                      reuse, plain)
+                                      reuse, plain, warm)
     return fine, abs(dbeta), abs(dL_rel)
 
 
 def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
-                nested=False, stages=0, cells=None, reuse=None, plain=True):
+                nested=False, stages=0, cells=None, reuse=None, plain=True, warm=None):
     """Grid check of an arclength pulse (x = (y, β, q)): re-solve on a grid of 2N adapted to it,
     on the line through it normal to the family tangent, and express the change at fixed τ_d.
 
@@ -82,11 +82,18 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
                          state_order=sol.problem.state_order)
     arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
     x_start = np.concatenate([yn, [beta, q]])
-    if stages > 0:
-        xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter, reuse=reuse,
-                              plain=plain)
-    else:
-        xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter, reuse=reuse)
+    xs, st = _warm_solve(arc, sol.x, x_start, warm, max_iter, reuse) \
+        if nested and cells is None and warm else (None, None)
+    if st is None or not st.converged:
+        lu_warm = st.lu if st is not None else None
+        if stages > 0:
+            xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter, reuse=reuse,
+                                  plain=plain)
+        else:
+            xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter, reuse=reuse,
+                            keep=warm is not None)
+        if st.lu is None or warm is None:
+            st.lu = lu_warm if warm is not None else None
     fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
     if not st.converged or n[-1] == 0.0:
         return fine, math.inf, math.inf
@@ -98,6 +105,27 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     dbeta = p1.beta - beta - (n[-2] / n[-1]) * dq
     dL = p1.L - p0.L - dL_ds / n[-1] * dq
     return fine, dbeta, dL / p0.L
+
+
+def _warm_solve(arc, x, x_start, warm, max_iter, reuse):
+    """The warm re-solve of :func:`grid_change`: (x_fine, stats) from the transported start with
+    the earlier check's LU, or (None, None) when ``warm`` does not fit this grid or its start is
+    no better than ``x_start``. The stats carry the last LU (``keep``)."""
+    x0, xf0, lu = warm
+    n, nf = x.size - 2, x_start.size - 2
+    if x0.size != x.size or xf0.size != x_start.size or nf != 2 * n - 1:
+        return None, None
+    d = x[:-2] - x0[:-2]
+    xw = xf0.copy()
+    xw[:-2][0::2] += d
+    xw[:-2][1::2] += 0.5 * (d[:-1] + d[1:])
+    xw[-2:] += x[-2:] - x0[-2:]
+    rw, ri = arc.residual(xw), arc.residual(x_start)
+    if not np.max(np.abs(rw)) < np.max(np.abs(ri)):      # also False for a non-finite rw
+        return None, None
+    if lu is not None and lu[0].shape[0] != xw.size:
+        lu = None
+    return newton(arc, xw, tol=1e-13, max_iter=max_iter, lu=lu, reuse=reuse, creep=2, keep=True)
 
 
 def _as_both(params, sol: SteadySolution) -> SteadySolution:
@@ -233,6 +261,8 @@ class GridCheck:
     message : what was tried, in one line.
     wall_time : seconds spent.
     homotopy : whether the first check's re-solve needed the residual homotopy.
+    warm : (x, x_fine, lu) of a check that passed at once (no refinement): the ``warm`` of the
+        next pulse's check on the same deformed grid (:func:`grid_change`); None otherwise.
     """
 
     sol: SteadySolution
@@ -246,6 +276,7 @@ class GridCheck:
     message: str = ""
     wall_time: float = 0.0
     homotopy: bool = False
+    warm: object = None
 
     def attrs(self, tol) -> dict:
         """The check's figures as pulse attributes (stored in the family file)."""
@@ -259,7 +290,7 @@ class GridCheck:
 
 
 def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINTS, body_levels=2,
-                max_iter=15, stages=4, log=None, locate=False, plain=True) -> GridCheck:
+                max_iter=15, stages=4, log=None, locate=False, plain=True, warm=None) -> GridCheck:
     """Grid-check a pulse and refine it until it passes: N, or the body refinement, per pulse.
 
     Parameters
@@ -278,6 +309,8 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
         refined pulse's check within ``n_max``.
     plain : False: the first check's re-solve starts with the homotopy (:func:`solve_robust`
         ``plain=False``; a caller whose last check needed it, :attr:`GridCheck.homotopy`).
+    warm : :attr:`GridCheck.warm` of the last pulse's check: the first re-solve starts from its
+        fine pulse, transported (:func:`grid_change`); ignored when it does not fit.
 
     Notes
     -----
@@ -296,7 +329,9 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
     while True:
         n = cur.xi.size
         fine, db, dl = check_grid_2n(params, cur, n, nested=True, stages=stages,
-                                     max_iter=max_iter, plain=plain)
+                                     max_iter=max_iter, plain=plain,
+                                     warm=warm if not steps else None)
+        lu, fine.stats.lu = fine.stats.lu, None
         if homotopy is None:
             homotopy, plain = bool(fine.stats.homotopy), True   # later checks: plain first
         ok = bool(fine.stats.converged) and math.isfinite(db)
@@ -308,6 +343,8 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
         res = GridCheck(cur, ok and tol.passes(db, dl), n, fine.xi.size, db, dl, levels,
                         doublings)
         if res.passed or not ok:
+            if res.passed and len(steps) == 1 and warm is not None:
+                res.warm = (np.array(cur.x), np.array(fine.x), lu)
             break
         if levels < body_levels:
             names, where = (BODY,), "body"

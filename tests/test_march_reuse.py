@@ -1,0 +1,105 @@
+"""What the deep march reuses from one pulse to the next (stop 44): the corrector's LU for the
+next tangent and the next corrector (``DeepSettings.reuse_lu``), and the last grid check's fine
+pulse and LU for the next check (``check_pulse(warm=...)``). Same pulses and checks as without,
+to the solver's tolerance; and the reuse does happen."""
+import numpy as np
+import pytest
+
+from slippulse.steady.continuation import DeepMarch, DeepSettings, GridTolerance
+from slippulse.steady.continuation.arclength import (family_tangent, tangent_by_refinement,
+                                                     unit_tangent)
+from slippulse.steady.continuation.gridcheck import check_grid_2n, check_pulse
+
+DS = 0.001
+
+
+@pytest.fixture(scope="module")
+def start(params):
+    from slippulse.steady.solver import solve_pulse
+    a = solve_pulse(params, 1.2, n_points=500)
+    return (a.xi, a.x[:-1], a.beta, 1.2)
+
+
+def _march(params, start, reuse, steps):
+    m = DeepMarch(params, start, settings=DeepSettings(ds=DS, ds_max=DS, ds_min=0.25 * DS,
+                                                       max_iter=20, stretch=True,
+                                                       predictor="secant", reuse_lu=reuse))
+    rows = []
+    for _ in range(steps):
+        m.ds = DS
+        assert m.step() is None
+        rows.append((m.sol.x.copy(), m.sol.stats.iterations, m.sol.stats.chord_iterations))
+    return m, rows
+
+
+def test_the_march_reuses_its_lu_and_finds_the_same_pulses(params, start):
+    m0, plain = _march(params, start, False, 4)
+    m1, reuse = _march(params, start, True, 4)
+    for (x0, _, _), (x1, _, _) in zip(plain, reuse):
+        assert x0.size == x1.size and np.max(np.abs(x1 - x0)) < 1e-10
+    # without reuse every step forms Jacobians; with it, steps after the first converge by chord
+    # iterations with the last LU, no Newton iteration at all
+    assert all(it > 0 and ch == 0 for _, it, ch in plain)
+    assert reuse[0][1] > 0
+    assert all(it == 0 and ch > 0 for _, it, ch in reuse[1:])
+    assert m1.n_iterations < m0.n_iterations
+    # the tangent by refinement with the kept LU is the directly solved one
+    n1 = m1._tangent()
+    n0 = family_tangent(m1._base, m1._x, m1._orient)
+    assert np.max(np.abs(n1 - n0)) < 1e-9 * np.max(np.abs(n0))
+    # replace/restart drop what was kept (another grid): the next tangent is solved directly
+    m1.replace(m1.sol)
+    assert m1._lu is None and m1._n is None
+
+
+def test_tangent_by_refinement_converges_or_says_none(params, start):
+    m, _ = _march(params, start, True, 2)
+    A = m._arc.residual_and_jacobian(m._x)[1]
+    n = tangent_by_refinement(A, m._lu)
+    assert n is not None
+    ref = family_tangent(m._base, m._x, m._orient)
+    assert np.max(np.abs(unit_tangent(n, m.beta, m.kappa) - ref)) < 1e-9 * np.max(np.abs(ref))
+    # the LU of a matrix too far from A (half its columns scaled by 0.3: the refinement's error
+    # there is multiplied by 1 − 1/0.3 per step) → None, and the march solves A directly
+    import scipy.linalg as sla
+    B = A.copy()
+    B[:, : A.shape[0] // 2] *= 0.3
+    assert tangent_by_refinement(A, sla.lu_factor(B)) is None
+    # ... and one near enough (by 0.9: 1 − 1/0.9 = −0.11) converges to the same tangent
+    B = A.copy()
+    B[:, : A.shape[0] // 2] *= 0.9
+    n2 = tangent_by_refinement(A, sla.lu_factor(B))
+    assert np.max(np.abs(unit_tangent(n2, m.beta, m.kappa) - ref)) < 1e-9 * np.max(np.abs(ref))
+
+
+def test_a_warm_grid_check_is_the_cold_one(params, start):
+    """The check of a later pulse on the same deformed grid, started from the earlier check's fine
+    pulse (transported) and LU: the same fine pulse and figures as from the interpolated start,
+    with fewer iterations; a warm start that does not fit the grid is ignored."""
+    loose = GridTolerance(beta=1e-3, L=1e-2)
+    m, _ = _march(params, start, True, 2)
+    first = check_pulse(params, m.sol, loose, warm=())
+    assert first.passed and first.warm is not None
+    assert check_pulse(params, m.sol, loose).warm is None        # no chain asked for
+    for _ in range(2):
+        m.ds = DS
+        assert m.step() is None
+    n = m.sol.xi.size
+    cold, db0, dl0 = check_grid_2n(params, m.sol, n, nested=True, stages=4, max_iter=15)
+    warm, db1, dl1 = check_grid_2n(params, m.sol, n, nested=True, stages=4, max_iter=15,
+                                   warm=first.warm)
+    assert cold.stats.converged and warm.stats.converged
+    assert np.max(np.abs(warm.x - cold.x)) < 1e-9
+    assert db1 == pytest.approx(db0, abs=1e-12) and dl1 == pytest.approx(dl0, abs=1e-10)
+    assert warm.stats.history[0] < 0.5 * cold.stats.history[0]
+    # (measured: 1 Newton + 3 chord iterations against 1 + 5; deep in the family, where the
+    # front moves by a few cells between checks, far fewer: BENCHMARKS.md "Stop 44")
+    assert (warm.stats.iterations + warm.stats.chord_iterations
+            < cold.stats.iterations + cold.stats.chord_iterations)
+    assert warm.stats.lu is not None and cold.stats.lu is None
+    # a warm start of another grid size changes nothing
+    x0, xf0, lu = first.warm
+    other, db2, dl2 = check_grid_2n(params, m.sol, n, nested=True, stages=4, max_iter=15,
+                                    warm=(x0[1:], xf0, lu))
+    assert other.stats.history[0] == cold.stats.history[0]
+    assert (db2, dl2) == (db0, dl0)
