@@ -155,6 +155,13 @@ class DeepSettings:
         them at every ds, the march from scratch (ds 0.01–0.4 above 1.009 τ_min) failed its large
         steps, halved ds again and again and had written 36 deep pulses by 611 m where the
         tangent had needed 18 to 1.78 km (stop 42). Above it the march is the tangent's.
+    creep : > 0: an arclength corrector stops (failed: ds halved) as soon as max|r| has not
+        halved over that many Newton iterations (:func:`~slippulse.steady.newton.newton`
+        ``creep``); 0: only after ``max_iter``. Measured from the 2550 m seed (stop 44, one
+        thread): with ``max_iter`` = 25 a step too long for Newton's basin spent 25 damped
+        iterations (≈ 50 s) before it failed, and some converged after 11–17; with creep = 4
+        those fail after 5–6 iterations and the halved steps converge in 2–5: 9 steps to
+        2860 m in 143 s against 265 s.
     reuse_lu : keep the LU the corrector last factored and use it for the next pulse: the family
         tangent by refinement (:func:`tangent_by_refinement`, a few back-substitutions) instead of
         a Jacobian and an LU, and chord iterations (:func:`~slippulse.steady.newton.chord`)
@@ -183,3 +190,4 @@ class DeepSettings:
     predictor: str = "tangent"
     predictor_ds_max: float = 0.002
     reuse_lu: bool = True
+    creep: int = 0
