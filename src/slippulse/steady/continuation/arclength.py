@@ -161,7 +161,10 @@ class DeepSettings:
         thread): with ``max_iter`` = 25 a step too long for Newton's basin spent 25 damped
         iterations (≈ 50 s) before it failed, and some converged after 11–17; with creep = 4
         those fail after 5–6 iterations and the halved steps converge in 2–5: 9 steps to
-        2860 m in 143 s against 265 s.
+        2860 m in 143 s against 265 s. But over longer runs it held the march at small ds
+        (≈ 0.002 at 3.2 km, a failure every third step), where the grid check's ΔL/L rose from
+        5e−6 to 9e−5 in 250 m, and the march from scratch reached N = 5374 by 1 km (N = 3542 at
+        1.6 km without): not the "auto" march's (stop 44).
     reuse_lu : keep the LU the corrector last factored and use it for the next pulse: the family
         tangent by refinement (:func:`tangent_by_refinement`, a few back-substitutions) instead of
         a Jacobian and an LU, and chord iterations (:func:`~slippulse.steady.newton.chord`)

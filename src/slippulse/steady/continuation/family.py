@@ -332,11 +332,11 @@ DEEP_POINTS = 2000
 #: L = 1.56 km without a failed step, docs/analysis.md); where its corrector fails at ds_min, the
 #: healing front's cells are refined and the march goes on (``relay``, issue 18 item 4); the
 #: grid's front zone moved by the last step's change of L and ln v predicted along the secant
-#: (``predictor="secant"``: 5-6 times the L per hour of "tangent" at 7.2 km, docs/steady.md §8);
-#: a corrector that creeps (max|r| not halved over 4 iterations) fails early and ds is halved
-#: (``creep``, stop 44: 1.8 times the L per hour at 2.6 km).
-AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25, relay=RELAYS, predictor="secant",
-                         creep=4)
+#: (``predictor="secant"``: 5-6 times the L per hour of "tangent" at 7.2 km, docs/steady.md §8).
+#: Not ``creep``: it sped up 9 steps from the 2550 m seed 1.8×, but held the march at small ds,
+#: where the check's error grew (5e-6 → 9e-5 in 250 m at 3.2 km), and from scratch it drove N to
+#: 5374 by 1 km (stop 44, docs/steady.md §8).
+AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25, relay=RELAYS, predictor="secant")
 
 
 def auto_deep_settings(deep_settings: DeepSettings | None = None) -> DeepSettings:
