@@ -1,5 +1,6 @@
-"""The deep march with and without reusing the corrector's LU (``DeepSettings.reuse_lu``), side by
-side: K arclength steps from the deepest pulse of a family file, each way, at the same fixed ds.
+"""The deep march with and without reusing the corrector's LU (``DeepSettings.reuse_lu`` and
+``chord``), side by side: K arclength steps from the deepest pulse of a family file, each way, at
+the same fixed ds.
 
 Run:  python benchmarks/bench_march_lu.py FAMILY.h5 [--steps 8] [--ds 0.0004]
 
@@ -28,7 +29,8 @@ from slippulse.steady.continuation.report import FamilyReport
 
 def march(path, reuse, steps, ds):
     start = _resume(PARAMS, path, FamilyReport())
-    settings = dataclasses.replace(auto_deep_settings(DeepSettings(ds_min=0.0002)), reuse_lu=reuse)
+    settings = dataclasses.replace(auto_deep_settings(DeepSettings(ds_min=0.0002)), reuse_lu=reuse,
+                                   chord=reuse)
     m = DeepMarch(PARAMS, (start.xi, start.y, start.beta, start.q), settings=settings)
     rows, t_all = [], time.perf_counter()
     for i in range(steps):

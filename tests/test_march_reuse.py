@@ -20,10 +20,11 @@ def start(params):
     return (a.xi, a.x[:-1], a.beta, 1.2)
 
 
-def _march(params, start, reuse, steps):
+def _march(params, start, reuse, steps, chord=True):
     m = DeepMarch(params, start, settings=DeepSettings(ds=DS, ds_max=DS, ds_min=0.25 * DS,
                                                        max_iter=20, stretch=True,
-                                                       predictor="secant", reuse_lu=reuse))
+                                                       predictor="secant", reuse_lu=reuse,
+                                                       chord=chord and reuse))
     rows = []
     for _ in range(steps):
         m.ds = DS
@@ -35,6 +36,13 @@ def _march(params, start, reuse, steps):
 def test_the_march_reuses_its_lu_and_finds_the_same_pulses(params, start):
     m0, plain = _march(params, start, False, 4)
     m1, reuse = _march(params, start, True, 4)
+    # the tangent alone by refinement (the "auto" march's default): the same steps, iteration
+    # for iteration
+    m2, tangent_only = _march(params, start, True, 4, chord=False)
+    assert [r[1:] for r in tangent_only] == [r[1:] for r in plain]
+    assert m2._lu is not None and m0._lu is None
+    for (x0, _, _), (x2, _, _) in zip(plain, tangent_only):
+        assert np.max(np.abs(x2 - x0)) < 1e-10
     for (x0, _, _), (x1, _, _) in zip(plain, reuse):
         assert x0.size == x1.size and np.max(np.abs(x1 - x0)) < 1e-10
     # without reuse every step forms Jacobians; with it, steps after the first converge by chord

@@ -105,8 +105,8 @@ class DeepMarch:
         # that pulse's deformed (same nodes, each on the same feature) by a "length" step
         self._rate = None
         self._prev = None
-        # reuse (settings.reuse_lu): the LU the last accepted corrector factored, the Jacobian at
-        # its pulse (None when chord iterations converged it), its arclength problem, and the
+        # reuse (settings.reuse_lu, settings.chord): the LU the last accepted corrector factored,
+        # the Jacobian at its pulse (None when chord iterations converged it), its arclength problem, and the
         # tangent at the current pulse once computed
         self._lu = self._jac = self._arc = self._n = None
         self._candidate = (None, None, None)
@@ -212,7 +212,7 @@ class DeepMarch:
             nb = SteadyProblem(P, qp, xn, k, ky, free="both", H=H)
             arc = ArclengthProblem(nb, math.log(1.0 - beta), q, t_a, t_Q, self.kappa, ds)
             x0 = np.concatenate([yn, [bp, qp]])
-            lu = (self._lu if s.reuse_lu and self._lu is not None
+            lu = (self._lu if s.chord and self._lu is not None
                   and self._lu[0].shape[0] == x0.size else None)
             t0 = time.perf_counter()
             xs, st = newton(arc, x0, tol=1e-13, max_iter=s.max_iter, lu=lu, keep=s.reuse_lu,
