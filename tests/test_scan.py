@@ -348,3 +348,21 @@ def _alive(pid):
 def subprocess_check(cmd):
     import subprocess
     return subprocess.run(cmd, capture_output=True, text=True).stdout
+
+
+def test_dry_run_names_a_bad_perturbation_case(tmp_path, capsys):
+    """A dry run of a perturbation scan checks every case's keys and values (not its files,
+    which need not exist yet): a bad case is named in one line, exit 2, instead of "todo"."""
+    root = os.path.dirname(TESTS)
+    good = os.path.join(root, "dynamic", "scans", "example.toml")
+    assert main(["dynamic", "scan", good, "--dry-run"]) == 0       # its steady file is absent
+    capsys.readouterr()
+    text = open(good).read().replace("dx = 4e-3", "dx = -4e-3")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    assert main(["dynamic", "scan", str(bad), "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "case " in err and "dx=-0.004" in err and "> 0" in err
+    bad.write_text(text.replace("dx = -4e-3", "dx = 4e-3\ndxx = 1"))
+    assert main(["dynamic", "scan", str(bad), "--dry-run"]) == 2
+    assert "unknown case key(s) ['dxx']" in capsys.readouterr().err

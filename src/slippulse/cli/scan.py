@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import sys
 
+from ..core.params import ParameterError
 from .app import UsageError
 from .paramargs import add_params_args, check_files
 
@@ -74,6 +75,22 @@ def _check_steady_pulses(scan) -> None:
         require_converged(path, [label])
 
 
+def _check_cases(scan) -> None:
+    """Perturbation scans: every case's keys and values (``perturbation.check_case``), so that a
+    dry run names a bad case (exit 2) instead of listing it as "todo"; its files are not
+    required to exist yet (they are checked before a real run, :func:`_check_steady_pulses`)."""
+    from ..stability import perturbation
+    from ..stability.scan import load_runner
+
+    if load_runner(scan.runner, scan.runner_path)[0] is not perturbation.run_case:
+        return
+    for case in scan.cases:
+        try:
+            perturbation.check_case(case.params)
+        except ParameterError as exc:
+            raise ParameterError(f"case {case.id}: {exc}") from None
+
+
 def cmd_scan(args) -> int:
     from ..stability.scan import load_scan, run_scan, scan_states
 
@@ -81,6 +98,7 @@ def cmd_scan(args) -> int:
     # the cases' pulses keep the parameters they were solved with: given ones must agree
     check_files(args, [c.params["steady"] for c in scan.cases if "steady" in c.params])
     if args.dry_run:
+        _check_cases(scan)
         states = scan_states(scan)
         width = max(len(c.id) for c in scan.cases)
         print(f"scan {scan.name}: {len(scan.cases)} cases, runner {scan.runner}, "
