@@ -11,14 +11,11 @@ pulses, and the deepest pulse of each. About 10 min with the defaults.
 """
 import argparse
 import os
-import subprocess
 import sys
-import threading
-import time
-
-import numpy as np
 
 from slippulse.core.h5io import list_pulses, read_pulse
+
+from _side_by_side import compare_files, run_at_once
 
 RUN = ("import sys; import slippulse.steady.continuation.gridcheck as g; g.REUSE_LU = {reuse}; "
        "from slippulse.cli.app import main; sys.exit(main(sys.argv[1:]))")
@@ -31,45 +28,18 @@ def main(argv=None):
     ap.add_argument("--dir", default="/tmp/bench_march_reuse")
     a = ap.parse_args(argv)
     os.makedirs(a.dir, exist_ok=True)
-    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", NUMBA_NUM_THREADS="1",
-               MKL_NUM_THREADS="1")
-    procs, files, t0 = {}, {}, {}
-    print(f"load before: {os.getloadavg()}", flush=True)
+    files, cmds = {}, {}
     for reuse in (False, True):
         out = os.path.join(a.dir, f"reuse_{reuse}.h5")
         if os.path.exists(out):
             os.remove(out)
         files[reuse] = out
-        cmd = [sys.executable, "-c", RUN.format(reuse=reuse), "steady", "family", "--from", "1.2",
-               "--to", a.to, "--max-length", a.max_length, "--out", out, "-q"]
-        t0[reuse] = time.perf_counter()
-        procs[reuse] = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE,
-                                        stderr=subprocess.STDOUT, text=True)
-    walls, texts = {}, {}
-    readers = {r: threading.Thread(target=lambda r=r: texts.__setitem__(r, procs[r].stdout.read()))
-               for r in procs}
-    for t in readers.values():
-        t.start()
-    while len(walls) < len(procs):              # each process's own end time
-        for reuse, p in procs.items():
-            if reuse not in walls and p.poll() is not None:
-                walls[reuse] = time.perf_counter() - t0[reuse]
-        time.sleep(0.5)
-    for reuse, p in procs.items():
-        readers[reuse].join()
-        last = [ln for ln in texts[reuse].splitlines() if ln.strip()][-1:]
-        print(f"reuse={reuse}: exit {p.returncode}, wall {walls[reuse]:.0f} s; "
-              f"{last[0] if last else ''}", flush=True)
-    print(f"load after: {os.getloadavg()}")
+        cmds[reuse] = [sys.executable, "-c", RUN.format(reuse=reuse), "steady", "family",
+                       "--from", "1.2", "--to", a.to, "--max-length", a.max_length, "--out", out,
+                       "-q"]
+    walls = run_at_once(cmds)
     print(f"wall {walls[False]:.0f} s -> {walls[True]:.0f} s: {walls[False] / walls[True]:.2f}x")
-    labs = [set(list_pulses(files[r])) for r in (False, True)]
-    common = sorted(labs[0] & labs[1])
-    db = dl = 0.0
-    for lab in common:
-        p0, p1 = read_pulse(files[False], lab)[0], read_pulse(files[True], lab)[0]
-        db, dl = max(db, abs(p1.beta - p0.beta)), max(dl, abs(p1.L / p0.L - 1.0))
-    print(f"pulses: {len(labs[0])} and {len(labs[1])}, {len(common)} common; over those, "
-          f"max|dbeta| = {db:.1e}, max|dL|/L = {dl:.1e}")
+    compare_files(files[False], files[True])
     for r in (False, True):
         rows = [read_pulse(files[r], lab)[0] for lab in list_pulses(files[r])]
         by = {}
