@@ -61,34 +61,35 @@ def _figures_hook(scan):
     return None
 
 
-def _check_steady_pulses(scan) -> None:
-    """Perturbation scans: every case's steady pulse must be marked converged (the same
-    ``h5io.require_converged`` as the other readers), checked before any case runs (exit 2)."""
-    from ..core.h5io import require_converged
+def _check_cases(scan) -> list[dict] | None:
+    """Perturbation scans: every case's keys and values (``perturbation.check_case``), a bad one
+    named (exit 2); the resolved cases, or None for another runner. Its files need not exist yet
+    (a dry run lists the cases; a real run checks them, :func:`_check_steady_pulses`)."""
     from ..stability import perturbation
     from ..stability.scan import load_runner
 
     if load_runner(scan.runner, scan.runner_path)[0] is not perturbation.run_case:
-        return
-    for path, label in sorted({(c["steady"], c["label"]) for c in
-                               (perturbation.check_case(case.params) for case in scan.cases)}):
-        require_converged(path, [label])
-
-
-def _check_cases(scan) -> None:
-    """Perturbation scans: every case's keys and values (``perturbation.check_case``), so that a
-    dry run names a bad case (exit 2) instead of listing it as "todo"; its files are not
-    required to exist yet (they are checked before a real run, :func:`_check_steady_pulses`)."""
-    from ..stability import perturbation
-    from ..stability.scan import load_runner
-
-    if load_runner(scan.runner, scan.runner_path)[0] is not perturbation.run_case:
-        return
+        return None
+    resolved = []
     for case in scan.cases:
         try:
-            perturbation.check_case(case.params)
+            resolved.append(perturbation.check_case(case.params))
         except ParameterError as exc:
             raise ParameterError(f"case {case.id}: {exc}") from None
+    return resolved
+
+
+def _check_steady_pulses(scan) -> None:
+    """Perturbation scans: every case valid (:func:`_check_cases`) and its steady pulse marked
+    converged (the same ``h5io.require_converged`` as the other readers), checked before any
+    case runs (exit 2)."""
+    from ..core.h5io import require_converged
+
+    cases = _check_cases(scan)
+    if cases is None:
+        return
+    for path, label in sorted({(c["steady"], c["label"]) for c in cases}):
+        require_converged(path, [label])
 
 
 def cmd_scan(args) -> int:

@@ -106,13 +106,13 @@ class DeepMarch:
         self._rate = None
         self._prev = None
         # reuse (settings.reuse_lu, settings.chord): the LU the last accepted corrector factored,
-        # the Jacobian at its pulse (None when chord iterations converged it), its arclength problem, and the
-        # tangent at the current pulse once computed
-        self._lu = self._jac = self._arc = self._n = None
+        # the Jacobian at its pulse (None when chord iterations converged it), its arclength
+        # problem, and the tangent at the current pulse once computed
+        self._forget()
         self._candidate = (None, None, None)
 
     def _forget(self):
-        """Drop what was kept of the last corrector (the current pulse changed grid or was replaced)."""
+        """Drop what was kept of the last corrector (the pulse changed grid or was replaced)."""
         self._lu = self._jac = self._arc = self._n = None
 
     def _tangent(self):

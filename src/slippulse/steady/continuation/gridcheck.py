@@ -92,8 +92,8 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
         else:
             xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter, reuse=reuse,
                             keep=warm is not None)
-        if st.lu is None or warm is None:
-            st.lu = lu_warm if warm is not None else None
+        if st.lu is None:               # the homotopy keeps none: the warm attempt's, if any
+            st.lu = lu_warm
     fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
     if not st.converged or n[-1] == 0.0:
         return fine, math.inf, math.inf
