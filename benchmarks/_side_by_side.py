@@ -1,5 +1,5 @@
 """Shared by the family benchmarks that run two settings as two processes at once
-(bench_march_reuse.py, bench_march_warm.py): the launch, each process's own wall time and
+(bench_march_reuse.py, bench_march_warm.py, bench_march_hold.py): the launch, each process's own wall time and
 output, and the comparison of the two family files."""
 import os
 import subprocess
@@ -14,10 +14,11 @@ ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "NUMBA_NUM_TH
               "MKL_NUM_THREADS": "1"}
 
 
-def run_at_once(cmds, last_lines=1):
+def run_at_once(cmds, last_lines=1, name="reuse"):
     """Start every command of ``cmds`` (key → argv) at once, one thread each; wait for all.
     Prints the load before and after and, per key, the exit status, its own wall time and the
-    last ``last_lines`` non-empty lines of its output. Returns {key: wall seconds}."""
+    last ``last_lines`` non-empty lines of its output (headed ``name=key``). Returns
+    {key: wall seconds}."""
     env = dict(os.environ, **ONE_THREAD)
     print(f"load before: {os.getloadavg()}", flush=True)
     procs, t0 = {}, {}
@@ -38,7 +39,7 @@ def run_at_once(cmds, last_lines=1):
     for key, p in procs.items():
         readers[key].join()
         last = [ln for ln in texts[key].splitlines() if ln.strip()][-last_lines:]
-        print(f"reuse={key}: exit {p.returncode}, wall {walls[key]:.0f} s; {' | '.join(last)}",
+        print(f"{name}={key}: exit {p.returncode}, wall {walls[key]:.0f} s; {' | '.join(last)}",
               flush=True)
     print(f"load after: {os.getloadavg()}")
     return walls

@@ -1,7 +1,7 @@
 """The divergence law of the deep family: fits, fit-window study, edge structure, figures.
 
     python steady/divergence.py FAMILY.h5 [--deep runs/deep] [--outdir docs/figures]
-        [--compare DIR_N DIR_2N]
+        [--compare DIR_N DIR_2N] [--table TABLE.csv ...]
 
 Reads the converged pulses of a family file and the arclength steps of `steady/deep_march.py`
 (DEEP/arc_*.npz, with their grid checks) — or, with no npz there, the deep pulses that
@@ -24,6 +24,12 @@ prints, as Markdown:
    with --refine) compared at equal β (interpolated in ln(1 − β)), the differences converted to
    fixed τ_d along the family, the Richardson extrapolation (order 2) of q and ln L at fixed β,
    and the fits repeated on the N, 2N − 1 and extrapolated branches.
+
+With --table (the tables `steady/deep_seed.py --table` writes beside a committed seed, e.g.
+steady/seeds/deep_family_s4*.csv), their converged, grid-checked rows join the fits and the local
+exponents as (τ_d/τ_min, β, L) points (a pulse the family file also holds is taken from the file);
+the edge structure is measured on the file's pulses only (a table has no profiles). So the march
+of several sessions, chained by seeds, is analysed as one family.
 
 Figures (PNG): divergence_deep.png (L and 1 − β against τ_d/τ_min − τ̃* on log axes),
 local_exponents_deep.png (the local exponents against L, with τ̃* from the deepest decade of L),
@@ -88,6 +94,38 @@ def load(family, deep_dir):
     q_first = max((p.tau_d_ratio for p in arc), default=q_last)
     fam = [p for p in out if "source" not in p.extra and p.tau_d_ratio > q_first]
     return sorted(fam + arc, key=lambda p: -p.tau_d_ratio)
+
+
+class TableRow:
+    """A pulse known by its table row only: τ_d/τ_min, β, L, N and its grid check."""
+
+    xi = None
+
+    def __init__(self, row):
+        self.tau_d_ratio, self.beta, self.L = (float(row[k]) for k in ("tau_d_ratio", "beta", "L"))
+        self.n_points = int(row["n_points"])
+        self.extra = {}
+        if row["continuation"] == "arclength":
+            self.extra = dict(source=row["label"], dbeta=float(row["grid_check_dbeta"]),
+                              dL_rel=float(row["grid_check_dL_rel"]),
+                              n_check=float(row["grid_check_n"] or "nan"))
+
+
+def load_tables(tables, pulses):
+    """``pulses`` with the checked rows of the CSV ``tables`` (those at a τ_d/τ_min no pulse
+    already has, to 1e−11), sorted by decreasing τ_d."""
+    import csv
+
+    out = list(pulses)
+    for fn in tables:
+        with open(fn, newline="") as fh:
+            for row in csv.DictReader(fh):
+                q = float(row["tau_d_ratio"])
+                if (row["grid_check_passed"] != "True"
+                        or any(abs(p.tau_d_ratio - q) < 1e-11 for p in out)):
+                    continue
+                out.append(TableRow(row))
+    return sorted(out, key=lambda p: -p.tau_d_ratio)
 
 
 def load_march(d):
@@ -165,9 +203,11 @@ def main(argv=None):
     ap.add_argument("--deep", default=os.path.join("runs", "deep"))
     ap.add_argument("--outdir", default=os.path.join("docs", "figures"))
     ap.add_argument("--compare", nargs=2, default=None, metavar=("DIR_N", "DIR_2N"))
+    ap.add_argument("--table", nargs="+", default=[], metavar="CSV",
+                    help="tables of checked pulses (steady/deep_seed.py --table) to join")
     a = ap.parse_args(argv)
     P = DEFAULT
-    pulses = load(a.family, a.deep)
+    pulses = load_tables(a.table, load(a.family, a.deep))
     q = np.array([p.tau_d_ratio for p in pulses])
     b = np.array([p.beta for p in pulses])
     L = np.array([p.L for p in pulses])
@@ -304,9 +344,10 @@ def main(argv=None):
               f"| {1 - bm[i]:.3e} | {L[i]:.4g} | {Ltm[i] * P.L_Gc:.4g} |")
 
     print("\n## Edge structure against L\n")
-    tau_m = min(p.tau.min() for p in pulses)
+    profiled = [p for p in pulses if p.xi is not None]
+    tau_m = min(p.tau.min() for p in profiled)
     rows = []
-    for p in sorted(pulses, key=lambda p: p.L):
+    for p in sorted(profiled, key=lambda p: p.L):
         if p.tau_d_ratio >= 1.06 or (rows and p.L < 1.1 * rows[-1][1]["L"]):
             continue
         e = an.edge_structure(p.xi, p.v, p.tau, P.v_star, p.v_stick)

@@ -111,3 +111,32 @@ def test_a_warm_grid_check_is_the_cold_one(params, start):
                                     warm=(x0[1:], xf0, lu))
     assert other.stats.history[0] == cold.stats.history[0]
     assert (db2, dl2) == (db0, dl0)
+
+
+class _TangentFails(DeepMarch):
+    """A march whose tangent-predicted steps above ``predictor_ds_max`` fail (as they do deep in
+    the family, where they take ``max_iter`` iterations to do so); the length/secant steps below
+    it are the real ones."""
+
+    def _attempt(self):
+        res = super()._attempt()
+        if self.last_predictor == "tangent" and self.ds > self.settings.predictor_ds_max:
+            return (False, None, "failed (forced)") + res[3:]
+        return res
+
+
+@pytest.mark.parametrize("hold", [False, True])
+def test_hold_keeps_ds_where_the_secant_works(params, start, hold):
+    """``DeepSettings.hold``: after a tangent step above predictor_ds_max failed and a secant step
+    below it passed, ds is capped there: one failure in six steps instead of one every time ds
+    grows past the threshold."""
+    s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
+                     predictor="secant", predictor_ds_max=1.2 * DS, hold=hold)
+    m = _TangentFails(params, start, settings=s)
+    for _ in range(6):
+        assert m.step() is None
+    assert m.held is hold
+    if hold:
+        assert m.n_failed == 1 and m.ds <= s.predictor_ds_max
+    else:
+        assert m.n_failed >= 2

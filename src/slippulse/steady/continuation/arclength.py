@@ -165,6 +165,13 @@ class DeepSettings:
         (≈ 0.002 at 3.2 km, a failure every third step), where the grid check's ΔL/L rose from
         5e−6 to 9e−5 in 250 m, and the march from scratch reached N = 5374 by 1 km (N = 3542 at
         1.6 km without): not the "auto" march's (stop 44).
+    hold : ``stretch`` with the "length" or "secant" predictor: once a step longer than
+        ``predictor_ds_max`` (so the tangent's) has failed and the next accepted one, at or below
+        it, was the "length" or "secant" predictor's, ds stays ≤ ``predictor_ds_max`` for the rest
+        of the march. Without it the step control grows ds by 1.5 after every easy step, deep in
+        the family just past the threshold, where the tangent's step fails after ``max_iter``
+        iterations (60–100 s at N = 5062): stop 44's march from 4.5 to 4.9 km failed one step
+        in three, about half of its wall time (docs/steady.md §8, stop 45).
     reuse_lu : keep the LU the corrector last factored (one Newton iterate from the pulse) and
         find the next family tangent by iterative refinement with it
         (:func:`tangent_by_refinement`: back-substitutions and products with the Jacobian
@@ -198,6 +205,7 @@ class DeepSettings:
     relay_levels: int = 2
     predictor: str = "tangent"
     predictor_ds_max: float = 0.002
+    hold: bool = False
     reuse_lu: bool = True
     chord: bool = False
     creep: int = 0

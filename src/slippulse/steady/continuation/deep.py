@@ -48,6 +48,7 @@ class DeepMarch:
     fold : τ_d/τ_min where τ_d first rose along the march (t_Q > 0), or None.
     n_steps, n_attempts, n_failed, n_iterations : accepted steps, attempts, failed attempts,
         Newton iterations (all attempts).
+    held : ``settings.hold`` has capped ds at ``settings.predictor_ds_max`` (which see).
     message : the last attempt's message (the reason, once failed).
     last_predictor : the predictor of the last attempt on the deformed grid: "tangent", "length"
         or "secant" (``settings.predictor``, which see; "length"/"secant" need the history they
@@ -110,6 +111,10 @@ class DeepMarch:
         # problem, and the tangent at the current pulse once computed
         self._forget()
         self._candidate = (None, None, None)
+        # settings.hold: a tangent step above predictor_ds_max failed since the last accepted
+        # step; held: ds capped at predictor_ds_max from then on
+        self._tangent_failed = False
+        self.held = False
 
     def _forget(self):
         """Drop what was kept of the last corrector (the pulse changed grid or was replaced)."""
@@ -244,6 +249,8 @@ class DeepMarch:
             if ok:
                 break
             self.n_failed += 1
+            if self.last_predictor == "tangent" and self.ds > s.predictor_ds_max:
+                self._tangent_failed = True
             self.ds *= 0.5
             if self.ds < s.ds_min:
                 self.status = "failed"
@@ -261,8 +268,13 @@ class DeepMarch:
         L_old = self.L
         self._accept(new)
         self._rate = (self.L - L_old) / self.ds
+        if (s.hold and s.stretch and self._tangent_failed
+                and self.last_predictor in ("length", "secant")):
+            self.held = True
+        self._tangent_failed = False
+        ds_max = min(s.ds_max, s.predictor_ds_max) if self.held else s.ds_max
         if new.stats.iterations <= 6:
-            self.ds = min(1.5 * self.ds, s.ds_max)
+            self.ds = min(1.5 * self.ds, ds_max)
         elif new.stats.iterations > 10:
             self.ds = max(0.7 * self.ds, s.ds_min)
         self.tangent = tangent

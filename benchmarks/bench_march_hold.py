@@ -1,0 +1,58 @@
+"""The deep march resumed from a seed with ``DeepSettings.hold`` (ds kept at or below
+``predictor_ds_max`` once a tangent step above it has failed and a secant step below it has
+passed; the "auto" march's since stop 45) and without (stop 44), side by side: two processes at
+once, one per core, one thread each.
+
+    python benchmarks/bench_march_hold.py [SEED.h5] [--max-length 5100] [--dir /tmp/bmh]
+
+Each process copies SEED.h5 (default: the committed steady/seeds/deep_seed_s44.h5, 4892 m,
+N = 5062) and runs ``slippulse steady family --from 1.2 --to 1.008 --out COPY --max-length L
+--ds-min 0.0002 --spacing 0.01`` on it, the setting set before the command starts. Prints
+each one's wall time, the machine load before and after, the ratio, each command's summary line
+(with its failed attempts: the failed steps are what hold removes), and compares the two
+files (the labels both hold, the largest differences of β and L over them). About 30 min with
+the defaults.
+"""
+import argparse
+import os
+import shutil
+import sys
+
+from slippulse.core.h5io import list_pulses, read_pulse
+
+from _side_by_side import compare_files, run_at_once
+
+RUN = ("import sys, dataclasses; import slippulse.steady.continuation.family as f; "
+       "f.AUTO_DEEP = dataclasses.replace(f.AUTO_DEEP, hold={new}); "
+       "from slippulse.cli.app import main; sys.exit(main(sys.argv[1:]))")
+SEED = os.path.join(os.path.dirname(__file__), "..", "steady", "seeds", "deep_seed_s44.h5")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("seed", nargs="?", default=SEED)
+    ap.add_argument("--max-length", default="5100")
+    ap.add_argument("--dir", default="/tmp/bench_march_hold")
+    a = ap.parse_args(argv)
+    os.makedirs(a.dir, exist_ok=True)
+    old = list_pulses(a.seed)
+    files, cmds = {}, {}
+    for new in (False, True):
+        out = os.path.join(a.dir, f"hold_{new}.h5")
+        shutil.copyfile(a.seed, out)
+        files[new] = out
+        cmds[new] = [sys.executable, "-c", RUN.format(new=new), "steady", "family", "--from",
+                     "1.2", "--to", "1.008", "--out", out, "--max-length", a.max_length,
+                     "--ds-min", "0.0002", "--spacing", "0.01"]
+    walls = run_at_once(cmds, last_lines=1, name="hold")
+    print(f"wall {walls[False]:.0f} s -> {walls[True]:.0f} s: {walls[False] / walls[True]:.2f}x")
+    common, _, _ = compare_files(files[False], files[True], skip=old)
+    for new in (False, True):
+        labs = [lab for lab in list_pulses(files[new]) if lab not in old]
+        deep = max((read_pulse(files[new], lab)[0].L for lab in labs), default=float("nan"))
+        print(f"hold={new}: {len(labs)} pulses written, deepest L = {deep:.1f} m")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
