@@ -14,12 +14,13 @@ ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "NUMBA_NUM_TH
               "MKL_NUM_THREADS": "1"}
 
 
-def run_at_once(cmds, last_lines=1, name="reuse"):
-    """Start every command of ``cmds`` (key → argv) at once, one thread each; wait for all.
+def run_at_once(cmds, last_lines=1, name="reuse", threads=1):
+    """Start every command of ``cmds`` (key → argv) at once, ``threads`` threads each (one: one
+    process per core here); wait for all.
     Prints the load before and after and, per key, the exit status, its own wall time and the
     last ``last_lines`` non-empty lines of its output (headed ``name=key``). Returns
     {key: wall seconds}."""
-    env = dict(os.environ, **ONE_THREAD)
+    env = dict(os.environ, **{k: str(threads) for k in ONE_THREAD})
     print(f"load before: {os.getloadavg()}", flush=True)
     procs, t0 = {}, {}
     for key, cmd in cmds.items():

@@ -1,9 +1,10 @@
 """The deep march resumed from a seed with ``DeepSettings.hold`` (ds kept at or below
 ``predictor_ds_max`` once a tangent step above it has failed and a secant step below it has
 passed; the "auto" march's since stop 45) and without (stop 44), side by side: two processes at
-once, one per core, one thread each.
+once, one per core, one thread each (``--threads``: more each, on a machine with more cores).
 
     python benchmarks/bench_march_hold.py [SEED.h5] [--max-length 5100] [--dir /tmp/bmh]
+        [--threads 1]
 
 Each process copies SEED.h5 (default: the committed steady/seeds/deep_seed_s44.h5, 4892 m,
 N = 5062) and runs ``slippulse steady family --from 1.2 --to 1.008 --out COPY --max-length L
@@ -33,6 +34,7 @@ def main(argv=None):
     ap.add_argument("seed", nargs="?", default=SEED)
     ap.add_argument("--max-length", default="5100")
     ap.add_argument("--dir", default="/tmp/bench_march_hold")
+    ap.add_argument("--threads", type=int, default=1, help="threads per process (default 1)")
     a = ap.parse_args(argv)
     os.makedirs(a.dir, exist_ok=True)
     old = list_pulses(a.seed)
@@ -44,7 +46,7 @@ def main(argv=None):
         cmds[new] = [sys.executable, "-c", RUN.format(new=new), "steady", "family", "--from",
                      "1.2", "--to", "1.008", "--out", out, "--max-length", a.max_length,
                      "--ds-min", "0.0002", "--spacing", "0.01"]
-    walls = run_at_once(cmds, last_lines=1, name="hold")
+    walls = run_at_once(cmds, last_lines=1, name="hold", threads=a.threads)
     print(f"wall {walls[False]:.0f} s -> {walls[True]:.0f} s: {walls[False] / walls[True]:.2f}x")
     common, _, _ = compare_files(files[False], files[True], skip=old)
     for new in (False, True):
