@@ -491,6 +491,15 @@ def test_the_secant_predictor_of_the_deep_march(params, monkeypatch):
     dist = math.hypot(math.log((1 - fresh.beta) / (1 - ms.beta)), (fresh.q - ms.q) / resumed.kappa)
     assert resumed._rate == pytest.approx((fresh.L - ms.L) / dist, rel=1e-12)
     assert resumed.step() is None and resumed.last_predictor == "length"
+    # with hold, a resume from two pulses far apart starts at predictor_ds_max, with "length"
+    far = dataclasses.replace(ms.settings, hold=True, predictor_ds_max=0.5 * dist)
+    held = DeepMarch(params, fresh.sol, settings=far)
+    assert held.resume_step(ms.beta, ms.q, ms.L) == far.predictor_ds_max
+    assert held.step() is None and held.last_predictor == "length"
+    unheld = DeepMarch(params, fresh.sol, settings=dataclasses.replace(far, hold=False))
+    assert unheld.resume_step(ms.beta, ms.q, ms.L) == pytest.approx(
+        min(max(dist, far.ds_min), far.ds_max), rel=1e-12)
+    assert unheld.ds > far.predictor_ds_max
     # above predictor_ds_max the march is the tangent's, history or not
     ms.ds = 2.0 * ms.settings.predictor_ds_max
     assert ms.step() is None and ms.last_predictor == "tangent"

@@ -147,7 +147,11 @@ class DeepMarch:
         of from ``settings.ds`` (which fails and halves several times deep in the family).
         With that pulse's length ``L_prev`` (m), its change of L per ds also seeds the "length"
         predictor (``settings.predictor``), so the first step moves the grid's front zone by it
-        instead of by the tangent's."""
+        instead of by the tangent's. With ``settings.hold`` the first step is then at most
+        ``predictor_ds_max``, where that predictor acts: the two last pulses of a file are
+        usually several steps apart (``spacing``), and deep in the family the tangent's step
+        from the longer distance failed at 25 iterations, once or twice, on every resume (stops
+        44–45, 60–90 s each at N = 5062)."""
         s = self.settings
         da = math.log(1.0 - self.beta) - math.log(1.0 - beta_prev)
         dq = (self.q - q_prev) / self.kappa
@@ -156,6 +160,8 @@ class DeepMarch:
             self.ds = min(max(ds, s.ds_min), s.ds_max)
             if L_prev is not None and math.isfinite(L_prev):
                 self._rate = (self.L - L_prev) / ds
+                if s.hold and s.stretch and s.predictor in ("length", "secant"):
+                    self.ds = max(min(self.ds, s.predictor_ds_max), s.ds_min)
         return self.ds
 
     def _n_now(self):
