@@ -140,3 +140,27 @@ def test_hold_keeps_ds_where_the_secant_works(params, start, hold):
         assert m.n_failed == 1 and m.ds <= s.predictor_ds_max
     else:
         assert m.n_failed >= 2
+
+
+def test_chord_once_held_keeps_the_path(params, start):
+    """``DeepSettings.chord_held``: once held, the correctors start with chord iterations on the
+    last LU; ds is capped, so the march takes the same steps to the same pulses."""
+    runs = {}
+    for chord_held in (False, True):
+        s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
+                         predictor="secant", predictor_ds_max=1.2 * DS, hold=True,
+                         chord_held=chord_held)
+        m = _TangentFails(params, start, settings=s)
+        rows = []
+        for _ in range(6):
+            assert m.step() is None
+            rows.append((m.ds, m.sol.x.copy(), m.sol.stats.chord_iterations))
+        runs[chord_held] = (m, rows)
+    (m0, plain), (m1, chord) = runs[False], runs[True]
+    assert m0.held and m1.held
+    assert [r[0] for r in plain] == [r[0] for r in chord]
+    for (_, x0, _), (_, x1, _) in zip(plain, chord):
+        assert x0.size == x1.size and np.max(np.abs(x1 - x0)) < 1e-10
+    assert all(c == 0 for _, _, c in plain)
+    assert sum(c > 0 for _, _, c in chord) >= 3       # the held steps start with chords
+    assert m1.n_iterations < m0.n_iterations

@@ -183,6 +183,10 @@ class DeepSettings:
         Newton iterations, which chord iterations replace, so ds grows otherwise and the march
         takes another path: from scratch it refined its grid to N = 5397 by 1.14 km (N = 3542
         at 1.59 km on the path of stops 28–42). Off in the "auto" march.
+    chord_held : chord iterations as ``chord``, but only once ``hold`` has capped ds (the march's
+        ``held``): ds then stays at its cap while steps converge, whatever the iterations, so the
+        chord cannot change the path the way it did with ds free. On in the "auto" march
+        (stop 45).
     """
 
     ds: float = 0.1
@@ -208,4 +212,5 @@ class DeepSettings:
     hold: bool = False
     reuse_lu: bool = True
     chord: bool = False
+    chord_held: bool = False
     creep: int = 0

@@ -223,7 +223,8 @@ class DeepMarch:
             nb = SteadyProblem(P, qp, xn, k, ky, free="both", H=H)
             arc = ArclengthProblem(nb, math.log(1.0 - beta), q, t_a, t_Q, self.kappa, ds)
             x0 = np.concatenate([yn, [bp, qp]])
-            lu = (self._lu if s.chord and self._lu is not None
+            chord = s.chord or (s.chord_held and self.held)
+            lu = (self._lu if chord and self._lu is not None
                   and self._lu[0].shape[0] == x0.size else None)
             t0 = time.perf_counter()
             xs, st = newton(arc, x0, tol=1e-13, max_iter=s.max_iter, lu=lu, keep=s.reuse_lu,

@@ -337,7 +337,7 @@ DEEP_POINTS = 2000
 #: where the check's error grew (5e-6 → 9e-5 in 250 m at 3.2 km), and from scratch it drove N to
 #: 5374 by 1 km (stop 44, docs/steady.md §8).
 AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25, relay=RELAYS, predictor="secant",
-                         hold=True)
+                         hold=True, chord_held=True)
 
 
 def auto_deep_settings(deep_settings: DeepSettings | None = None) -> DeepSettings:
