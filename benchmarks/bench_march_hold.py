@@ -1,9 +1,11 @@
-"""The deep march resumed from a seed with ``DeepSettings.hold`` (ds kept at or below
+"""The deep march resumed from a seed with the "auto" march's settings of stop 45 and with those of
+stop 44, side by side: two processes at once, one per core, one thread each (``--threads``: more
+each, on a machine with more cores). Stop 45 added ``DeepSettings.hold`` (ds kept at or below
 ``predictor_ds_max`` once a tangent step above it has failed and a secant step below it has
-passed; the "auto" march's since stop 45) and without (stop 44), side by side: two processes at
-once, one per core, one thread each (``--threads``: more each, on a machine with more cores).
+passed; a resume starts there) and ``DeepSettings.chord_held`` (chord iterations on the last LU
+once held).
 
-    python benchmarks/bench_march_hold.py [SEED.h5] [--max-length 5100] [--dir /tmp/bmh]
+    python benchmarks/bench_march_hold.py [SEED.h5] [--max-length 5000] [--dir /tmp/bmh]
         [--threads 1]
 
 Each process copies SEED.h5 (default: the committed steady/seeds/deep_seed_s44.h5, 4892 m,
@@ -11,7 +13,7 @@ N = 5062) and runs ``slippulse steady family --from 1.2 --to 1.008 --out COPY --
 --ds-min 0.0002 --spacing 0.01`` on it, the setting set before the command starts. Prints
 each one's wall time, the machine load before and after, the ratio, each command's summary line
 (with its failed attempts: the failed steps are what hold removes), and compares the two
-files (the labels both hold, the largest differences of β and L over them). About 30 min with
+files (the labels both hold, the largest differences of β and L over them). About 15 min with
 the defaults.
 """
 import argparse
@@ -24,7 +26,7 @@ from slippulse.core.h5io import list_pulses, read_pulse
 from _side_by_side import compare_files, run_at_once
 
 RUN = ("import sys, dataclasses; import slippulse.steady.continuation.family as f; "
-       "f.AUTO_DEEP = dataclasses.replace(f.AUTO_DEEP, hold={new}); "
+       "f.AUTO_DEEP = dataclasses.replace(f.AUTO_DEEP, hold={new}, chord_held={new}); "
        "from slippulse.cli.app import main; sys.exit(main(sys.argv[1:]))")
 SEED = os.path.join(os.path.dirname(__file__), "..", "steady", "seeds", "deep_seed_s44.h5")
 
@@ -32,7 +34,7 @@ SEED = os.path.join(os.path.dirname(__file__), "..", "steady", "seeds", "deep_se
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("seed", nargs="?", default=SEED)
-    ap.add_argument("--max-length", default="5100")
+    ap.add_argument("--max-length", default="5000")
     ap.add_argument("--dir", default="/tmp/bench_march_hold")
     ap.add_argument("--threads", type=int, default=1, help="threads per process (default 1)")
     a = ap.parse_args(argv)
