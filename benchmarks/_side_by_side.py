@@ -1,7 +1,9 @@
 """Shared by the family benchmarks that run two settings as two processes at once
-(bench_march_reuse.py, bench_march_warm.py, bench_march_hold.py): the launch, each process's own wall time and
-output, and the comparison of the two family files."""
+(bench_march_reuse.py, bench_march_warm.py, bench_march_hold.py): the launch, each process's
+own wall time and output, the comparison of the two family files, and the two commands that
+resume a seed."""
 import os
+import shutil
 import subprocess
 import sys
 import threading
@@ -62,3 +64,21 @@ def compare_files(file_a, file_b, skip=()):
 
 if __name__ == "__main__":
     sys.exit("a helper module of the benchmarks; run bench_march_reuse.py or bench_march_warm.py")
+
+
+def resume_commands(run, seed, directory, stem, max_length, quiet=True):
+    """The two deep marches of a seed benchmark (bench_march_warm.py, bench_march_hold.py): for
+    ``new`` in (False, True), ``seed`` copied to ``directory/{stem}_{new}.h5`` and the command
+    ``python -c run.format(new=new) steady family --from 1.2 --to 1.008 --out COPY --max-length
+    max_length --ds-min 0.0002 --spacing 0.01`` (``-q`` when ``quiet``) that resumes it.
+    Returns ({new: file}, {new: argv})."""
+    os.makedirs(directory, exist_ok=True)
+    files, cmds = {}, {}
+    for new in (False, True):
+        out = os.path.join(directory, f"{stem}_{new}.h5")
+        shutil.copyfile(seed, out)
+        files[new] = out
+        cmds[new] = [sys.executable, "-c", run.format(new=new), "steady", "family", "--from",
+                     "1.2", "--to", "1.008", "--out", out, "--max-length", str(max_length),
+                     "--ds-min", "0.0002", "--spacing", "0.01"] + (["-q"] if quiet else [])
+    return files, cmds

@@ -14,12 +14,11 @@ pulse. About 10 min with the defaults.
 """
 import argparse
 import os
-import shutil
 import sys
 
 from slippulse.core.h5io import list_pulses, read_pulse
 
-from _side_by_side import compare_files, run_at_once
+from _side_by_side import compare_files, resume_commands, run_at_once
 
 RUN = ("import sys, dataclasses; import slippulse.steady.continuation.family as f; "
        "f.WARM_CHECKS = {new}; f.AUTO_DEEP = dataclasses.replace(f.AUTO_DEEP, reuse_lu={new}); "
@@ -33,16 +32,8 @@ def main(argv=None):
     ap.add_argument("--max-length", default="2700")
     ap.add_argument("--dir", default="/tmp/bench_march_warm")
     a = ap.parse_args(argv)
-    os.makedirs(a.dir, exist_ok=True)
     old = list_pulses(a.seed)
-    files, cmds = {}, {}
-    for new in (False, True):
-        out = os.path.join(a.dir, f"new_{new}.h5")
-        shutil.copyfile(a.seed, out)
-        files[new] = out
-        cmds[new] = [sys.executable, "-c", RUN.format(new=new), "steady", "family", "--from",
-                     "1.2", "--to", "1.008", "--out", out, "--max-length", a.max_length,
-                     "--ds-min", "0.0002", "--spacing", "0.01", "-q"]
+    files, cmds = resume_commands(RUN, a.seed, a.dir, "new", a.max_length, quiet=True)
     walls = run_at_once(cmds, last_lines=2)
     print(f"wall {walls[False]:.0f} s -> {walls[True]:.0f} s: {walls[False] / walls[True]:.2f}x")
     common, _, _ = compare_files(files[False], files[True], skip=old)
