@@ -279,6 +279,44 @@ def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, 
     rep = FamilyReport()
     assert _resume(params, out, rep).q == 1.17
     assert rep.resumed_previous == (0.03, 1.18, base.L) and rep.resumed_method == "arclength"
+    assert rep.resumed_held is False                 # written without march_held
+    write_pulse(out, dataclasses.replace(base, tau_d_ratio=1.165, beta=0.045, extra={
+        "continuation": "arclength", "march_held": True}), params)
+    rep = FamilyReport()
+    assert _resume(params, out, rep).q == 1.165 and rep.resumed_held is True
+
+
+@pytest.mark.parametrize("held", [False, True])
+def test_a_resumed_deep_march_starts_held_if_its_pulse_was_written_held(monkeypatch, held):
+    """DeepSettings.hold: every pulse the auto march writes carries ``march_held`` (whether ds was
+    held when it was written), and a march resumed from a held pulse (``_auto_deep(held=True)``,
+    from ``FamilyReport.resumed_held``) starts held instead of learning it again from a failed
+    tangent step; without hold nothing is written or restored."""
+    from types import SimpleNamespace
+    from slippulse.steady.continuation import family
+    from slippulse.steady.continuation.report import FamilyReport
+    monkeypatch.setattr(family, "DeepMarch", _StubMarch)
+    extras, marches = [], []
+    real_init = _StubMarch.__init__
+
+    def init(self, *a, **k):
+        real_init(self, *a, **k)
+        marches.append(self)
+
+    monkeypatch.setattr(_StubMarch, "__init__", init)
+
+    def write(sol, pulse, method, extra=None):
+        extras.append(extra)
+        return SimpleNamespace(passed=True, sol=sol)
+
+    for hold in (True, False):
+        extras.clear()
+        settings = dataclasses.replace(family.AUTO_DEEP, spacing=0.0, hold=hold)
+        family._auto_deep(None, "unused.h5", (None, None, 0.998, 1.0095), 1.0, FamilyReport(),
+                          None, write, None, 1010.0, 4000, None, None, settings=settings,
+                          held=held)
+        assert marches[-1].held is (held and hold)
+        assert extras and all(e == ({"march_held": held} if hold else None) for e in extras)
 
 
 class _StubMarch:
@@ -288,6 +326,7 @@ class _StubMarch:
         from types import SimpleNamespace
         self.L, self.max_length, self.status, self.n_steps = 1000.0, max_length, "running", 0
         self.message = ""
+        self.held = False
         self.sol = SimpleNamespace(to_pulse=lambda: SimpleNamespace(L=self.L))
 
     def step(self):
@@ -309,7 +348,7 @@ def test_the_deep_march_writes_a_pulse_per_spacing_of_L_and_its_last(monkeypatch
     monkeypatch.setattr(family, "DeepMarch", _StubMarch)
     written = []
 
-    def write(sol, pulse, method):
+    def write(sol, pulse, method, extra=None):
         written.append(pulse.L)
         return SimpleNamespace(passed=True, sol=sol)
 

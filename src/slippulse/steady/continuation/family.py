@@ -96,10 +96,11 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     write = (_CheckedWriter(params, out, rep, tolerance, n_max, log) if auto else
              (lambda sol, pulse, method: _write(params, out, pulse, rep)))
 
-    def go_deep(start_sol, resolve, previous=None):
+    def go_deep(start_sol, resolve, previous=None, held=False):
         _auto_deep(params, out, start_sol, stop, rep, progress, write, deep_points if resolve
                    else None, max_length, n_max, tolerance, spec,
-                   settings=auto_deep_settings(deep_settings), previous=previous, log=log)
+                   settings=auto_deep_settings(deep_settings), previous=previous, log=log,
+                   held=held)
         rep.wall_time = time.perf_counter() - t0
         return rep
 
@@ -110,7 +111,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         if base.q > stop + 1e-12 and rep.reached_L < max_length:
             return go_deep((base.xi, base.y, base.beta, base.q),
                            resolve=rep.resumed_method != "arclength",
-                           previous=rep.resumed_previous)
+                           previous=rep.resumed_previous, held=rep.resumed_held)
         rep.wall_time = time.perf_counter() - t0
         return rep
     targets = [t for t in _targets(start, stop, step) if base is None or t < base.q - 1e-12]
@@ -219,6 +220,7 @@ def _resume(params, out, rep: FamilyReport):
     rep.resumed_from = last.label
     rep.resumed_method = str(last.extra.get("continuation", ""))
     rep.resumed_previous = _previous_arclength(done, last.tau_d_ratio)
+    rep.resumed_held = bool(last.extra.get("march_held", False))
     rep.reached, rep.reached_beta, rep.reached_L = last.tau_d_ratio, last.beta, last.L
     return _Base(last.xi, np.log(last.v), last.beta, last.tau_d_ratio)
 
@@ -464,8 +466,10 @@ def _relay(params, march, settings, write, rep, progress, log=None) -> bool:
         march.message += f"; then {msg}"
         return False
     pulse = new.to_pulse()
-    res = write(new, pulse, "arclength", extra={"relaid": True, "relay_dbeta": float(dbeta),
-                                                "relay_dL_rel": float(dL_rel)})
+    extra = {"relaid": True, "relay_dbeta": float(dbeta), "relay_dL_rel": float(dL_rel)}
+    if settings.hold:
+        extra["march_held"] = bool(march.held)
+    res = write(new, pulse, "arclength", extra=extra)
     if not res.passed:
         march.message += (f"; then {msg}, but the refined pulse failed its grid check "
                           f"({res.message})")
@@ -475,7 +479,7 @@ def _relay(params, march, settings, write, rep, progress, log=None) -> bool:
 
 
 def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_length, n_max,
-               tol, spec, settings=AUTO_DEEP, previous=None, log=None):
+               tol, spec, settings=AUTO_DEEP, previous=None, log=None, held=False):
     """The deep part of the "auto" family: from ``start`` = (xi, y, β, q) — re-solved at its τ_d
     on ``resolve_n`` adapted points unless None (then taken on its own grid) — the
     pseudo-arclength march on the deformed grid (:class:`DeepMarch`, :data:`AUTO_DEEP`), every
@@ -484,7 +488,10 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
     (refined) pulse. Ends at ``stop``, at ``max_length`` (clean: ``rep.limit_reached``), or where
     the march fails (``rep.stop``). ``previous`` = (β, q, L) of the pulse before ``start`` (a resumed
     march): the first ds is that step's, its dL/ds the first predicted change of L
-    (:meth:`DeepMarch.resume_step`)."""
+    (:meth:`DeepMarch.resume_step`). ``held``: the pulse resumed from was written by a march
+    whose ds was held (``settings.hold``, its ``march_held`` attribute): the resumed march starts
+    held instead of learning it again from a failed tangent step (≈ 2.5 min at N = 6614, stop 45).
+    Every pulse written by a march with ``settings.hold`` carries ``march_held``."""
     xi, y, beta, q = start
     if resolve_n is not None:
         sol = solve_pulse(params, q, n_points=resolve_n, guess=(xi, y, beta), passes=0,
@@ -499,6 +506,7 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
                                                   progress and progress(r, p, m)))
     if previous is not None:              # a resumed march: go on at the pace it had
         march.resume_step(*previous)
+    march.held = bool(held and settings.hold and settings.stretch)
     last_L = march.L
     relays, relaid_at = 0, None
     while march.status == "running":
@@ -513,7 +521,8 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
             break
         if march.status == "running" and march.L < last_L * (1.0 + settings.spacing):
             continue                  # a continuation step, not written (settings.spacing)
-        res = write(march.sol, march.sol.to_pulse(), "arclength")
+        res = write(march.sol, march.sol.to_pulse(), "arclength",
+                    extra={"march_held": bool(march.held)} if settings.hold else None)
         last_L = march.L
         if res.passed and res.sol is not march.sol:
             march.replace(res.sol)
