@@ -169,25 +169,20 @@ def test_count_of_the_1p2_pulse_in_the_product(tmp_path, pulse12, params):
 
 def test_cli_count_budget_bad_input_and_documented_default(tmp_path, pulse12, params):
     import re
+    import cli_inproc
     import subprocess
     import sys
     from slippulse.core.h5io import write_pulse
     from slippulse.stability.spectrum_family import COUNT_EVALS
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
-    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f,
-                        "--count", "0.5", "4", "4", "--count-evals", "5"],
-                       capture_output=True, text=True)
+    r = cli_inproc.run(["steady", "stability", f, "--count", "0.5", "4", "4", "--count-evals", "5"])
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0 and "count_evals=5" in r.stderr
-    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f,
-                        "--count", "0.5", "4", "4", "--count-workers", "0"],
-                       capture_output=True, text=True)
+    r = cli_inproc.run(["steady", "stability", f, "--count", "0.5", "4", "4", "--count-workers", "0"])
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0 and "count_workers=0" in r.stderr
-    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f,
-                        "--count", "0.5", "4", "4", "--count-threads", "-2"],
-                       capture_output=True, text=True)
+    r = cli_inproc.run(["steady", "stability", f, "--count", "0.5", "4", "4", "--count-threads", "-2"])
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0 and "count_threads=-2" in r.stderr
     h = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", "--help"],

@@ -1,7 +1,5 @@
 """The spectrum's ladder climbs to an accuracy goal, and its level 0 is clipped (issue 17, item 5:
 cost; docs/spectrum.md §5). Newton judges the pair it returns."""
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -85,8 +83,8 @@ def test_cli_ladder_options_out_of_range_are_one_line(tmp_path, pulse12, params,
     from slippulse.core.h5io import write_pulse
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
-    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f, "-q",
-                        *args], capture_output=True, text=True)
+    import cli_inproc
+    r = cli_inproc.run(["steady", "stability", f, "-q", *args])
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.strip().count("\n") == 0 and name in r.stderr, r.stderr
 

@@ -103,7 +103,6 @@ def test_rates_command_fits_the_stored_law_and_draws_it(tmp_path):
 
 
 def test_rates_command_refuses_a_file_without_rates(tmp_path):
-    import subprocess
     import sys
 
     from slippulse.core import h5io
@@ -112,11 +111,10 @@ def test_rates_command_refuses_a_file_without_rates(tmp_path):
     from test_analysis import _synthetic_pulse
     f = str(tmp_path / "fam.h5")
     h5io.write_pulse(f, _synthetic_pulse(1.05, 0.5, 1.0), P)
-    r = subprocess.run([sys.executable, "-m", "slippulse.cli", "steady", "rates", f],
-                       capture_output=True, text=True)
+    import cli_inproc
+    r = cli_inproc.run(["steady", "rates", f])
     assert r.returncode == 2 and "no growth rate" in r.stderr and "Traceback" not in r.stderr
-    r = subprocess.run([sys.executable, "-m", "slippulse.cli", "steady", "rates", f, "--below",
-                        "0.5"], capture_output=True, text=True)
+    r = cli_inproc.run(["steady", "rates", f, "--below", "0.5"])
     assert r.returncode == 2 and "below=" in r.stderr and "Traceback" not in r.stderr
 
 

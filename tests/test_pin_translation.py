@@ -112,12 +112,10 @@ def test_pinned_ladder_in_the_product(tmp_path, pulse12, params):
 
 
 def test_cli_points_out_of_range_is_one_line(tmp_path, pulse12, params):
-    import subprocess
-    import sys
+    import cli_inproc
     from slippulse.core.h5io import write_pulse
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
-    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f,
-                        "--points", "50"], capture_output=True, text=True)
+    r = cli_inproc.run(["steady", "stability", f, "--points", "50"])
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0 and "points=50" in r.stderr

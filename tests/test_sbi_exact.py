@@ -46,8 +46,15 @@ def test_static_limit_window_is_exactly_static_after_window():
 
 
 # ----------------------------------------------------------------------------- uniform creep
-@pytest.mark.parametrize("policy,kind,steps", [("window", "fixed", 100_000),
-                                               ("soe", "fixed", 100_000),
+# the fixed-step runs in the default set are 20 000 steps (the drift of φ grows linearly with the
+# step count: 1.7e-11 after 1e5, so the same bounds are 5× looser there); their 1e5-step runs, 17-19
+# s each on 2 cores, are `slow`. The adaptive run needs its 1e5 steps to reach the slow phase.
+@pytest.mark.parametrize("policy,kind,steps", [("window", "fixed", 20_000),
+                                               ("soe", "fixed", 20_000),
+                                               pytest.param("window", "fixed", 100_000,
+                                                            marks=pytest.mark.slow),
+                                               pytest.param("soe", "fixed", 100_000,
+                                                            marks=pytest.mark.slow),
                                                ("soe", "adaptive", 100_000),
                                                ("full", "fixed", 10_000)])
 def test_uniform_creep_stays_uniform(policy, kind, steps):

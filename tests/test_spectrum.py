@@ -346,6 +346,7 @@ def test_translation_mode_and_leading_eigenvalue_at_1p2(op12):
 
 
 def test_cli_bad_input(tmp_path, pulse12, params):
+    import cli_inproc
     from slippulse.core.h5io import write_pulse
     junk = tmp_path / "junk.h5"
     junk.write_text("not hdf5")
@@ -363,8 +364,7 @@ def test_cli_bad_input(tmp_path, pulse12, params):
              ([str(failed)], "no converged pulse"),
              ([str(tmp_path / "missing.h5")], "not a readable HDF5")]
     for args, msg in cases:
-        r = subprocess.run([sys.executable, "-m", "slippulse.cli", "steady", "stability", *args,
-                            "-q"], capture_output=True, text=True)
+        r = cli_inproc.run(["steady", "stability", *args, "-q"])
         assert r.returncode == 2, (args, r.stderr)
         assert msg in r.stderr and "Traceback" not in r.stderr, r.stderr
 

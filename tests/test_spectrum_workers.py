@@ -124,8 +124,7 @@ def test_two_workers_give_the_sequential_spectrum(tmp_path, pulse12, params, spe
 
 
 def test_cli_refuses_bad_worker_counts(tmp_path, pulse12, params):
-    import subprocess
-    import sys
+    import cli_inproc
 
     from slippulse.core.h5io import write_pulse
     good = tmp_path / "one.h5"
@@ -134,8 +133,7 @@ def test_cli_refuses_bad_worker_counts(tmp_path, pulse12, params):
              (["--threads", "0"], "threads=0 is invalid"),
              (["--workers", "2", "--count-workers", "2"], "use one of them")]
     for args, msg in cases:
-        r = subprocess.run([sys.executable, "-m", "slippulse.cli", "steady", "stability",
-                            str(good), "-q", *args], capture_output=True, text=True)
+        r = cli_inproc.run(["steady", "stability", good, "-q", *args])
         assert r.returncode == 2, (args, r.stderr)
         assert msg in r.stderr and "Traceback" not in r.stderr, r.stderr
 

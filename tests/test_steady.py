@@ -211,7 +211,8 @@ def run_cli(*args, cwd):
     (["--points", "10"], "points")])
 def test_cli_bad_input_one_line_exit_2_no_file(tmp_path, args, name):
     out = tmp_path / "x.h5"
-    r = run_cli("steady", "solve", *args, "--out", str(out), "-q", cwd=tmp_path)
+    import cli_inproc
+    r = cli_inproc.run(["steady", "solve", *args, "--out", out, "-q"])
     assert r.returncode == 2
     assert name in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
