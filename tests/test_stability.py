@@ -34,6 +34,20 @@ def test_fit_growth_recovers_an_exponential_and_its_window():
     assert fb["s_err"] > 0.3
 
 
+def test_fit_growth_with_lo_zero_skips_exact_zeros():
+    """lo = 0 (the pair's decaying or neutral fit): a sample with d = 0 exactly has no ln|d|; it
+    is left out (it once entered the fit as −inf, with a divide-by-zero warning)."""
+    import warnings
+    x = np.linspace(0, 1, 101)
+    d = 1e-4 * np.exp(-3.0 * x)
+    d[[10, 50]] = 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        f = fit_growth(x, d, lo=0.0, hi=np.inf)
+    assert f["s"] == pytest.approx(-3.0, rel=1e-10) and f["n"] == 99
+    assert math.isnan(fit_growth(x, np.zeros(101), lo=0.0, hi=np.inf)["s"])
+
+
 def test_fit_growth_without_a_regime_is_nan():
     x = np.linspace(0, 1, 50)
     assert math.isnan(fit_growth(x, np.full(50, 1e-5))["s"])

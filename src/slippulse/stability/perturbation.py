@@ -129,7 +129,7 @@ def fit_growth(x, d, lo=1e-3, hi=3e-2, min_points=5):
     below = np.nonzero(ok[:i1] & (a[:i1] < lo))[0]
     i0 = int(below[-1]) if below.size else -1
     idx = np.arange(i0 + 1, i1 + 1)
-    idx = idx[ok[idx] & (a[idx] >= lo) & (a[idx] <= hi)]
+    idx = idx[ok[idx] & (a[idx] >= lo) & (a[idx] <= hi) & (a[idx] > 0)]   # log |d|: d ≠ 0
     if idx.size < min_points:
         return out
     X, Y = x[idx], np.log(a[idx])
@@ -430,9 +430,13 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: f
         out["regime"] = f"too short ({abs(f['s']) * (f['x1'] - f['x0']):.2f} e-folds)"
         return out
     err = max(f["s_err"], spread) if np.isfinite(spread) else f["s_err"]
+    # |q|/|r| where |r| > 0; a sample with r = 0 counts 0 if q = 0 too, else inf (no 0/0 warning)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(ar[idx] > 0, np.abs(q[idx]) / ar[idx],
+                         np.where(q[idx] == 0, 0.0, np.inf))
     out.update(s_per_s=f["s"], s_per_s_err=err, s_per_L=f["s"] * conv,
                s_per_L_err=err * conv, t0=f["x0"], t1=f["x1"], n=f["n"],
-               sym_ratio=float(np.max(np.abs(q[idx]) / ar[idx])))
+               sym_ratio=float(np.max(ratio)))
     if "deviation" in plus and "deviation" in minus:
         devm = np.array([np.interp(t, tm, col) for col in minus["deviation"].T]).T
         dev = 0.5 * (plus["deviation"][:n] - devm)
