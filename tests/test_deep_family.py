@@ -311,7 +311,7 @@ def test_a_resumed_deep_march_starts_held_if_its_pulse_was_written_held(monkeypa
 
     for hold in (True, False):
         extras.clear()
-        settings = dataclasses.replace(family.AUTO_DEEP, spacing=0.0, hold=hold)
+        settings = dataclasses.replace(family.AUTO_DEEP, spacing=0.0, hold=hold, recentre=0.0)
         family._auto_deep(None, "unused.h5", (None, None, 0.998, 1.0095), 1.0, FamilyReport(),
                           None, write, None, 1010.0, 4000, None, None, settings=settings,
                           held=held)
@@ -544,3 +544,38 @@ def test_the_secant_predictor_of_the_deep_march(params, monkeypatch):
     assert ms.step() is None and ms.last_predictor == "tangent"
     with pytest.raises(ValueError, match="predictor"):
         DeepMarch(params, ms.sol, settings=DeepSettings(stretch=True, predictor="nodal"))
+
+
+@pytest.mark.parametrize("case", ["far", "near", "not held", "off", "fails"])
+def test_the_held_march_moves_the_zone_back_onto_the_healing_front(monkeypatch, case):
+    """DeepSettings.recentre: once held, at the start and after every written pulse that passed,
+    a march whose zone about the healing front lies more than recentre · L off its drop goes on
+    from the re-solved pulse (``relay.recentre``, mocked here; tested in test_recentre.py); not
+    when the offset is within it, not before held, not with recentre = 0, and a re-solve that
+    fails leaves the march on its pulse."""
+    from types import SimpleNamespace
+    from slippulse.steady.continuation import family
+    from slippulse.steady.continuation.report import FamilyReport
+    L = 5000.0
+    xi = np.linspace(-2 * L, 100.0, 50)
+    y = np.where((xi > -L) & (xi < 0), 0.0, -30.0)          # a pulse of length L for its crossings
+    cur = SimpleNamespace(xi=xi, x=np.concatenate([y, [0.998, 1.0095]]))
+    new = SimpleNamespace(xi=xi, x=cur.x.copy(), to_pulse=lambda: None)
+    replaced, calls = [], []
+    march = SimpleNamespace(sol=cur, L=L, held=case != "not held", status="running",
+                            replace=replaced.append)
+    off = 2.0 * 0.001 * L if case != "near" else 0.5 * 0.001 * L
+    monkeypatch.setattr(family, "block_offset", lambda *a: off)
+
+    def fake(params, sol, front_zone, back_zone):
+        calls.append(sol)
+        return (None if case == "fails" else new), 0.0, 0.0, off, "mocked"
+
+    monkeypatch.setattr(family, "recentre", fake)
+    settings = dataclasses.replace(family.AUTO_DEEP, recentre=0.0 if case == "off" else 0.001)
+    rep = FamilyReport()
+    moved = family._recentre(SimpleNamespace(v_star=1e-9), march, settings, rep, None)
+    assert moved is (case == "far")
+    assert replaced == ([new] if case == "far" else [])
+    assert calls == ([cur] if case in ("far", "fails") else [])
+    assert rep.attempts == len(calls)

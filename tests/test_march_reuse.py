@@ -164,3 +164,28 @@ def test_chord_once_held_keeps_the_path(params, start):
     assert all(c == 0 for _, _, c in plain)
     assert sum(c > 0 for _, _, c in chord) >= 3       # the held steps start with chords
     assert m1.n_iterations < m0.n_iterations
+
+
+def test_creep_only_once_held(params, start, monkeypatch):
+    """``DeepSettings.creep_held``: the correctors stop creeping Newton after that many
+    iterations (``newton(creep=...)``) only once the march is held; before, ``creep`` as set."""
+    from slippulse.steady.continuation import deep
+    seen = []
+    real = deep.newton
+
+    def newton(*a, **k):
+        seen.append(k["creep"])
+        return real(*a, **k)
+
+    monkeypatch.setattr(deep, "newton", newton)
+    s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
+                     predictor="secant", predictor_ds_max=1.2 * DS, hold=True, creep_held=4)
+    m = _TangentFails(params, start, settings=s)
+    held = []
+    for _ in range(6):
+        held.append(m.held)
+        n0 = len(seen)
+        assert m.step() is None
+        # every attempt of this step was made with the march's state at its start
+        assert all(c == (4 if held[-1] else 0) for c in seen[n0:]), (held[-1], seen[n0:])
+    assert m.held and not held[0] and any(held)

@@ -187,6 +187,23 @@ class DeepSettings:
         ``held``): ds then stays at its cap while steps converge, whatever the iterations, so the
         chord cannot change the path the way it did with ds free. On in the "auto" march
         (stop 45).
+    creep_held : ``creep`` (this many iterations), but only once held. Held at the cap of
+        0.002 at N = 6614 (6.8–7.0 km, stop 46), two steps converged (30–45 s) and the third
+        failed after ``max_iter`` = 25 iterations (2.5–3 min), every time: the failures took
+        more than half of the march's time. Stop 44 left ``creep`` off because the steps it
+        fails early halve ds and held the march at small ds; held, ds is at its cap anyway.
+        4 in the "auto" march (stop 46).
+    recentre : the "auto" march only (:func:`~slippulse.steady.continuation.family._auto_deep`),
+        once ``hold`` has capped ds: at the start and after every written pulse that passed its
+        check, where the finest cells of the zone about the healing front lie more than
+        ``recentre`` · L from its steep drop (:func:`~.stretch.block_offset`), the zone is moved
+        back onto it and the pulse re-solved there (:func:`~.relay.recentre`) before the march
+        goes on (0: off). Each step moves the zone by the predicted change of L and the
+        corrector moves the front by what that missed, so the drop wanders off the cells laid
+        out for it: measured on the march of stops 43–46, the zone's 0.05 m cells lay 17–83 m
+        ahead of the back crossing at 6.76 km (offset +57 m), the drop on cells of 0.15–0.31 m
+        (|Δ ln v| ≤ 0.32 per cell); moved back, 2 Newton iterations, |Δ ln v| ≤ 0.075 per cell,
+        ΔL/L = −4.3e−6 at fixed τ_d (docs/steady.md §8). 0.001 in the "auto" march (stop 46).
     """
 
     ds: float = 0.1
@@ -214,3 +231,5 @@ class DeepSettings:
     chord: bool = False
     chord_held: bool = False
     creep: int = 0
+    creep_held: int = 0
+    recentre: float = 0.0

@@ -227,8 +227,9 @@ class DeepMarch:
             lu = (self._lu if chord and self._lu is not None
                   and self._lu[0].shape[0] == x0.size else None)
             t0 = time.perf_counter()
+            creep = s.creep or (s.creep_held if self.held else 0)
             xs, st = newton(arc, x0, tol=1e-13, max_iter=s.max_iter, lu=lu, keep=s.reuse_lu,
-                            creep=s.creep)
+                            creep=creep)
             new = SteadySolution(nb, xs, st, time.perf_counter() - t0, 1)
             self._candidate = (st.lu, st.jacobian, arc)
             st.lu = st.jacobian = None

@@ -14,7 +14,9 @@ from ...core.params import ParameterError, Parameters
 from ..solver import MAX_POINTS, GridSpec, solve_pulse
 from .arclength import DeepSettings
 from .deep import DeepMarch, march_arclength
-from .relay import refine_front
+from ..measures import pulse_length
+from .relay import recentre, refine_front
+from .stretch import block_offset
 from .gridcheck import as_both, check_grid_2n, check_pulse
 from .tolerance import GRID_TOLERANCE, GridTolerance
 from .natural import (FAMILY_POINTS, FAMILY_POINTS_BETA, _Base, _beta_bridge, _judge, _targets,
@@ -339,7 +341,7 @@ DEEP_POINTS = 2000
 #: where the check's error grew (5e-6 → 9e-5 in 250 m at 3.2 km), and from scratch it drove N to
 #: 5374 by 1 km (stop 44, docs/steady.md §8).
 AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25, relay=RELAYS, predictor="secant",
-                         hold=True, chord_held=True)
+                         hold=True, chord_held=True, creep_held=4, recentre=0.001)
 
 
 def auto_deep_settings(deep_settings: DeepSettings | None = None) -> DeepSettings:
@@ -478,6 +480,38 @@ def _relay(params, march, settings, write, rep, progress, log=None) -> bool:
     return True
 
 
+def _recentre(params, march, settings, rep, progress, log=None) -> bool:
+    """``settings.recentre``: once the march is held, where the finest cells of the zone about
+    the healing front lie more than ``recentre`` · L from its steep drop
+    (:func:`~.stretch.block_offset`), move the zone back onto it and go on from the re-solved
+    pulse (:func:`~.relay.recentre`; not written: the next written pulse is grid-checked as
+    every one). A re-solve that does not converge leaves the march as it was. Returns whether
+    the grid moved."""
+    if not (settings.recentre > 0 and settings.stretch and march.held
+            and march.status == "running"):
+        return False
+    sol = march.sol
+    y = np.asarray(sol.x[:-2], float)
+    try:
+        x_back = pulse_length(sol.xi, np.exp(y), params.v_star)[1]
+    except ValueError:
+        return False
+    off = block_offset(sol.xi, y, x_back, settings.back_zone * march.L)
+    if not abs(off) > settings.recentre * march.L:
+        return False
+    new, _, _, _, msg = recentre(params, sol, settings.front_zone, settings.back_zone)
+    q = float(sol.x[-1])
+    rep.record(float(new.x[-1]) if new is not None else q, new is not None, msg)
+    if progress:
+        progress(q, new.to_pulse() if new is not None else None, msg)
+    if log:
+        log(f"at tau_d/tau_min={q:.7f} (L={march.L:.1f} m): {msg}")
+    if new is None:
+        return False
+    march.replace(new)
+    return True
+
+
 def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_length, n_max,
                tol, spec, settings=AUTO_DEEP, previous=None, log=None, held=False):
     """The deep part of the "auto" family: from ``start`` = (xi, y, β, q) — re-solved at its τ_d
@@ -507,6 +541,7 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
     if previous is not None:              # a resumed march: go on at the pace it had
         march.resume_step(*previous)
     march.held = bool(held and settings.hold and settings.stretch)
+    _recentre(params, march, settings, rep, progress, log)
     last_L = march.L
     relays, relaid_at = 0, None
     while march.status == "running":
@@ -526,6 +561,8 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
         last_L = march.L
         if res.passed and res.sol is not march.sol:
             march.replace(res.sol)
+        if res.passed:
+            _recentre(params, march, settings, rep, progress, log)
     rep.deep_steps += march.n_steps
     if march.status == "failed":
         rep.stop(march.message, "smaller arclength steps or more points; rerun the same command "

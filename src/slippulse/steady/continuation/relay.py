@@ -24,6 +24,7 @@ from ..equations import SteadyProblem
 from ..measures import pulse_length
 from ..solver import GridSpec, SteadySolution, interpolate
 from .arclength import ArclengthProblem, family_tangent
+from .stretch import block_offset, stretch_grid
 from .gridcheck import grid_change
 from .homotopy import solve_robust
 
@@ -117,3 +118,46 @@ def relay_pulse(params, sol: SteadySolution, n_points: int, spec: GridSpec = Gri
                                           f"did not converge ({st.message})")
     return fine, dbeta, dL_rel, (f"re-laid grid of {2 * n_half} points: {st.iterations} it., "
                                  f"change at fixed tau_d dbeta={dbeta:.1e} dL/L={dL_rel:.1e}")
+
+
+def recentre(params, sol: SteadySolution, front_zone: float = 0.01, back_zone: float = 0.05,
+             stages: int = 4, max_iter: int = 15):
+    """``sol`` (x = (y, β, q), on a deformed grid) re-solved on its grid with the zone about the
+    healing front moved so that its finest cells sit on the front's steep drop again
+    (:func:`~.stretch.block_offset` → 0): :func:`~.stretch.stretch_grid` with the offset as the
+    shift (the body between the edges lengthened or shortened by it, node count and order kept),
+    ln v interpolated, re-solved on the line through ``sol`` normal to the family tangent with
+    the residual homotopy (``stages``).
+
+    Returns (SteadySolution or None when the re-solve does not converge, Δβ, ΔL/L, offset before,
+    message), Δβ and ΔL/L the change from ``sol`` at fixed τ_d, as :func:`refine_front`.
+    """
+    p0 = sol.to_pulse()
+    q, beta, L = float(sol.x[-1]), p0.beta, p0.L
+    xi, y = sol.xi, np.asarray(sol.x[:-2], float)
+    x_pin = xi[sol.problem.pin_index]
+    x_back = pulse_length(xi, np.exp(y), params.v_star)[1]
+    off = block_offset(xi, y, x_back, back_zone * L)
+    xn = stretch_grid(xi, x_pin, off, front_zone * L, x_back, back_zone * L)
+    yn = interpolate(xi, y, xn, params.v_stick(q * params.tau_min))
+    pin = sol.problem.pin_index
+    n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
+    t_a, t_Q = -n[-2] / (1.0 - beta), n[-1]
+    base = SteadyProblem(params, q, xn, pin, float(yn[pin]), free="both",
+                         state_order=sol.problem.state_order)
+    arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
+    t0 = time.perf_counter()
+    xs, st = solve_robust(arc, np.concatenate([yn, [beta, q]]), stages=stages,
+                          max_iter=max_iter, reuse=True)
+    new = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
+    what = f"healing-front zone moved by {off:+.2f} m onto its drop (N={xi.size})"
+    if not st.converged or n[-1] == 0.0:
+        return None, math.inf, math.inf, off, f"{what}: the re-solve did not converge ({st.message})"
+    p1 = new.to_pulse()
+    eps = 1e-3 / max(float(np.abs(n[:-2]).max()), 1e-12)
+    dL_ds = (pulse_length(xi, np.exp(y + eps * n[:-2]), params.v_star, crossings=False) - L) / eps
+    dq = float(xs[-1]) - q
+    dbeta = p1.beta - beta - (n[-2] / n[-1]) * dq
+    dL_rel = (p1.L - L - dL_ds / n[-1] * dq) / L
+    return new, dbeta, dL_rel, off, (f"{what}: {st.iterations} it., change at fixed tau_d "
+                                     f"dbeta={dbeta:.1e} dL/L={dL_rel:.1e}")

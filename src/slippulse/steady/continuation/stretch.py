@@ -49,3 +49,31 @@ def stretch_grid(xi, x0, shift, a, x_back, w):
     G = np.maximum(G, 0.0)
     return xi - shift * G / G[0]
 
+
+
+def block_offset(xi, y, x_back, w):
+    """How far the finest cells about the healing front lie from its steep drop (m).
+
+    Within ``x_back ± w`` (the zone :func:`stretch_grid` moves rigidly; ``x_back`` the back
+    half-maximum crossing), the centre of the grid's refinement, the mean of the cell midpoints
+    weighted by 1/h², minus the centre of the drop, weighted by |Δ ln v| per cell. Positive: the
+    fine cells lie ahead of the drop (toward the leading edge).
+
+    Each deformed step moves the zone by the predicted change of L; the corrector then moves the
+    front by what the prediction missed, so the drop wanders off the cells laid out for it
+    (measured on the march of stops 43–46: the 0.05–0.1 m cells of the zone moved 0.6 m ahead of
+    the back crossing per 100 m of L, 6 m at 4.8 km, 17 m at 6.8 km; the drop then sat on cells of
+    0.15–0.31 m behind them, and the check found the healing front's error, docs/steady.md §8).
+    """
+    xi = np.asarray(xi, float)
+    y = np.asarray(y, float)
+    h = np.diff(xi)
+    mid = 0.5 * (xi[1:] + xi[:-1])
+    zone = (mid > x_back - w) & (mid < x_back + w)
+    if not zone.any() or h[zone].max() < 1.5 * h[zone].min():
+        return 0.0                      # no refinement there to move
+    wh = 1.0 / h[zone] ** 2
+    wd = np.abs(np.diff(y))[zone]
+    if not wd.sum() > 0:
+        return 0.0
+    return float(np.sum(mid[zone] * wh) / wh.sum() - np.sum(mid[zone] * wd) / wd.sum())
