@@ -279,11 +279,12 @@ def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, 
     rep = FamilyReport()
     assert _resume(params, out, rep).q == 1.17
     assert rep.resumed_previous == (0.03, 1.18, base.L) and rep.resumed_method == "arclength"
-    assert rep.resumed_held is False                 # written without march_held
+    assert rep.resumed_held is False and math.isnan(rep.resumed_cap)   # written without them
     write_pulse(out, dataclasses.replace(base, tau_d_ratio=1.165, beta=0.045, extra={
-        "continuation": "arclength", "march_held": True}), params)
+        "continuation": "arclength", "march_held": True, "march_cap": 0.0016}), params)
     rep = FamilyReport()
     assert _resume(params, out, rep).q == 1.165 and rep.resumed_held is True
+    assert rep.resumed_cap == 0.0016
 
 
 @pytest.mark.parametrize("held", [False, True])
@@ -311,12 +312,17 @@ def test_a_resumed_deep_march_starts_held_if_its_pulse_was_written_held(monkeypa
 
     for hold in (True, False):
         extras.clear()
-        settings = dataclasses.replace(family.AUTO_DEEP, spacing=0.0, hold=hold, recentre=0.0)
+        settings = dataclasses.replace(family.AUTO_DEEP, spacing=0.0, hold=hold, recentre=0.0,
+                                       ds_min=0.0002)
         family._auto_deep(None, "unused.h5", (None, None, 0.998, 1.0095), 1.0, FamilyReport(),
                           None, write, None, 1010.0, 4000, None, None, settings=settings,
-                          held=held)
-        assert marches[-1].held is (held and hold)
-        assert extras and all(e == ({"march_held": held} if hold else None) for e in extras)
+                          held=held, cap=0.0013)
+        m = marches[-1]
+        assert m.held is (held and hold)
+        # the cap restored with held (and the first ds within it)
+        assert (m.cap, m.ds) == ((0.0013, 0.0013) if held and hold else (0.002, 0.002))
+        assert extras and all(e == ({"march_held": held, "march_cap": m.cap} if hold else None)
+                              for e in extras)
 
 
 class _StubMarch:
@@ -327,6 +333,7 @@ class _StubMarch:
         self.L, self.max_length, self.status, self.n_steps = 1000.0, max_length, "running", 0
         self.message = ""
         self.held = False
+        self.cap, self.ds = 0.002, 0.002
         self.sol = SimpleNamespace(to_pulse=lambda: SimpleNamespace(L=self.L))
 
     def step(self):

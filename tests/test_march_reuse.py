@@ -2,6 +2,8 @@
 next tangent and the next corrector (``DeepSettings.reuse_lu``), and the last grid check's fine
 pulse and LU for the next check (``check_pulse(warm=...)``). Same pulses and checks as without,
 to the solver's tolerance; and the reuse does happen."""
+import math
+
 import numpy as np
 import pytest
 
@@ -189,3 +191,57 @@ def test_creep_only_once_held(params, start, monkeypatch):
         # every attempt of this step was made with the march's state at its start
         assert all(c == (4 if held[-1] else 0) for c in seen[n0:]), (held[-1], seen[n0:])
     assert m.held and not held[0] and any(held)
+
+
+class _CapFails(_TangentFails):
+    """As _TangentFails, and once held every attempt with ds above ``limit`` fails (the basin
+    of the held steps deep in the family, measured: 0.002 failed one attempt in three)."""
+    limit = 1.0 * DS
+
+    def _attempt(self):
+        if self.held and self.ds > self.limit * (1 + 1e-9):
+            return False, None, "failed (forced, held)", (math.nan, math.nan), self.q
+        return super()._attempt()
+
+
+@pytest.mark.parametrize("shrink", [1.0, 0.8])
+def test_the_held_cap_lowers_itself_after_failures_at_it(params, start, shrink):
+    """``DeepSettings.cap_shrink``: once held, a failed attempt at the cap lowers it, so the
+    march stops failing there; with a fixed cap (1.0) it fails there again and again."""
+    s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
+                     predictor="secant", predictor_ds_max=1.2 * DS, hold=True,
+                     cap_shrink=shrink, cap_grow_after=100)
+    m = _CapFails(params, start, settings=s)
+    for _ in range(10):
+        assert m.step() is None
+    assert m.held
+    failed_held = m.n_failed - 1                 # the first failure is the tangent's (held then)
+    if shrink == 1.0:
+        assert m.cap == s.predictor_ds_max and failed_held >= 3
+    else:
+        assert failed_held == 1 and m.cap <= 0.8 * s.predictor_ds_max + 1e-15
+
+
+class _CapFailsOnce(_CapFails):
+    """As _CapFails, but only the first held attempt above ``limit`` fails."""
+
+    def _attempt(self):
+        if self.held and self.ds > self.limit * (1 + 1e-9) and not getattr(self, "_done", False):
+            self._done = True
+            return False, None, "failed (forced, held)", (math.nan, math.nan), self.q
+        return DeepMarch._attempt(self) if self.held else _TangentFails._attempt(self)
+
+
+def test_the_held_cap_grows_back_after_steps_at_it(params, start):
+    """After ``cap_grow_after`` accepted steps at the lowered cap it is raised by 1/cap_shrink,
+    never above predictor_ds_max."""
+    s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
+                     predictor="secant", predictor_ds_max=1.2 * DS, hold=True,
+                     cap_shrink=0.8, cap_grow_after=2)
+    m = _CapFailsOnce(params, start, settings=s)
+    caps = []
+    for _ in range(9):
+        assert m.step() is None
+        caps.append(m.cap)
+    assert min(caps) <= 0.8 * s.predictor_ds_max + 1e-15
+    assert caps[-1] == s.predictor_ds_max and max(caps) == s.predictor_ds_max

@@ -193,6 +193,13 @@ class DeepSettings:
         more than half of the march's time. Stop 44 left ``creep`` off because the steps it
         fails early halve ds and held the march at small ds; held, ds is at its cap anyway.
         4 in the "auto" march (stop 46).
+    cap_shrink, cap_grow_after : once held, the cap on ds (``DeepMarch.cap``, at first
+        ``predictor_ds_max``) becomes ``cap_shrink`` × ds after each failed attempt at a ds of
+        at least ``cap_shrink`` × cap (a failure far below it, after halvings, leaves it), and is
+        divided by ``cap_shrink`` (up to ``predictor_ds_max``) after ``cap_grow_after`` accepted
+        steps at it in a row (1: a fixed cap). Held at 0.002 at N = 6614 (7.0–7.3 km, stop 46) the march
+        went 0.002 accepted, 0.002 failed, 0.001, 0.0015, 0.002 accepted, 0.002 failed ...:
+        one attempt in three or four failed at the cap. 0.8 and 6 in the "auto" march (stop 46).
     recentre : the "auto" march only (:func:`~slippulse.steady.continuation.family._auto_deep`),
         once ``hold`` has capped ds: at the start and after every written pulse that passed its
         check, where the finest cells of the zone about the healing front lie more than
@@ -232,4 +239,6 @@ class DeepSettings:
     chord_held: bool = False
     creep: int = 0
     creep_held: int = 0
+    cap_shrink: float = 1.0
+    cap_grow_after: int = 6
     recentre: float = 0.0

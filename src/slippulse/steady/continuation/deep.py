@@ -48,7 +48,11 @@ class DeepMarch:
     fold : τ_d/τ_min where τ_d first rose along the march (t_Q > 0), or None.
     n_steps, n_attempts, n_failed, n_iterations : accepted steps, attempts, failed attempts,
         Newton iterations (all attempts).
-    held : ``settings.hold`` has capped ds at ``settings.predictor_ds_max`` (which see).
+    held : ``settings.hold`` has capped ds at ``cap`` (which see).
+    cap : the largest ds once held: ``settings.predictor_ds_max``, lowered by
+        ``settings.cap_shrink`` × the failed ds after every failed attempt within that factor of
+        it, raised by 1/``cap_shrink`` (up to ``predictor_ds_max``) after
+        ``settings.cap_grow_after`` accepted steps at it in a row.
     message : the last attempt's message (the reason, once failed).
     last_predictor : the predictor of the last attempt on the deformed grid: "tangent", "length"
         or "secant" (``settings.predictor``, which see; "length"/"secant" need the history they
@@ -115,6 +119,8 @@ class DeepMarch:
         # step; held: ds capped at predictor_ds_max from then on
         self._tangent_failed = False
         self.held = False
+        self.cap = settings.predictor_ds_max
+        self._at_cap = 0
 
     def _forget(self):
         """Drop what was kept of the last corrector (the pulse changed grid or was replaced)."""
@@ -259,6 +265,10 @@ class DeepMarch:
             self.n_failed += 1
             if self.last_predictor == "tangent" and self.ds > s.predictor_ds_max:
                 self._tangent_failed = True
+            if self.held and s.cap_shrink < 1.0 and self.ds >= s.cap_shrink * self.cap:
+                # a failure at or near the cap: the cap below it (settings.cap_shrink)
+                self.cap = max(s.cap_shrink * min(self.ds, self.cap), s.ds_min)
+                self._at_cap = 0
             self.ds *= 0.5
             if self.ds < s.ds_min:
                 self.status = "failed"
@@ -280,7 +290,12 @@ class DeepMarch:
                 and self.last_predictor in ("length", "secant")):
             self.held = True
         self._tangent_failed = False
-        ds_max = min(s.ds_max, s.predictor_ds_max) if self.held else s.ds_max
+        if self.held and s.cap_shrink < 1.0 and self.ds >= self.cap * (1.0 - 1e-9):
+            self._at_cap += 1
+            if self._at_cap >= s.cap_grow_after:
+                self.cap = min(self.cap / s.cap_shrink, s.predictor_ds_max)
+                self._at_cap = 0
+        ds_max = min(s.ds_max, self.cap) if self.held else s.ds_max
         if new.stats.iterations <= 6:
             self.ds = min(1.5 * self.ds, ds_max)
         elif new.stats.iterations > 10:

@@ -98,11 +98,11 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     write = (_CheckedWriter(params, out, rep, tolerance, n_max, log) if auto else
              (lambda sol, pulse, method: _write(params, out, pulse, rep)))
 
-    def go_deep(start_sol, resolve, previous=None, held=False):
+    def go_deep(start_sol, resolve, previous=None, held=False, cap=None):
         _auto_deep(params, out, start_sol, stop, rep, progress, write, deep_points if resolve
                    else None, max_length, n_max, tolerance, spec,
                    settings=auto_deep_settings(deep_settings), previous=previous, log=log,
-                   held=held)
+                   held=held, cap=cap)
         rep.wall_time = time.perf_counter() - t0
         return rep
 
@@ -113,7 +113,8 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         if base.q > stop + 1e-12 and rep.reached_L < max_length:
             return go_deep((base.xi, base.y, base.beta, base.q),
                            resolve=rep.resumed_method != "arclength",
-                           previous=rep.resumed_previous, held=rep.resumed_held)
+                           previous=rep.resumed_previous, held=rep.resumed_held,
+                           cap=rep.resumed_cap)
         rep.wall_time = time.perf_counter() - t0
         return rep
     targets = [t for t in _targets(start, stop, step) if base is None or t < base.q - 1e-12]
@@ -223,6 +224,7 @@ def _resume(params, out, rep: FamilyReport):
     rep.resumed_method = str(last.extra.get("continuation", ""))
     rep.resumed_previous = _previous_arclength(done, last.tau_d_ratio)
     rep.resumed_held = bool(last.extra.get("march_held", False))
+    rep.resumed_cap = float(last.extra.get("march_cap", math.nan))
     rep.reached, rep.reached_beta, rep.reached_L = last.tau_d_ratio, last.beta, last.L
     return _Base(last.xi, np.log(last.v), last.beta, last.tau_d_ratio)
 
@@ -341,7 +343,8 @@ DEEP_POINTS = 2000
 #: where the check's error grew (5e-6 → 9e-5 in 250 m at 3.2 km), and from scratch it drove N to
 #: 5374 by 1 km (stop 44, docs/steady.md §8).
 AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25, relay=RELAYS, predictor="secant",
-                         hold=True, chord_held=True, creep_held=4, recentre=0.001)
+                         hold=True, chord_held=True, creep_held=4, cap_shrink=0.8,
+                         recentre=0.001)
 
 
 def auto_deep_settings(deep_settings: DeepSettings | None = None) -> DeepSettings:
@@ -470,7 +473,7 @@ def _relay(params, march, settings, write, rep, progress, log=None) -> bool:
     pulse = new.to_pulse()
     extra = {"relaid": True, "relay_dbeta": float(dbeta), "relay_dL_rel": float(dL_rel)}
     if settings.hold:
-        extra["march_held"] = bool(march.held)
+        extra.update(_held_state(march))
     res = write(new, pulse, "arclength", extra=extra)
     if not res.passed:
         march.message += (f"; then {msg}, but the refined pulse failed its grid check "
@@ -478,6 +481,12 @@ def _relay(params, march, settings, write, rep, progress, log=None) -> bool:
         return False
     march.restart(res.sol, 2.0 * settings.ds_min)
     return True
+
+
+def _held_state(march) -> dict:
+    """What a resumed march needs of this one's step control: whether ds was held, and its cap
+    (attributes ``march_held``, ``march_cap`` of every pulse the auto march writes)."""
+    return {"march_held": bool(march.held), "march_cap": float(march.cap)}
 
 
 def _recentre(params, march, settings, rep, progress, log=None) -> bool:
@@ -513,7 +522,7 @@ def _recentre(params, march, settings, rep, progress, log=None) -> bool:
 
 
 def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_length, n_max,
-               tol, spec, settings=AUTO_DEEP, previous=None, log=None, held=False):
+               tol, spec, settings=AUTO_DEEP, previous=None, log=None, held=False, cap=None):
     """The deep part of the "auto" family: from ``start`` = (xi, y, β, q) — re-solved at its τ_d
     on ``resolve_n`` adapted points unless None (then taken on its own grid) — the
     pseudo-arclength march on the deformed grid (:class:`DeepMarch`, :data:`AUTO_DEEP`), every
@@ -525,7 +534,9 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
     (:meth:`DeepMarch.resume_step`). ``held``: the pulse resumed from was written by a march
     whose ds was held (``settings.hold``, its ``march_held`` attribute): the resumed march starts
     held instead of learning it again from a failed tangent step (≈ 2.5 min at N = 6614, stop 45).
-    Every pulse written by a march with ``settings.hold`` carries ``march_held``."""
+    Every pulse written by a march with ``settings.hold`` carries ``march_held`` and
+    ``march_cap`` (:attr:`DeepMarch.cap`); ``cap``, that of the pulse resumed from, is restored
+    with ``held``."""
     xi, y, beta, q = start
     if resolve_n is not None:
         sol = solve_pulse(params, q, n_points=resolve_n, guess=(xi, y, beta), passes=0,
@@ -541,6 +552,10 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
     if previous is not None:              # a resumed march: go on at the pace it had
         march.resume_step(*previous)
     march.held = bool(held and settings.hold and settings.stretch)
+    if march.held and cap is not None and math.isfinite(cap):
+        # the cap the march had (settings.cap_shrink), and the first step within it
+        march.cap = min(max(float(cap), settings.ds_min), settings.predictor_ds_max)
+        march.ds = min(march.ds, march.cap)
     _recentre(params, march, settings, rep, progress, log)
     last_L = march.L
     relays, relaid_at = 0, None
@@ -557,7 +572,7 @@ def _auto_deep(params, out, start, stop, rep, progress, write, resolve_n, max_le
         if march.status == "running" and march.L < last_L * (1.0 + settings.spacing):
             continue                  # a continuation step, not written (settings.spacing)
         res = write(march.sol, march.sol.to_pulse(), "arclength",
-                    extra={"march_held": bool(march.held)} if settings.hold else None)
+                    extra=_held_state(march) if settings.hold else None)
         last_L = march.L
         if res.passed and res.sol is not march.sol:
             march.replace(res.sol)

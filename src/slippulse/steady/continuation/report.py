@@ -22,6 +22,7 @@ class FamilyReport:
     resumed_method: str = ""                         # how the pulse resumed from was computed
     resumed_previous: tuple | None = None            # (β, q, L) of the arclength pulse above it
     resumed_held: bool = False                       # that pulse's march had ds held (hold)
+    resumed_cap: float = float("nan")                # and its cap on ds (cap_shrink)
     checks: int = 0                                  # grid checks ("auto")
     failed_checks: list = field(default_factory=list)  # (tau_d_ratio, message): written failed
     deep_steps: int = 0                              # accepted steps of the deep march
