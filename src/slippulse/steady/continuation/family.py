@@ -341,7 +341,11 @@ DEEP_POINTS = 2000
 #: (``predictor="secant"``: 5-6 times the L per hour of "tangent" at 7.2 km, docs/steady.md §8).
 #: Not ``creep``: it sped up 9 steps from the 2550 m seed 1.8×, but held the march at small ds,
 #: where the check's error grew (5e-6 → 9e-5 in 250 m at 3.2 km), and from scratch it drove N to
-#: 5374 by 1 km (stop 44, docs/steady.md §8).
+#: 5374 by 1 km (stop 44, docs/steady.md §8). Once the march is held (``hold``, stop 45) ds sits
+#: at its cap, and there the corrector starts with chord iterations (``chord_held``), stops
+#: creeping after 4 iterations (``creep_held``), the cap lowers itself after failures near it
+#: (``cap_shrink``) and the zone about the healing front is kept on its drop (``recentre``)
+#: (stop 46); the march from scratch to 1.5 km is never held, so none of these acts there.
 AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25, relay=RELAYS, predictor="secant",
                          hold=True, chord_held=True, creep_held=4, cap_shrink=0.8,
                          recentre=0.001)
