@@ -168,29 +168,30 @@ def test_chord_once_held_keeps_the_path(params, start):
     assert m1.n_iterations < m0.n_iterations
 
 
-def test_creep_only_once_held(params, start, monkeypatch):
+def test_creep_only_once_held_and_near_the_cap(params, start, monkeypatch):
     """``DeepSettings.creep_held``: the correctors stop creeping Newton after that many
-    iterations (``newton(creep=...)``) only once the march is held; before, ``creep`` as set."""
+    iterations (``newton(creep=...)``) only once the march is held and ds is within
+    ``cap_shrink`` of the cap; before, and below it (after a halving), ``creep`` as set (0)."""
     from slippulse.steady.continuation import deep
     seen = []
     real = deep.newton
+    box = {}
 
     def newton(*a, **k):
-        seen.append(k["creep"])
+        m = box["m"]
+        seen.append((k["creep"], m.held, m.ds >= 0.8 * m.cap * (1 - 1e-9)))
         return real(*a, **k)
 
     monkeypatch.setattr(deep, "newton", newton)
     s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
-                     predictor="secant", predictor_ds_max=1.2 * DS, hold=True, creep_held=4)
-    m = _TangentFails(params, start, settings=s)
-    held = []
-    for _ in range(6):
-        held.append(m.held)
-        n0 = len(seen)
+                     predictor="secant", predictor_ds_max=1.2 * DS, hold=True, creep_held=4,
+                     cap_shrink=0.8, cap_grow_after=3)
+    m = box["m"] = _CapFails(params, start, settings=s)
+    for _ in range(10):
         assert m.step() is None
-        # every attempt of this step was made with the march's state at its start
-        assert all(c == (4 if held[-1] else 0) for c in seen[n0:]), (held[-1], seen[n0:])
-    assert m.held and not held[0] and any(held)
+    assert all(c == (4 if held and near else 0) for c, held, near in seen), seen
+    assert any(h and n for _, h, n in seen) and any(h and not n for _, h, n in seen)
+    assert not seen[0][1] and m.held
 
 
 class _CapFails(_TangentFails):

@@ -187,7 +187,11 @@ class DeepSettings:
         ``held``): ds then stays at its cap while steps converge, whatever the iterations, so the
         chord cannot change the path the way it did with ds free. On in the "auto" march
         (stop 45).
-    creep_held : ``creep`` (this many iterations), but only once held. Held at the cap of
+    creep_held : ``creep`` (this many iterations), but only once held and at a ds within
+        ``cap_shrink`` of the cap (below it, after halvings, the corrector gets ``max_iter``:
+        with creep there, a resume followed by a recentre failed 0.00128, 0.00064 and 0.00032
+        after 4–5 iterations each, ds fell below ``ds_min`` and the stall's front refinement
+        took N from 6614 to 11 189, stop 46). Held at the cap of
         0.002 at N = 6614 (6.8–7.0 km, stop 46), two steps converged (30–45 s) and the third
         failed after ``max_iter`` = 25 iterations (2.5–3 min), every time: the failures took
         more than half of the march's time. Stop 44 left ``creep`` off because the steps it

@@ -233,7 +233,12 @@ class DeepMarch:
             lu = (self._lu if chord and self._lu is not None
                   and self._lu[0].shape[0] == x0.size else None)
             t0 = time.perf_counter()
-            creep = s.creep or (s.creep_held if self.held else 0)
+            # creep_held: only near the cap, where the held steps' failures were; below it (after
+            # halvings) the corrector gets max_iter, so early stops cannot halve ds down to
+            # ds_min (stop 46: after a resume and a recentre, 0.00128, 0.00064, 0.00032 each
+            # stopped after 4-5 iterations, and the stall refined the front to N = 11 189)
+            near_cap = ds >= min(s.cap_shrink, 1.0) * self.cap * (1.0 - 1e-9)
+            creep = s.creep or (s.creep_held if self.held and near_cap else 0)
             xs, st = newton(arc, x0, tol=1e-13, max_iter=s.max_iter, lu=lu, keep=s.reuse_lu,
                             creep=creep)
             new = SteadySolution(nb, xs, st, time.perf_counter() - t0, 1)
