@@ -22,20 +22,19 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 from slippulse.core.h5io import list_pulses, read_pulse  # noqa: E402
 from slippulse.steady.continuation.gridcheck import check_grid_2n  # noqa: E402
-from slippulse.steady.continuation.relay import recentre  # noqa: E402
-from slippulse.steady.continuation.stretch import block_offset  # noqa: E402
+from slippulse.steady.continuation.relay import recentre, zone_offset  # noqa: E402
 from slippulse.steady.equations import SteadyProblem  # noqa: E402
-from slippulse.steady.measures import pulse_length  # noqa: E402
 from slippulse.steady.newton import SolveStats  # noqa: E402
 from slippulse.steady.solver import SteadySolution, front_pin  # noqa: E402
 
 
-def _drop(xi, y, v_star, L):
+def _drop(params, sol):
     """(offset, largest |Δ ln v| per cell within 30 m of the back crossing)."""
-    x_back = pulse_length(xi, np.exp(y), v_star)[1]
+    off, x_back = zone_offset(params, sol)
+    xi, y = sol.xi, np.asarray(sol.x[:-2], float)
     mid = 0.5 * (xi[1:] + xi[:-1])
     near = np.abs(mid - x_back) < 30.0
-    return block_offset(xi, y, x_back, 0.05 * L), float(np.abs(np.diff(y))[near].max())
+    return off, float(np.abs(np.diff(y))[near].max())
 
 
 def main(argv=None):
@@ -53,7 +52,7 @@ def main(argv=None):
     base = SteadyProblem(P, q, p.xi, k, float(y[k]), free="both")
     sol = SteadySolution(base, np.concatenate([y, [p.beta, q]]),
                          SolveStats(True, "file", 0, 0.0), 0.0, 0)
-    off0, dy0 = _drop(p.xi, y, P.v_star, p.L)
+    off0, dy0 = _drop(P, sol)
     print(f"{p.label}: L = {p.L:.1f} m, N = {p.xi.size}, offset {off0:+.2f} m, "
           f"max |d ln v| per cell at the drop {dy0:.3g}; stored check: "
           f"{p.extra.get('grid_check_message', 'none')}")
@@ -62,7 +61,7 @@ def main(argv=None):
     print(f"{msg} ({time.perf_counter() - t0:.0f} s)")
     if new is None:
         sys.exit(1)
-    off1, dy1 = _drop(new.xi, np.asarray(new.x[:-2]), P.v_star, new.to_pulse().L)
+    off1, dy1 = _drop(P, new)
     print(f"after: offset {off1:+.2f} m, max |d ln v| per cell at the drop {dy1:.3g}")
     if args.check:
         t0 = time.perf_counter()

@@ -572,9 +572,10 @@ def test_the_held_march_moves_the_zone_back_onto_the_healing_front(monkeypatch, 
     march = SimpleNamespace(sol=cur, L=L, held=case != "not held", status="running",
                             replace=replaced.append)
     off = 2.0 * 0.001 * L if case != "near" else 0.5 * 0.001 * L
-    monkeypatch.setattr(family, "block_offset", lambda *a: off)
+    monkeypatch.setattr(family, "zone_offset", lambda params, sol, back_zone: (off, -L))
 
-    def fake(params, sol, front_zone, back_zone):
+    def fake(params, sol, front_zone, back_zone, offset=None):
+        assert offset == (off, -L)                    # the offset measured once, passed on
         calls.append(sol)
         return (None if case == "fails" else new), 0.0, 0.0, off, "mocked"
 

@@ -14,9 +14,7 @@ from ...core.params import ParameterError, Parameters
 from ..solver import MAX_POINTS, GridSpec, solve_pulse
 from .arclength import DeepSettings
 from .deep import DeepMarch, march_arclength
-from ..measures import pulse_length
-from .relay import recentre, refine_front
-from .stretch import block_offset
+from .relay import recentre, refine_front, zone_offset
 from .gridcheck import as_both, check_grid_2n, check_pulse
 from .tolerance import GRID_TOLERANCE, GridTolerance
 from .natural import (FAMILY_POINTS, FAMILY_POINTS_BETA, _Base, _beta_bridge, _judge, _targets,
@@ -454,6 +452,14 @@ class _CheckedWriter:
         return res
 
 
+def _told(rep, progress, q, new, msg):
+    """One re-solve of the march's pulse at τ_d/τ_min = ``q`` (``new``: the solution, or None
+    when it failed) counted in ``rep`` and shown by ``progress``."""
+    rep.record(float(new.x[-1]) if new is not None else q, new is not None, msg)
+    if progress:
+        progress(q, new.to_pulse() if new is not None else None, msg)
+
+
 def _relay(params, march, settings, write, rep, progress, log=None) -> bool:
     """The fallback of the "auto" march where the corrector on the deformed grid failed at
     ``ds_min``: the march's current pulse re-solved with its healing front's steep cells split
@@ -466,9 +472,7 @@ def _relay(params, march, settings, write, rep, progress, log=None) -> bool:
     sol = march.sol
     q = float(sol.x[-1])
     new, dbeta, dL_rel, msg = refine_front(params, sol, levels=settings.relay_levels)
-    rep.record(float(new.x[-1]) if new is not None else q, new is not None, msg)
-    if progress:
-        progress(q, new.to_pulse() if new is not None else None, msg)
+    _told(rep, progress, q, new, msg)
     if log:
         log(f"corrector stalled at tau_d/tau_min={q:.7f} (L={march.L:.1f} m): {msg}")
     if new is None:
@@ -504,19 +508,16 @@ def _recentre(params, march, settings, rep, progress, log=None) -> bool:
             and march.status == "running"):
         return False
     sol = march.sol
-    y = np.asarray(sol.x[:-2], float)
     try:
-        x_back = pulse_length(sol.xi, np.exp(y), params.v_star)[1]
+        offset = zone_offset(params, sol, settings.back_zone)
     except ValueError:
         return False
-    off = block_offset(sol.xi, y, x_back, settings.back_zone * march.L)
-    if not abs(off) > settings.recentre * march.L:
+    if not abs(offset[0]) > settings.recentre * march.L:
         return False
-    new, _, _, _, msg = recentre(params, sol, settings.front_zone, settings.back_zone)
+    new, _, _, _, msg = recentre(params, sol, settings.front_zone, settings.back_zone,
+                                 offset=offset)
     q = float(sol.x[-1])
-    rep.record(float(new.x[-1]) if new is not None else q, new is not None, msg)
-    if progress:
-        progress(q, new.to_pulse() if new is not None else None, msg)
+    _told(rep, progress, q, new, msg)
     if log:
         log(f"at tau_d/tau_min={q:.7f} (L={march.L:.1f} m): {msg}")
     if new is None:

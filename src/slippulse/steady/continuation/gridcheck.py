@@ -97,14 +97,22 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
     if not st.converged or n[-1] == 0.0:
         return fine, math.inf, math.inf
-    p1 = fine.to_pulse()
+    return (fine, *change_at_fixed_tau_d(params, sol, n, fine))
+
+
+def change_at_fixed_tau_d(params, sol: SteadySolution, n, fine: SteadySolution):
+    """(Δβ, ΔL/L) of ``fine``, solved on the line through ``sol`` normal to the family tangent
+    ``n`` (both x = (y, β, q); n[-1] ≠ 0), from ``sol``, at ``sol``'s τ_d: to first order along
+    the family, Δβ = β₁ − β₀ − (n_β/n_q) dq and ΔL = L₁ − L₀ − (dL/ds)/n_q dq, dq = q₁ − q₀, dL/ds
+    by a finite difference of the FWHM along n (:func:`grid_change`, Notes)."""
+    p0, p1 = sol.to_pulse(), fine.to_pulse()
     eps = 1e-3 / max(float(np.abs(n[:-2]).max()), 1e-12)
     dL_ds = (pulse_length(sol.xi, np.exp(sol.x[:-2] + eps * n[:-2]), params.v_star,
                           crossings=False) - p0.L) / eps
-    dq = float(xs[-1]) - q
-    dbeta = p1.beta - beta - (n[-2] / n[-1]) * dq
+    dq = float(fine.x[-1]) - float(sol.x[-1])
+    dbeta = p1.beta - p0.beta - (n[-2] / n[-1]) * dq
     dL = p1.L - p0.L - dL_ds / n[-1] * dq
-    return fine, dbeta, dL / p0.L
+    return dbeta, dL / p0.L
 
 
 def _warm_solve(arc, x, x_start, warm, max_iter, reuse):

@@ -25,7 +25,7 @@ from ..measures import pulse_length
 from ..solver import GridSpec, SteadySolution, interpolate
 from .arclength import ArclengthProblem, family_tangent
 from .stretch import block_offset, stretch_grid
-from .gridcheck import grid_change
+from .gridcheck import change_at_fixed_tau_d, grid_change
 from .homotopy import solve_robust
 
 
@@ -59,37 +59,52 @@ def refine_front(params, sol: SteadySolution, levels: int = 1, stages: int = 4,
     The refined pulse is not checked here: the caller grid-checks it before it writes it or
     marches on from it.
     """
-    p0 = sol.to_pulse()
-    q, beta = float(sol.x[-1]), p0.beta
+    q = float(sol.x[-1])
     xi = sol.xi
-    cells = front_cells(sol, p0.L, frac, margin)
+    cells = front_cells(sol, sol.to_pulse().L, frac, margin)
     k = 2 ** int(levels)
     extra = [xi[:-1][cells] + (j / k) * np.diff(xi)[cells] for j in range(1, k)]
     xn = np.sort(np.concatenate([xi] + extra))
     yn = interpolate(xi, sol.x[:-2], xn, params.v_stick(q * params.tau_min))
     pin = int(np.searchsorted(xn, xi[sol.problem.pin_index]))
+    fine, dbeta, dL_rel = _resolve_normal(params, sol, xn, yn, pin, sol.problem.y_pin, stages,
+                                          max_iter)
+    what = (f"healing front refined ({int(cells.sum())} cells split in {k}, N {xi.size} -> "
+            f"{xn.size})")
+    if not math.isfinite(dbeta):
+        return None, math.inf, math.inf, (f"{what}: the re-solve did not converge "
+                                          f"({fine.stats.message})")
+    return fine, dbeta, dL_rel, (f"{what}: {fine.stats.iterations} it., change at fixed tau_d "
+                                 f"dbeta={dbeta:.1e} dL/L={dL_rel:.1e}")
+
+
+def _resolve_normal(params, sol: SteadySolution, xn, yn, pin, y_pin, stages, max_iter):
+    """``sol`` (x = (y, β, q)) re-solved on the grid ``xn`` from ln v = ``yn`` there (pin node
+    ``pin`` held at ``y_pin``), on the line through it normal to its family tangent, with the
+    residual homotopy of ``stages`` stages. Returns (SteadySolution, Δβ, ΔL/L at fixed τ_d);
+    Δ = inf when the re-solve does not converge (the solution's stats say why)."""
+    q, beta = float(sol.x[-1]), sol.beta
     n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
     t_a, t_Q = -n[-2] / (1.0 - beta), n[-1]
-    base = SteadyProblem(params, q, xn, pin, sol.problem.y_pin, free="both",
+    base = SteadyProblem(params, q, xn, pin, y_pin, free="both",
                          state_order=sol.problem.state_order)
     arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
     t0 = time.perf_counter()
     xs, st = solve_robust(arc, np.concatenate([yn, [beta, q]]), stages=stages,
                           max_iter=max_iter, reuse=True)
-    fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
-    what = (f"healing front refined ({int(cells.sum())} cells split in {k}, N {xi.size} -> "
-            f"{xn.size})")
+    new = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
     if not st.converged or n[-1] == 0.0:
-        return None, math.inf, math.inf, f"{what}: the re-solve did not converge ({st.message})"
-    p1 = fine.to_pulse()
-    eps = 1e-3 / max(float(np.abs(n[:-2]).max()), 1e-12)
-    dL_ds = (pulse_length(xi, np.exp(sol.x[:-2] + eps * n[:-2]), params.v_star,
-                          crossings=False) - p0.L) / eps
-    dq = float(xs[-1]) - q
-    dbeta = p1.beta - beta - (n[-2] / n[-1]) * dq
-    dL_rel = (p1.L - p0.L - dL_ds / n[-1] * dq) / p0.L
-    return fine, dbeta, dL_rel, (f"{what}: {st.iterations} it., change at fixed tau_d "
-                                 f"dbeta={dbeta:.1e} dL/L={dL_rel:.1e}")
+        return new, math.inf, math.inf
+    return (new, *change_at_fixed_tau_d(params, sol, n, new))
+
+
+def zone_offset(params, sol: SteadySolution, back_zone: float = 0.05):
+    """(offset, x_back): :func:`~.stretch.block_offset` of ``sol``'s grid about its back
+    half-maximum crossing x_back (the zone ± ``back_zone`` · L). Raises ValueError where ln v
+    has no such crossing (:func:`~slippulse.steady.measures.pulse_length`)."""
+    y = np.asarray(sol.x[:-2], float)
+    L, x_back, _ = pulse_length(sol.xi, np.exp(y), params.v_star)
+    return block_offset(sol.xi, y, x_back, back_zone * L), x_back
 
 
 def relay_pulse(params, sol: SteadySolution, n_points: int, spec: GridSpec = GridSpec(),
@@ -121,43 +136,29 @@ def relay_pulse(params, sol: SteadySolution, n_points: int, spec: GridSpec = Gri
 
 
 def recentre(params, sol: SteadySolution, front_zone: float = 0.01, back_zone: float = 0.05,
-             stages: int = 4, max_iter: int = 15):
+             stages: int = 4, max_iter: int = 15, offset=None):
     """``sol`` (x = (y, β, q), on a deformed grid) re-solved on its grid with the zone about the
     healing front moved so that its finest cells sit on the front's steep drop again
     (:func:`~.stretch.block_offset` → 0): :func:`~.stretch.stretch_grid` with the offset as the
     shift (the body between the edges lengthened or shortened by it, node count and order kept),
     ln v interpolated, re-solved on the line through ``sol`` normal to the family tangent with
-    the residual homotopy (``stages``).
+    the residual homotopy (``stages``). ``offset``: :func:`zone_offset` of ``sol`` when the
+    caller has it (offset, x_back).
 
     Returns (SteadySolution or None when the re-solve does not converge, Δβ, ΔL/L, offset before,
     message), Δβ and ΔL/L the change from ``sol`` at fixed τ_d, as :func:`refine_front`.
     """
-    p0 = sol.to_pulse()
-    q, beta, L = float(sol.x[-1]), p0.beta, p0.L
+    q, L = float(sol.x[-1]), sol.to_pulse().L
     xi, y = sol.xi, np.asarray(sol.x[:-2], float)
-    x_pin = xi[sol.problem.pin_index]
-    x_back = pulse_length(xi, np.exp(y), params.v_star)[1]
-    off = block_offset(xi, y, x_back, back_zone * L)
-    xn = stretch_grid(xi, x_pin, off, front_zone * L, x_back, back_zone * L)
+    off, x_back = zone_offset(params, sol, back_zone) if offset is None else offset
+    xn = stretch_grid(xi, xi[sol.problem.pin_index], off, front_zone * L, x_back, back_zone * L)
     yn = interpolate(xi, y, xn, params.v_stick(q * params.tau_min))
     pin = sol.problem.pin_index
-    n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
-    t_a, t_Q = -n[-2] / (1.0 - beta), n[-1]
-    base = SteadyProblem(params, q, xn, pin, float(yn[pin]), free="both",
-                         state_order=sol.problem.state_order)
-    arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
-    t0 = time.perf_counter()
-    xs, st = solve_robust(arc, np.concatenate([yn, [beta, q]]), stages=stages,
-                          max_iter=max_iter, reuse=True)
-    new = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
+    new, dbeta, dL_rel = _resolve_normal(params, sol, xn, yn, pin, float(yn[pin]), stages,
+                                         max_iter)
     what = f"healing-front zone moved by {off:+.2f} m onto its drop (N={xi.size})"
-    if not st.converged or n[-1] == 0.0:
-        return None, math.inf, math.inf, off, f"{what}: the re-solve did not converge ({st.message})"
-    p1 = new.to_pulse()
-    eps = 1e-3 / max(float(np.abs(n[:-2]).max()), 1e-12)
-    dL_ds = (pulse_length(xi, np.exp(y + eps * n[:-2]), params.v_star, crossings=False) - L) / eps
-    dq = float(xs[-1]) - q
-    dbeta = p1.beta - beta - (n[-2] / n[-1]) * dq
-    dL_rel = (p1.L - L - dL_ds / n[-1] * dq) / L
-    return new, dbeta, dL_rel, off, (f"{what}: {st.iterations} it., change at fixed tau_d "
+    if not math.isfinite(dbeta):
+        return None, math.inf, math.inf, off, (f"{what}: the re-solve did not converge "
+                                               f"({new.stats.message})")
+    return new, dbeta, dL_rel, off, (f"{what}: {new.stats.iterations} it., change at fixed tau_d "
                                      f"dbeta={dbeta:.1e} dL/L={dL_rel:.1e}")
