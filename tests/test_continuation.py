@@ -404,6 +404,44 @@ def test_newton_stops_creeping_iterations_when_asked():
     assert st.converged and abs(x[0] + 0.5 * x[0] ** 3 - 3.0) <= 1e-13
 
 
+def test_natural_newton_creeps_only_when_neither_residual_nor_correction_halves():
+    """line_search="natural" with creep: max|r| may rise on the way in (its test makes the Newton
+    corrections fall, not max|r|), so the iteration creeps only when neither max|r| nor ‖δ‖₂
+    has halved over `creep` iterations. On the steep 3-equation system max|r| goes 3.8e3 →
+    7.9e3 → 3.4e3 (not halved over 2) while ‖δ‖₂ falls 340 → 0.62: natural converges with
+    creep=2, where a max|r|-only rule would have stopped it at the 2nd iteration (and does stop
+    the residual line search there). On the cubic with a Jacobian 10 times too large both fall by
+    only ≈ 10 % per iteration: it creeps, and says so."""
+    from slippulse.steady.newton import newton
+    from test_spectrum_cost import _Steep
+    x0 = np.array([-1.863, -1.276, -0.424])
+    x, st = newton(_Steep((1.0, 1e4, 1.0)), x0, tol=1e-7, line_search="natural", creep=2)
+    assert st.converged and st.iterations == 7
+    assert st.history[2] > 0.5 * st.history[0]              # max|r| alone: creeping at it 2
+    assert st.corrections[2] <= 0.5 * st.corrections[0]
+    _, st_r = newton(_Steep((1.0, 1e4, 1.0)), x0, tol=1e-7, line_search="residual", creep=2)
+    assert not st_r.converged and "creeping" in st_r.message and st_r.iterations == 2
+    # r = x − 1 with a Jacobian 3.7 times too large: each full step passes the natural test
+    # (‖δ̄‖/‖δ‖ = 1 − 1/3.7 = 0.73 ≤ 0.75) and both measures fall by 0.73 per iteration,
+    # 0.73² > 1/2: creeping at the 2nd
+    _, st_s = newton(_Lazy(), np.array([3.0, 3.0]), max_iter=12, line_search="natural", creep=2)
+    assert not st_s.converged and "creeping" in st_s.message and st_s.iterations == 2
+    assert "Newton correction" in st_s.message
+    x, st_c = newton(_Lazy(), np.array([3.0, 3.0]), max_iter=120, line_search="natural")
+    c = np.array(st_c.corrections[:11])
+    assert st_c.converged and np.allclose(c[1:] / c[:-1], 1 - 1 / 3.7)
+
+
+class _Lazy(_Cubic):
+    """r = x − 1 with a Jacobian 3.7 times too large (a linear, slowly converging iteration)."""
+
+    def residual(self, x):
+        return x - 1.0
+
+    def residual_and_jacobian(self, x):
+        return x - 1.0, 3.7 * np.eye(2)
+
+
 class _Floor(_Cubic):
     """The cubic with |r₀| ≥ `floor` everywhere (a floor like round-off's, of either sign across
     the root): no Newton step lowers ‖r‖₂ below it."""

@@ -171,25 +171,29 @@ def test_chord_once_held_keeps_the_path(params, start):
 def test_creep_only_once_held_and_near_the_cap(params, start, monkeypatch):
     """``DeepSettings.creep_held``: the correctors stop creeping Newton after that many
     iterations (``newton(creep=...)``) only once the march is held and ds is within
-    ``cap_shrink`` of the cap; before, and below it (after a halving), ``creep`` as set (0)."""
+    ``cap_shrink`` of the cap; before, and below it (after a halving), ``creep`` as set (0).
+    ``natural_held``: the correctors' line search is "natural" once held, at any ds, and
+    ``line_search`` ("residual") before."""
     from slippulse.steady.continuation import deep
-    seen = []
+    seen, searches = [], []
     real = deep.newton
     box = {}
 
     def newton(*a, **k):
         m = box["m"]
         seen.append((k["creep"], m.held, m.ds >= 0.8 * m.cap * (1 - 1e-9)))
+        searches.append((k["line_search"], m.held))
         return real(*a, **k)
 
     monkeypatch.setattr(deep, "newton", newton)
     s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
                      predictor="secant", predictor_ds_max=1.2 * DS, hold=True, creep_held=4,
-                     cap_shrink=0.8, cap_grow_after=3)
+                     cap_shrink=0.8, cap_grow_after=3, natural_held=True)
     m = box["m"] = _CapFails(params, start, settings=s)
     for _ in range(10):
         assert m.step() is None
     assert all(c == (4 if held and near else 0) for c, held, near in seen), seen
+    assert all(ls == ("natural" if held else "residual") for ls, held in searches), searches
     assert any(h and n for _, h, n in seen) and any(h and not n for _, h, n in seen)
     assert not seen[0][1] and m.held
 

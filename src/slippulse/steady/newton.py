@@ -20,6 +20,7 @@ class SolveStats:
     iterations: int
     max_residual: float
     history: list = field(default_factory=list)
+    corrections: list = field(default_factory=list)   # ‖δ‖₂ of each Newton step J δ = −r
     t_jacobian: float = 0.0
     t_linear: float = 0.0
     t_residual: float = 0.0
@@ -145,7 +146,8 @@ def _newton(problem, x0, tol, max_iter, max_dy, callback, lu, reuse, creep, natu
         if st.max_residual <= tol:
             st.converged, st.message, st.iterations = True, f"converged: max|r|={st.max_residual:.2e}", it - 1
             return x, st
-        if creep and len(st.history) > creep and st.max_residual > 0.5 * st.history[-1 - creep]:
+        if (creep and not natural and len(st.history) > creep
+                and st.max_residual > 0.5 * st.history[-1 - creep]):
             st.message = (f"creeping: max|r|={st.max_residual:.2e} after {it - 1} iterations, "
                           f"{st.history[-1 - creep]:.2e} {creep} iterations before")
             st.iterations = it - 1
@@ -164,6 +166,19 @@ def _newton(problem, x0, tol, max_iter, max_dy, callback, lu, reuse, creep, natu
         if not np.all(np.isfinite(dx)):
             st.message, st.iterations = "singular Jacobian (non-finite Newton step)", it
             return x, st
+        ndx = np.linalg.norm(dx)
+        st.corrections.append(float(ndx))
+        c = st.corrections
+        if (creep and natural and len(st.history) > creep
+                and st.max_residual > 0.5 * st.history[-1 - creep]
+                and c[-1] > 0.5 * c[-1 - creep]):
+            # natural: max|r| may rise on the way (its test makes the corrections fall, not
+            # max|r|), so it creeps only when neither has halved over `creep` iterations
+            st.message = (f"creeping: max|r|={st.max_residual:.2e} and Newton correction "
+                          f"{ndx:.2e} after {it - 1} iterations, {st.history[-1 - creep]:.2e} and "
+                          f"{c[-1 - creep]:.2e} {creep} iterations before")
+            st.iterations = it - 1
+            return x, st
         lam = 1.0
         big = np.max(np.abs(dx[:-1]))
         if big > max_dy:
@@ -171,7 +186,6 @@ def _newton(problem, x0, tol, max_iter, max_dy, callback, lu, reuse, creep, natu
         while not problem.valid(x + lam * dx) and lam > 1e-12:
             lam *= 0.5
         accepted = False
-        ndx = np.linalg.norm(dx)
         for _ in range(30):
             xt = x + lam * dx
             t0 = time.perf_counter()

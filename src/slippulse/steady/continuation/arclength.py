@@ -188,10 +188,10 @@ class DeepSettings:
         chord cannot change the path the way it did with ds free. On in the "auto" march
         (stop 45).
     creep_held : ``creep`` (this many iterations), but only once held and at a ds within
-        ``cap_shrink`` of the cap (below it, after halvings, the corrector gets ``max_iter``:
-        with creep there, a resume followed by a recentre failed 0.00128, 0.00064 and 0.00032
-        after 4–5 iterations each, ds fell below ``ds_min`` and the stall's front refinement
-        took N from 6614 to 11 189, stop 46). Held at the cap of
+        ``cap_shrink`` of the cap (below it, after halvings, the corrector gets ``max_iter``;
+        stop 46 blamed creep for a resume whose attempts at 0.00128, 0.00064 and 0.00032
+        failed after 4–5 iterations each, but without it they failed after 25 each, stop 47:
+        the cause was the ‖r‖₂ line search, ``natural_held``). Held at the cap of
         0.002 at N = 6614 (6.8–7.0 km, stop 46), two steps converged (30–45 s) and the third
         failed after ``max_iter`` = 25 iterations (2.5–3 min), every time: the failures took
         more than half of the march's time. Stop 44 left ``creep`` off because the steps it
@@ -204,6 +204,19 @@ class DeepSettings:
         steps at it in a row (1: a fixed cap). Held at 0.002 at N = 6614 (7.0–7.3 km, stop 46) the march
         went 0.002 accepted, 0.002 failed, 0.001, 0.0015, 0.002 accepted, 0.002 failed ...:
         one attempt in three or four failed at the cap. 0.8 and 6 in the "auto" march (stop 46).
+    line_search : the corrector's line search (:func:`~slippulse.steady.newton.newton`):
+        "residual" (‖r‖₂ must fall) or "natural" (the simplified Newton correction must shrink).
+    natural_held : the "natural" line search once ``hold`` has capped ds (the march's ``held``).
+        Deep in the family the corrector's Jacobian is nearly singular along the motion of the
+        healing front (smallest singular value ≈ 9e−8 against max|J| ≈ 650 at 9.5 km, N = 6614):
+        an iterate with max|r| = 6e−6 still lay ‖δ‖₂ ≈ 1 from the pulse (the drop ~0.1 m off),
+        the full Newton step raised ‖r‖₂ five-fold, and the ‖r‖₂ test cut every step to
+        λ ≈ 1/8, so max|r| crept 6.0e−6 → 3.8e−6 in 24 iterations and the step failed, at ds =
+        0.00064 and again at 0.00032. With "natural" the same corrector from the same guess took
+        full steps and converged in 9 iterations (stop 47, docs/steady.md §8); the stop-40 grid
+        check re-solves had the same trouble and the same cure. With ``creep``, the natural
+        iteration creeps only when neither max|r| nor ‖δ‖₂ has halved (max|r| rises on its way
+        in). On in the "auto" march (stop 47).
     recentre : the "auto" march only (:func:`~slippulse.steady.continuation.family._auto_deep`),
         once ``hold`` has capped ds: at the start and after every written pulse that passed its
         check, where the finest cells of the zone about the healing front lie more than
@@ -245,4 +258,6 @@ class DeepSettings:
     creep_held: int = 0
     cap_shrink: float = 1.0
     cap_grow_after: int = 6
+    line_search: str = "residual"
+    natural_held: bool = False
     recentre: float = 0.0

@@ -234,13 +234,14 @@ class DeepMarch:
                   and self._lu[0].shape[0] == x0.size else None)
             t0 = time.perf_counter()
             # creep_held: only near the cap, where the held steps' failures were; below it (after
-            # halvings) the corrector gets max_iter, so early stops cannot halve ds down to
-            # ds_min (stop 46: after a resume and a recentre, 0.00128, 0.00064, 0.00032 each
-            # stopped after 4-5 iterations, and the stall refined the front to N = 11 189)
+            # halvings) the corrector gets max_iter. natural_held: the natural line search once
+            # held (stop 47: after a resume, 0.00064 and 0.00032 failed after 25 iterations of
+            # the ‖r‖₂ test at λ ≈ 1/8; natural converged the same corrector in 9)
             near_cap = ds >= min(s.cap_shrink, 1.0) * self.cap * (1.0 - 1e-9)
             creep = s.creep or (s.creep_held if self.held and near_cap else 0)
+            search = "natural" if s.natural_held and self.held else s.line_search
             xs, st = newton(arc, x0, tol=1e-13, max_iter=s.max_iter, lu=lu, keep=s.reuse_lu,
-                            creep=creep)
+                            creep=creep, line_search=search)
             new = SteadySolution(nb, xs, st, time.perf_counter() - t0, 1)
             self._candidate = (st.lu, st.jacobian, arc)
             st.lu = st.jacobian = None

@@ -343,10 +343,13 @@ DEEP_POINTS = 2000
 #: at its cap, and there the corrector starts with chord iterations (``chord_held``), stops
 #: creeping after 4 iterations (``creep_held``), the cap lowers itself after failures near it
 #: (``cap_shrink``) and the zone about the healing front is kept on its drop (``recentre``)
-#: (stop 46); the march from scratch to 1.5 km is never held, so none of these acts there.
+#: (stop 46), and the corrector's line search is the natural monotonicity test
+#: (``natural_held``: the ‖r‖₂ test had held the corrector at λ ≈ 1/8 where its Jacobian is
+#: nearly singular along the healing front's motion, stop 47); the march from scratch to
+#: 1.5 km is never held, so none of these acts there.
 AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25, relay=RELAYS, predictor="secant",
                          hold=True, chord_held=True, creep_held=4, cap_shrink=0.8,
-                         recentre=0.001)
+                         recentre=0.001, natural_held=True)
 
 
 def auto_deep_settings(deep_settings: DeepSettings | None = None) -> DeepSettings:
