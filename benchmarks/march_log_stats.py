@@ -31,10 +31,12 @@ def events(text: str) -> list:
                 it = re.search(r"(\d+) it", rest)
                 ev = ("F", t, int(it.group(1)) if it else -1)
             else:
-                L = re.search(r"L=(\d+)m", rest)
+                # L as the bar prints it: "L=9776m", "L=10111m"; before stop 47 4 digits, so
+                # "L=1.007e+04m" above 10 km
+                L = re.search(r"L=(\d+(?:\.\d+)?(?:e\+\d+)?)m", rest)
                 if not L:
                     continue
-                ev = ("A", t, int(L.group(1)))
+                ev = ("A", t, round(float(L.group(1))))
         elif "grid check at" in line and "by region" not in line:
             ev = ("C", None, None)
         elif "healing-front zone moved" in line:

@@ -386,9 +386,8 @@ def main(argv=None):
         fig = Figure(figsize=(9, 4))
         ax1, ax2 = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
         arc = np.array(["source" in p.extra for p in pulses])
-        n_arc = int(N[arc].max()) if arc.any() else 0
         for sel, mk, lab in ((~arc, "o", f"family (τ_d- and β-steps), N = {_n_text(N[~arc])}"),
-                             (arc, "s", f"arclength march (deformed grid), N = {n_arc}")):
+                             (arc, "s", f"arclength march (deformed grid), N = {_n_text(N[arc])}")):
             s_ = sel & (q - f["tau_star"] > 0) & (q < 1.05)
             d = q[s_] - f["tau_star"]
             ax1.loglog(d, L[s_], mk, ms=3, mfc="none", label=lab)

@@ -21,6 +21,15 @@ LOG = "\r".join([
     BAR + "[05:00<00:00, 1.00837 beta=0.998590 L=7050m]",
     BAR + "[1:05:30<00:00, 1.00837 beta=0.998591 L=7080m]",
 ])
+# above 10 km: the bar of stops <= 46 (4 digits) and of stop 47 on
+LOG_10KM = "\r".join([BAR + "[00:30<00:00, 1.00826 beta=0.998727 L=9993m]",
+                       BAR + "[01:00<00:00, 1.00826 beta=0.998727 L=1.002e+04m]",
+                       BAR + "[01:30<00:00, 1.00826 beta=0.998728 L=10111m]"])
+
+
+def test_lengths_above_10_km_are_read():
+    s = mls.stats(mls.events(LOG_10KM))
+    assert (s["L0"], s["L1"], s["accepted"]) == (9993, 10111, 2)
 
 
 def test_the_log_is_read_into_steps_failures_and_checks():

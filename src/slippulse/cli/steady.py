@@ -194,7 +194,7 @@ class FamilyProgress:
         else:
             self.position = max(self.position,
                                 min(self.total, 1.0 + (self.start - pulse.tau_d_ratio) / self.step))
-            state = f"{pulse.tau_d_ratio:.5f} beta={pulse.beta:.6f} L={pulse.L:.4g}m"
+            state = f"{pulse.tau_d_ratio:.5f} beta={pulse.beta:.6f} L={pulse.L:.5g}m"
         if self.bar is not None:
             self.bar.n = round(self.position, 2)
             self.bar.set_postfix_str(state)     # refreshes the bar
@@ -208,12 +208,12 @@ def final_status(rep, start, stop, out) -> str:
             f"{len(rep.failures)} failed, wall={rep.wall_time:.1f} s")
     if rep.checks:
         line += (f", {rep.checks} grid checks ({len(rep.failed_checks)} failed, written as "
-                 f"failed), L={rep.reached_L:.4g} m")
+                 f"failed), L={rep.reached_L:.5g} m")
     if rep.limit_reached:
         line += f"\nstopped at --max-length: {rep.stop_reason}"
     if rep.stopped_early:
         line += (f"\nSTOPPED EARLY at tau_d/tau_min={rep.reached:.5f} (beta={rep.reached_beta:.6f}, "
-                 f"L={rep.reached_L:.4g} m), {stop:.4f} not reached: {rep.stop_reason}. "
+                 f"L={rep.reached_L:.5g} m), {stop:.4f} not reached: {rep.stop_reason}. "
                  f"To go further: {rep.hint}.")
     return line
 

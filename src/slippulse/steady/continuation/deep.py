@@ -324,7 +324,7 @@ class DeepMarch:
             self.message = f"reached tau_d/tau_min={self.q:.6f} <= {self.stop}"
         elif self.L >= self.max_length:
             self.status = "stopped"
-            self.message = f"pulse length L={self.L:.4g} m reached max_length={self.max_length:g} m"
+            self.message = f"pulse length L={self.L:.5g} m reached max_length={self.max_length:g} m"
 
     def replace(self, sol: SteadySolution) -> None:
         """Continue from ``sol`` (x = (y, β, q); e.g. the refined pulse of a grid check) instead of

@@ -317,7 +317,7 @@ def _arc_bridge(params, out, guess, current, stop, n_points, spec, deep, rep, pr
         if q <= stop + 1e-12:
             return True
         if pulse.L >= deep.max_length:
-            why["reason"] = f"pulse length L={pulse.L:.4g} m passed max_length={deep.max_length:g} m"
+            why["reason"] = f"pulse length L={pulse.L:.5g} m passed max_length={deep.max_length:g} m"
             return False
     return False
 
