@@ -208,11 +208,11 @@ class DeepSettings:
         "residual" (‖r‖₂ must fall) or "natural" (the simplified Newton correction must shrink).
     natural_held : the "natural" line search once ``hold`` has capped ds (the march's ``held``).
         Deep in the family the corrector's Jacobian is nearly singular along the motion of the
-        healing front (smallest singular value ≈ 9e−8 against max|J| ≈ 650 at 9.5 km, N = 6614):
-        an iterate with max|r| = 6e−6 still lay ‖δ‖₂ ≈ 1 from the pulse (the drop ~0.1 m off),
+        healing front (smallest singular value 1e−6 to 9e−8 against max|J| ≈ 650 at 9.5 km,
+        N = 6614): an iterate with max|r| = 6e−6 still lay ‖δ‖₂ ≈ 1 from the pulse (the drop ~0.1 m off),
         the full Newton step raised ‖r‖₂ five-fold, and the ‖r‖₂ test cut every step to
-        λ ≈ 1/8, so max|r| crept 6.0e−6 → 3.8e−6 in 24 iterations and the step failed, at ds =
-        0.00064 and again at 0.00032. With "natural" the same corrector from the same guess took
+        λ ≤ 1/4 (‖r‖₂ down ≈ 1 %), so max|r| crept 6.0e−6 → 3.8e−6 in 24 iterations and the
+        step failed, at ds = 0.00064 and again at 0.00032. With "natural" the same corrector from the same guess took
         full steps and converged in 9 iterations (stop 47, docs/steady.md §8); the stop-40 grid
         check re-solves had the same trouble and the same cure. With ``creep``, the natural
         iteration creeps only when neither max|r| nor ‖δ‖₂ has halved (max|r| rises on its way

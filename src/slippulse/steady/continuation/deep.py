@@ -236,7 +236,7 @@ class DeepMarch:
             # creep_held: only near the cap, where the held steps' failures were; below it (after
             # halvings) the corrector gets max_iter. natural_held: the natural line search once
             # held (stop 47: after a resume, 0.00064 and 0.00032 failed after 25 iterations of
-            # the ‖r‖₂ test at λ ≈ 1/8; natural converged the same corrector in 9)
+            # the ‖r‖₂ test at λ ≤ 1/4; natural converged the same corrector in 9)
             near_cap = ds >= min(s.cap_shrink, 1.0) * self.cap * (1.0 - 1e-9)
             creep = s.creep or (s.creep_held if self.held and near_cap else 0)
             search = "natural" if s.natural_held and self.held else s.line_search

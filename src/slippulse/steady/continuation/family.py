@@ -344,7 +344,7 @@ DEEP_POINTS = 2000
 #: creeping after 4 iterations (``creep_held``), the cap lowers itself after failures near it
 #: (``cap_shrink``) and the zone about the healing front is kept on its drop (``recentre``)
 #: (stop 46), and the corrector's line search is the natural monotonicity test
-#: (``natural_held``: the ‖r‖₂ test had held the corrector at λ ≈ 1/8 where its Jacobian is
+#: (``natural_held``: the ‖r‖₂ test had held the corrector at λ ≤ 1/4 where its Jacobian is
 #: nearly singular along the healing front's motion, stop 47); the march from scratch to
 #: 1.5 km is never held, so none of these acts there.
 AUTO_DEEP = DeepSettings(ds_max=0.4, stretch=True, max_iter=25, relay=RELAYS, predictor="secant",
