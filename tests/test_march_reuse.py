@@ -250,3 +250,26 @@ def test_the_held_cap_grows_back_after_steps_at_it(params, start):
         caps.append(m.cap)
     assert min(caps) <= 0.8 * s.predictor_ds_max + 1e-15
     assert caps[-1] == s.predictor_ds_max and max(caps) == s.predictor_ds_max
+
+
+@pytest.mark.slow
+def test_the_held_corrector_at_9_5_km_converges_with_the_natural_line_search():
+    """The real case behind ``natural_held`` (stop 47): the march resumed from the committed
+    9.47 km seed (held, N = 6614) reaches the corrector of its second step, ds = 0.00064, which
+    failed after 25 iterations with the ‖r‖₂ line search. With the natural one it converges from
+    the same guess within 12 iterations, to a pulse near the guess (β and τ_d/τ_min within 1e−7).
+    ≈ 2.5 min on two threads (the capture, then one corrector)."""
+    import importlib.util
+    import os
+    from slippulse.steady.newton import newton
+    path = os.path.join(os.path.dirname(__file__), os.pardir, "benchmarks",
+                        "bench_line_search_held.py")
+    spec = importlib.util.spec_from_file_location("bench_line_search_held", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    box = mod.capture(os.path.join(os.path.dirname(path), os.pardir, "steady", "seeds",
+                                   "deep_seed_s46.h5"))
+    assert box["problem"].ds == pytest.approx(0.00064) and box["problem"].base.n == 6614
+    x, st = newton(box["problem"], box["x0"], tol=1e-13, max_iter=12, line_search="natural")
+    assert st.converged, st.message
+    assert abs(x[-2] - box["x0"][-2]) < 1e-7 and abs(x[-1] - box["x0"][-1]) < 1e-7
