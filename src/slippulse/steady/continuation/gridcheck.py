@@ -61,10 +61,7 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     (the same tolerance); None: :data:`REUSE_LU`, read at the call. ``plain=False`` (with
     ``stages``): the homotopy from the start (:func:`solve_robust`).
     """
-    p0 = sol.to_pulse()
-    q, beta = float(sol.x[-1]), p0.beta
-    n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
-    t_a, t_Q = -n[-2] / (1.0 - beta), n[-1]
+    q, beta = float(sol.x[-1]), sol.beta
     reuse = REUSE_LU if reuse is None else bool(reuse)
     t0 = time.perf_counter()
     if nested:
@@ -78,9 +75,7 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
         xn, yn = regrid_guess(params, q, sol.xi, sol.x[:-2], beta, 2 * n_points, spec)
         k, _ = front_pin(xn, yn, math.log(params.v_stick(q * params.tau_min)))
         y_pin = float(yn[k])
-    base = SteadyProblem(params, q, xn, k, y_pin, free="both",
-                         state_order=sol.problem.state_order)
-    arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
+    n, base, arc = normal_line(params, sol, xn, k, y_pin)
     x_start = np.concatenate([yn, [beta, q]])
     xs, st = _warm_solve(arc, sol.x, x_start, warm, max_iter, reuse) \
         if nested and cells is None and warm else (None, None)
@@ -98,6 +93,20 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     if not st.converged or n[-1] == 0.0:
         return fine, math.inf, math.inf
     return (fine, *change_at_fixed_tau_d(params, sol, n, fine))
+
+
+def normal_line(params, sol: SteadySolution, xn, pin, y_pin):
+    """The re-solve of ``sol`` (x = (y, β, q)) on the grid ``xn`` (pin node ``pin`` held at
+    ``y_pin``) on the line through it normal to its family tangent: (n, SteadyProblem with β and q
+    free, its :class:`ArclengthProblem` with ds = 0, κ = 1), n the unit tangent at ``sol``
+    (:func:`grid_change`, Notes; :func:`~.relay.refine_front` and :func:`~.relay.recentre`)."""
+    q, beta = float(sol.x[-1]), sol.beta
+    n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
+    base = SteadyProblem(params, q, xn, pin, y_pin, free="both",
+                         state_order=sol.problem.state_order)
+    arc = ArclengthProblem(base, math.log(1.0 - beta), q, -n[-2] / (1.0 - beta), n[-1], 1.0,
+                           0.0)
+    return n, base, arc
 
 
 def change_at_fixed_tau_d(params, sol: SteadySolution, n, fine: SteadySolution):

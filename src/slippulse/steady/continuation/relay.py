@@ -20,12 +20,10 @@ import time
 
 import numpy as np
 
-from ..equations import SteadyProblem
 from ..measures import pulse_length
 from ..solver import GridSpec, SteadySolution, interpolate
-from .arclength import ArclengthProblem, family_tangent
 from .stretch import block_offset, stretch_grid
-from .gridcheck import change_at_fixed_tau_d, grid_change
+from .gridcheck import change_at_fixed_tau_d, grid_change, normal_line
 from .homotopy import solve_robust
 
 
@@ -83,14 +81,9 @@ def _resolve_normal(params, sol: SteadySolution, xn, yn, pin, y_pin, stages, max
     ``pin`` held at ``y_pin``), on the line through it normal to its family tangent, with the
     residual homotopy of ``stages`` stages. Returns (SteadySolution, Δβ, ΔL/L at fixed τ_d);
     Δ = inf when the re-solve does not converge (the solution's stats say why)."""
-    q, beta = float(sol.x[-1]), sol.beta
-    n = family_tangent(sol.problem, sol.x, (1.0, 0.0, 1.0))
-    t_a, t_Q = -n[-2] / (1.0 - beta), n[-1]
-    base = SteadyProblem(params, q, xn, pin, y_pin, free="both",
-                         state_order=sol.problem.state_order)
-    arc = ArclengthProblem(base, math.log(1.0 - beta), q, t_a, t_Q, 1.0, 0.0)
+    n, base, arc = normal_line(params, sol, xn, pin, y_pin)
     t0 = time.perf_counter()
-    xs, st = solve_robust(arc, np.concatenate([yn, [beta, q]]), stages=stages,
+    xs, st = solve_robust(arc, np.concatenate([yn, sol.x[-2:]]), stages=stages,
                           max_iter=max_iter, reuse=True)
     new = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
     if not st.converged or n[-1] == 0.0:
