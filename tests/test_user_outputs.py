@@ -1,0 +1,79 @@
+"""What a user sees: each figure drawn or refused with a reason, and summary lines that say what
+happened, with their uncertainty or the words that they have none."""
+import os
+import sys
+
+import pytest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import cli_inproc  # noqa: E402
+
+
+def _rated_family(path):
+    from test_law import _family_with_rates
+    return _family_with_rates(path, lambda r: 8.8e3 * (r - 1.0077) ** 3)
+
+
+def test_rates_figure_is_drawn_when_tau_star_cannot_be_fitted(tmp_path):
+    """Three rated pulses below --below: too few for the shifted fit (four), enough for the
+    others; the figure is drawn against tau_d/tau_min - 1 and the output says so."""
+    f = str(tmp_path / "fam.h5")
+    _rated_family(f)
+    png = tmp_path / "rates.png"
+    r = cli_inproc.run(["steady", "rates", f, "--below", "1.02", "--figure", str(png)])
+    assert r.returncode == 0, r.stderr
+    assert png.exists() and png.stat().st_size > 10_000
+    assert "3 of the 7 rated pulses are fitted" in r.stdout
+    assert "no tau_star" in r.stdout and "panel (a) is drawn against tau_d/tau_min - 1" in r.stdout
+
+
+def test_rates_say_which_pulses_below_excluded(tmp_path):
+    """--below that leaves no rated pulse: the output names the window, not a bare 'got 0'."""
+    f = str(tmp_path / "fam.h5")
+    _rated_family(f)
+    r = cli_inproc.run(["steady", "rates", f, "--below", "1.01"])
+    assert r.returncode == 0, r.stderr
+    assert "0 of the 7 rated pulses are fitted" in r.stdout and "--below 1.01" in r.stdout
+
+
+@pytest.mark.parametrize("args, flag", [(["--to", "1.3"], "--to=1.3"), (["--to", "0.5"], "--to=0.5"),
+                                        (["--from", "1.5"], "--from=1.5")])
+def test_family_bad_input_is_one_line_naming_the_flag_and_no_bar(tmp_path, args, flag):
+    """Refused before any work: exit 2, the flag as the user typed it, no progress-bar stub."""
+    import subprocess
+    r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "family", "--out",
+                        str(tmp_path / "f.h5"), *args], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines() == [r.stderr.strip()]          # one line
+    assert flag in r.stderr and "family:" not in r.stderr and "%|" not in r.stderr
+
+
+def test_family_progress_counts_whole_targets():
+    """The bar shows targets passed as an integer (it showed 8.0/31); the position between
+    targets still moves (the postfix names the pulse)."""
+    from types import SimpleNamespace
+
+    from tqdm import tqdm
+
+    from slippulse.cli.steady import FamilyProgress
+    prog = FamilyProgress(1.2, 1.05, 0.005)
+    bar = tqdm(total=prog.total, disable=True)
+    prog.bar = bar
+    prog(1.165, SimpleNamespace(tau_d_ratio=1.1625, beta=0.3, L=2.0), "beta-step")
+    assert isinstance(bar.n, int) and bar.n == 8 and prog.position == pytest.approx(8.5)
+
+
+def test_family_and_stability_summaries_count_in_words():
+    from types import SimpleNamespace
+
+    from slippulse.cli.steady import family_summary, final_status
+    rep = SimpleNamespace(written=["a"] * 31, reached=1.05, attempts=31, failures=[],
+                          wall_time=10.0, checks=31, failed_checks=[], reached_L=3.0,
+                          limit_reached=False, stopped_early=False)
+    line = final_status(rep, 1.2, 1.05, "f.h5")
+    assert "31 grid checks, all passed" in line and "written as failed" not in line
+    rep.failed_checks = ["x", "y"]
+    assert "2 failed (those pulses written, marked failed)" in final_status(rep, 1.2, 1.05, "f")
+    rep = SimpleNamespace(skipped=[], failed=[], wall_time=1.0)
+    line = family_summary("f.h5", [SimpleNamespace(refined=None, sigmas=(), count=None)], rep)
+    assert "1 pulse solved, none failed" in line and "0 kept" not in line
