@@ -77,3 +77,34 @@ def test_family_and_stability_summaries_count_in_words():
     rep = SimpleNamespace(skipped=[], failed=[], wall_time=1.0)
     line = family_summary("f.h5", [SimpleNamespace(refined=None, sigmas=(), count=None)], rep)
     assert "1 pulse solved, none failed" in line and "0 kept" not in line
+
+
+def _short_run(s_true, s_meas_growth, s_err):
+    """A verify result over 0.1 L whose |v_max error| grows as e^(s_meas_growth d) in the fit
+    window, the pulse's stored eigenvalue s_true ± s_err."""
+    import numpy as np
+
+    from slippulse.stability.verify import SERIES, VerifyResult, growth_rate
+    d = np.linspace(0.0, 0.1, 21)
+    err = 1e-3 * np.exp(s_meas_growth * d)
+    series = {k: np.zeros_like(d) for k in SERIES}
+    series.update(v_max_error=err, distance=d)
+    info = {"travelled": 0.1, "status": "finished", "eigen_s_per_L": s_true,
+            "eigen_s_err_per_L": s_err, "eigen_translation_s_per_L": 1e-6,
+            "eigen_source": "stored in f.h5", "growth_rate_v_max": growth_rate(d, err)}
+    return VerifyResult(t=d, x_front=d, series=series, errors={}, info=info)
+
+
+def test_verify_verdict_agrees_with_the_growth_its_figure_draws():
+    """The mode grows by e^0.8 over the run and the drift grows at its rate: the verdict says so
+    (it said 'the drift is not its growth'), leaves it unattributed as too short, and quotes the
+    eigenvalue with its stored s_err."""
+    from slippulse.stability.verify import drift_verdict, mode_growth
+    res = _short_run(8.0, 8.0, 0.02)
+    assert mode_growth(res.info)[1] == 0.02
+    verdict, text = drift_verdict(res)
+    assert verdict is None
+    assert "not its growth" not in text and "as the unstable mode s = 8 ± 0.02 per L" in text
+    assert "e^0.80" in text and "too little to attribute" in text
+    verdict, text = drift_verdict(_short_run(8.0, 30.0, 0.02))
+    assert verdict is None and "not as the unstable mode" in text
