@@ -108,3 +108,34 @@ def test_verify_verdict_agrees_with_the_growth_its_figure_draws():
     assert "e^0.80" in text and "too little to attribute" in text
     verdict, text = drift_verdict(_short_run(8.0, 30.0, 0.02))
     assert verdict is None and "not as the unstable mode" in text
+
+
+def test_steady_solve_and_verify_lines_say_they_carry_no_error_estimate(pulse12):
+    from slippulse.cli.steady import summary_line
+    from slippulse.core.params import DEFAULT
+    from slippulse.stability.verify import summary
+    assert "no error estimate" in summary_line(pulse12.to_pulse(), DEFAULT)
+    res = _short_run(8.0, 8.0, 0.02)
+    res.errors.update(c_p_error=1e-4, v_max_error=2e-3, L_error=1e-4, lnv_error=1e-3)
+    res.info.update(tau_d_ratio=1.1, n_steps=10, wall_time=1.0, n=4096, dx=1e-3)
+    assert "no error estimate" in summary(res)
+
+
+def test_analyse_table_says_why_zeta_or_its_error_is_missing():
+    """Rows whose ζ could not be fitted, or whose ζ has no error (no window variant on the grid),
+    get one line per reason naming them, and the table says which columns have no uncertainty."""
+    import math
+
+    from slippulse.steady.analysis_table import format_table
+    base = dict(beta=0.5, c_p=1.0, L=1.0, L_tilde=1.0, v_max=1.0, tau_max=1.0, tau_m_pulse=1.0,
+                total_slip=1.0, G_bar_max=1.0, max_residual=1e-15)
+    rows = [dict(base, label=f"td1.{k:04d}", zeta=0.5, zeta_err=math.nan, zeta_note="")
+            for k in range(14)]
+    rows.append(dict(base, label="td1.2000", zeta=math.nan, zeta_err=math.nan,
+                     zeta_note="edge-fit window is empty"))
+    rows.append(dict(base, label="td1.1000", zeta=0.5, zeta_err=0.01, zeta_note=""))
+    notes = format_table(rows).splitlines()[len(rows) + 1:]
+    assert any("zeta_err not estimated" in n and "(14 pulses)" in n for n in notes)
+    assert any("zeta not fitted: edge-fit window is empty (td1.2000)" in n for n in notes)
+    assert not any("td1.1000" in n for n in notes)
+    assert any(n.startswith("no uncertainty in this table but zeta's") for n in notes)

@@ -19,13 +19,15 @@ from ..steady.continuation.arclength import DeepSettings
 
 
 def summary_line(pulse, params) -> str:
-    """One-line summary: β, c_p, L, L̃, v_max, τ_max/τ_min, τ_m/τ_min, max|Δ|, N, wall time."""
+    """One-line summary: β, c_p, L, L̃, v_max, τ_max/τ_min, τ_m/τ_min, max|Δ|, N, wall time, and
+    that these numbers carry no error estimate (one grid)."""
     return (f"tau_d/tau_min={pulse.tau_d_ratio:.4f} beta={pulse.beta:.8g} c_p={pulse.c_p:.6g} m/s "
             f"L={pulse.L:.6g} m L~={pulse.L_tilde:.6g} v_max={pulse.v_max:.4e} m/s "
             f"tau_max/tau_min={pulse.tau.max() / pulse.tau_min:.6f} "
             f"tau_m/tau_min={pulse.tau.min() / pulse.tau_min:.6f} max|D|={pulse.max_residual:.2e} "
             f"N={pulse.n_points} wall={pulse.wall_time:.2f} s "
-            f"{'converged' if pulse.converged else 'NOT CONVERGED'}")
+            f"{'converged' if pulse.converged else 'NOT CONVERGED'}; no error estimate (one grid; "
+            "`steady family` grid-checks each pulse at 2N - 1)")
 
 
 def _ratio(text: str, params=DEFAULT) -> float:

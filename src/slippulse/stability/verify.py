@@ -534,8 +534,8 @@ def summary(res: VerifyResult) -> str:
     return (f"verify td{i['tau_d_ratio']:.4f}: {i['status']}; travelled {i['travelled']:.3f} L in "
             f"{i['n_steps']} steps ({i['wall_time']:.1f} s wall, N={i['n']}, dx={i['dx'] * 1e3:.3g} mm); "
             f"c_p_error={e['c_p_error']:.2e} v_max_error={e['v_max_error']:.2e} "
-            f"L_error={e['L_error']:.2e} lnv_error={e['lnv_error']:.2e}; drift: "
-            f"{drift_verdict(res)[1]}")
+            f"L_error={e['L_error']:.2e} lnv_error={e['lnv_error']:.2e} (one run at one dx: "
+            f"no error estimate of these); drift: {drift_verdict(res)[1]}")
 
 
 #: long_name of every series written by :func:`write_result`.
