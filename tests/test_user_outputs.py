@@ -139,3 +139,50 @@ def test_analyse_table_says_why_zeta_or_its_error_is_missing():
     assert any("zeta not fitted: edge-fit window is empty (td1.2000)" in n for n in notes)
     assert not any("td1.1000" in n for n in notes)
     assert any(n.startswith("no uncertainty in this table but zeta's") for n in notes)
+
+
+def _all_helps():
+    """(command path, help text, the parser's metavars) of every parser of the command line."""
+    import argparse
+
+    from slippulse.cli.app import build_parser
+
+    def walk(p, path):
+        metavars = {str(a.metavar or a.dest.upper()) for a in p._actions}
+        yield " ".join(path), p.format_help(), metavars
+        for a in p._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for name, sp in a.choices.items():
+                    yield from walk(sp, path + [name])
+    return list(walk(build_parser(), ["slippulse"]))
+
+
+def test_help_texts_describe_things_not_source_files():
+    """No help points at a source file or a module constant (`--cd-cs` named
+    'steady/modeii.py CD_OVER_CS', `dynamic scan` 'Format: src/...scan.py')."""
+    import re
+    helps = _all_helps()
+    assert len(helps) > 10
+    bad = []
+    for path, text, metavars in helps:
+        flat = " ".join(text.split())
+        bad += [(path, m) for m in re.findall(r"[\w./-]+\.py\b|\bsrc/", flat)]
+        bad += [(path, m) for m in re.findall(r"\b[A-Z]+(?:_[A-Z]+)+\b", flat) if m not in metavars]
+    assert not bad, bad
+
+
+def test_cd_cs_help_states_the_default_values():
+    import math
+    import re
+
+    from slippulse.cli.analyse import CD_CS_DEFAULTS
+    from slippulse.steady.modeii import CD_OVER_CS
+    stated = [math.sqrt(float(m[5:-1])) if m.startswith("sqrt") else float(m)
+              for m in re.findall(r"sqrt\(\d+\)|\d+(?:\.\d+)?", CD_CS_DEFAULTS.split(",  ")[0]
+                                  .split(" the ")[0])]
+    assert stated == pytest.approx(list(CD_OVER_CS))
+    for cd in CD_OVER_CS:                       # and the Poisson's ratios it quotes
+        nu = (cd ** 2 - 2) / (2 * (cd ** 2 - 1))
+        word = ("1/4" if abs(nu - 0.25) < 1e-12 else "1/3" if abs(nu - 1 / 3) < 1e-12
+                else f"{nu:.2f}")
+        assert word in CD_CS_DEFAULTS

@@ -13,6 +13,7 @@ from ..core.h5io import check_writable, pulse_label, stored_converged, write_pul
 from .checks import check_figure, check_outdir, finite  # noqa: F401
 from ..steady.newton import SOLVERS
 from ..core.params import DEFAULT, ParameterError
+from .analyse import CD_CS_DEFAULTS
 from .paramargs import add_params_args, check_files, params_for_output
 from ..steady.solver import MAX_POINTS, check_points, solve_pulse
 from ..steady.continuation.arclength import DeepSettings
@@ -823,8 +824,7 @@ def register(sub) -> None:
     p.add_argument("file", metavar="FILE", help="HDF5 family file")
     p.add_argument("--no-write", action="store_true", help="print only; leave FILE unchanged")
     p.add_argument("--cd-cs", type=float, nargs="+", default=None, metavar="RATIO",
-                   help="c_d/c_s of the mode-II mapping (default sqrt(3) and two others, "
-                        "steady/modeii.py CD_OVER_CS); each > 1")
+                   help=f"c_d/c_s of the mode-II mapping (default {CD_CS_DEFAULTS}); each > 1")
     p.add_argument("--skip-unconverged", action="store_true",
                    help="leave out the pulses marked converged=False (default: refuse the file); "
                         "they are named in the output")
