@@ -1,4 +1,4 @@
-"""The held deep march's corrector with the two line searches, side by side (stop 47).
+"""The held deep march's corrector with the two line searches, side by side.
 
     python benchmarks/bench_line_search_held.py [--seed steady/seeds/deep_seed_s46.h5]
 
