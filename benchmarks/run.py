@@ -7,7 +7,8 @@ commit (default ``main``) is checked out once into a git worktree under the cach
 (``--cache``, default ``$TMPDIR/slippulse-bench``: its numba caches survive between runs), and
 every benchmark of ``suite.py`` (this tree's) runs in a fresh process per tree, ``PYTHONPATH``
 set to that tree's ``src``, one thread (``--threads``), base and this tree alternated ``--repeat``
-times. Prints one table per benchmark: each figure for base and this tree (the median over the
+times (base first, then this tree first, ...); each benchmark compiles its numba kernels before
+its clock starts. Prints one table per benchmark: each figure for base and this tree (the median over the
 repeats) and their ratio, and the load average before and after. ``--json FILE`` also writes the
 rows. A benchmark the base cannot run (a command it does not have) shows its error instead.
 
@@ -157,8 +158,8 @@ def main(argv=None):
         load0 = os.getloadavg()[0]
         runs = {k: [] for k in trees}
         errors = {k: None for k in trees}
-        for _ in range(a.repeat):
-            for key in ("base", "this"):
+        for rep in range(a.repeat):               # alternated, the order swapped each time
+            for key in ("base", "this") if rep % 2 == 0 else ("this", "base"):
                 if key in trees:
                     fig, err = child(name, a.quick, trees[key], a.threads, a.timeout)
                     runs[key].append(fig) if fig is not None else errors.__setitem__(key, err)
