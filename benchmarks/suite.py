@@ -147,7 +147,7 @@ def spectrum_rate(quick, work):
     _warm_steady()
     from slippulse.core.h5io import list_pulses
     warm = os.path.join(work, "warm.h5")              # compile the spectrum's kernels, untimed
-    _cli("steady", "solve", "--tau-d", "1.2", "--points", "300", "--out", warm)
+    _cli("steady", "solve", "--tau-d", "1.2", "--points", "700", "--out", warm)
     _cli("steady", "stability", warm, "--no-extra", "-q", "--levels", "0")
     cases = [(1.2, 1000)] if quick else [(1.2, 1000), (1.05, 2000)]
     out = {}
