@@ -34,6 +34,7 @@ def test_rates_say_which_pulses_below_excluded(tmp_path):
     r = cli_inproc.run(["steady", "rates", f, "--below", "1.01"])
     assert r.returncode == 0, r.stderr
     assert "0 of the 7 rated pulses are fitted" in r.stdout and "--below 1.01" in r.stdout
+    assert "got 0" not in r.stdout and "0 pulses to fit, a fit needs 3" in r.stdout
 
 
 @pytest.mark.parametrize("args, flag", [(["--to", "1.3"], "--to=1.3"), (["--to", "0.5"], "--to=0.5"),

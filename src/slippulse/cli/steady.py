@@ -522,8 +522,8 @@ def cmd_rates(args) -> int:
     tau_star = args.tau_star
     n_win = int(np.sum(win))
     if n_win < x.size:                  # say what the window left out, not only "got 0"
-        parts.append(f"{n_win} of the {x.size} rated pulses are fitted (resolved, unstable, "
-                     f"tau_d/tau_min <= --below {args.below:g})")
+        parts.append(f"{n_win} of the {_count(x.size, 'rated pulse')} are fitted (resolved, "
+                     f"unstable, tau_d/tau_min <= --below {args.below:g})")
 
     def fit(name, make, describe):
         try:
@@ -532,7 +532,10 @@ def cmd_rates(args) -> int:
         except ValueError as exc:
             parts.append(f"no fit against {name_of[name]}: {exc}")
     name_of = {"shift": "tau_d/tau_min - tau_star", "one": "tau_d/tau_min - 1", "L": "L"}
-    if tau_star is None:
+    if n_win < 3:
+        parts.append(f"no power-law fit: {_count(n_win, 'pulse')} to fit, a fit needs 3 (4 to "
+                     "fit tau_star too)")
+    elif tau_star is None:
         try:
             sh = fit_shifted_power_law(x[win], y[win], e[win], lo=1.0)
             tau_star = sh.x_star
@@ -545,10 +548,11 @@ def cmd_rates(args) -> int:
         fit("shift", lambda: fit_power_law(x[win] - tau_star, y[win], e[win]),
             lambda f: f"tau_star = {tau_star:.5f} (given), "
             + f.describe("(tau_d/tau_min - tau_star)", "s L/c_p"))
-    fit("one", lambda: fit_power_law(x[win] - 1.0, y[win], e[win]),
-        lambda f: f.describe("(tau_d/tau_min - 1)", "s L/c_p"))
-    fit("L", lambda: fit_power_law(r["L"][win], y[win], e[win]),
-        lambda f: f.describe("L/m", "s L/c_p"))
+    if n_win >= 3:
+        fit("one", lambda: fit_power_law(x[win] - 1.0, y[win], e[win]),
+            lambda f: f.describe("(tau_d/tau_min - 1)", "s L/c_p"))
+        fit("L", lambda: fit_power_law(r["L"][win], y[win], e[win]),
+            lambda f: f.describe("L/m", "s L/c_p"))
     for line in parts:
         print("fit: " + line)
     if tau_star is not None and np.sum(win & (x > tau_star)) >= 2:
