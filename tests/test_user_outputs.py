@@ -130,13 +130,14 @@ def test_analyse_table_says_why_zeta_or_its_error_is_missing():
     from slippulse.steady.analysis_table import format_table
     base = dict(beta=0.5, c_p=1.0, L=1.0, L_tilde=1.0, v_max=1.0, tau_max=1.0, tau_m_pulse=1.0,
                 total_slip=1.0, G_bar_max=1.0, max_residual=1e-15)
-    rows = [dict(base, label=f"td1.{k:04d}", zeta=0.5, zeta_err=math.nan, zeta_note="")
-            for k in range(14)]
+    rows = [dict(base, label=f"td1.{k:04d}", zeta=0.5, zeta_err=math.nan,
+                 zeta_note="no variant of the fit window lies on the grid") for k in range(14)]
     rows.append(dict(base, label="td1.2000", zeta=math.nan, zeta_err=math.nan,
                      zeta_note="edge-fit window is empty"))
     rows.append(dict(base, label="td1.1000", zeta=0.5, zeta_err=0.01, zeta_note=""))
     notes = format_table(rows).splitlines()[len(rows) + 1:]
-    assert any("zeta_err not estimated" in n and "(14 pulses)" in n for n in notes)
+    assert any("zeta_err not estimated: no variant of the fit window lies on the grid" in n
+               and "(14 pulses)" in n for n in notes)
     assert any("zeta not fitted: edge-fit window is empty (td1.2000)" in n for n in notes)
     assert not any("td1.1000" in n for n in notes)
     assert any(n.startswith("no uncertainty in this table but zeta's") for n in notes)
@@ -187,3 +188,24 @@ def test_cd_cs_help_states_the_default_values():
         word = ("1/4" if abs(nu - 0.25) < 1e-12 else "1/3" if abs(nu - 1 / 3) < 1e-12
                 else f"{nu:.2f}")
         assert word in CD_CS_DEFAULTS
+
+
+def test_analysed_pulse_records_why_zeta_has_no_error(monkeypatch):
+    """analyse_pulse names the missing part of zeta's error (here: no window variant fitted)."""
+    import math
+
+    import numpy as np
+
+    from slippulse.steady import analysis
+    real = analysis.edge_singularity
+
+    def no_variants(*a, **k):
+        es = dict(real(*a, **k))
+        es.update(zeta_err_window=math.nan, zeta_err=math.nan)
+        return es
+    monkeypatch.setattr(analysis, "edge_singularity", no_variants)
+    from test_figures import synthetic_pulse
+    from slippulse.core.params import DEFAULT
+    row = analysis.analyse_pulse(synthetic_pulse(1.05), DEFAULT)
+    assert np.isfinite(row["zeta"]) and not np.isfinite(row["zeta_err"])
+    assert "no variant of the fit window" in row["zeta_note"]

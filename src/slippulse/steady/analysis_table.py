@@ -64,8 +64,7 @@ def _table_notes(rows):
         if not math.isfinite(r["zeta"]):
             reason = f"zeta not fitted: {r.get('zeta_note') or 'no reason recorded'}"
         elif not math.isfinite(r["zeta_err"]):
-            reason = ("zeta_err not estimated: no variant of the fit window (r_min, r_max "
-                      "scaled by 0.5-2 with r_max/r_min >= 3) lies on the grid")
+            reason = ("zeta_err not estimated: " + (r.get("zeta_note") or "no reason recorded"))
         else:
             continue
         why.setdefault(reason, []).append(r["label"])
