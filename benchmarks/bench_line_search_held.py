@@ -1,6 +1,8 @@
-"""The held deep march's corrector with the two line searches, side by side (stop 47).
+"""The held deep march's corrector with the two line searches, side by side.
 
-    python benchmarks/bench_line_search_held.py [--seed steady/seeds/deep_seed_s46.h5]
+    python benchmarks/bench_line_search_held.py [--seed SEED.h5]
+
+(default seed: the committed seed in steady/seeds/ whose deepest pulse is 9.47 km long)
 
 Resumes the "auto" march from the committed 9.47 km seed (held, N = 6614) as
 ``slippulse steady family --from 1.2 --to 1.0080 --ds-min 0.0002 --spacing 0.03`` does, without
@@ -81,10 +83,24 @@ def sigma_min(problem, x, iters=30):
     return s, float(np.abs(J).max())
 
 
+def seed_of_length(length=9473.0):
+    """The committed seed (steady/seeds/*.h5) whose deepest pulse is nearest ``length`` m."""
+    import glob
+
+    from slippulse.core.h5io import list_pulses, read_pulse
+    best = None
+    for path in glob.glob(os.path.join(ROOT, "steady", "seeds", "*.h5")):
+        L = max(read_pulse(path, lab)[0].L for lab in list_pulses(path))
+        if best is None or abs(L - length) < best[1]:
+            best = (path, abs(L - length))
+    return best[0] if best else None
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seed", default=os.path.join(ROOT, "steady", "seeds", "deep_seed_s46.h5"))
+    ap.add_argument("--seed", default=None, help="seed file (default: the 9.47 km seed)")
     a = ap.parse_args(argv)
+    a.seed = a.seed or seed_of_length()
     load0 = os.getloadavg()
     t0 = time.perf_counter()
     box = capture(a.seed)

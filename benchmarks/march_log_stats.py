@@ -31,7 +31,7 @@ def events(text: str) -> list:
                 it = re.search(r"(\d+) it", rest)
                 ev = ("F", t, int(it.group(1)) if it else -1)
             else:
-                # L as the bar prints it: "L=9776m", "L=10111m"; before stop 47 4 digits, so
+                # L as the bar prints it: "L=9776m", "L=10111m"; older logs print 4 digits, so
                 # "L=1.007e+04m" above 10 km
                 L = re.search(r"L=(\d+(?:\.\d+)?(?:e\+\d+)?)m", rest)
                 if not L:

@@ -1,4 +1,4 @@
-"""The attractor claim mode by mode (issue 20, docs/stability.md §10.4).
+"""The attractor claim mode by mode (docs/stability.md §10.4).
 
     python dynamic/attractor.py overlap FAMILY.h5 [--csv OUT.csv] [--figure PNG] [--sbi SCAN_DIR ...]
     python dynamic/attractor.py pairs SCAN_DIR ...

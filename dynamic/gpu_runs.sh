@@ -3,14 +3,14 @@
 #
 #   bash dynamic/gpu_runs.sh BUDGET_S SCAN.toml [WORKERS]     (repository root; CuPy and a GPU)
 #
-# e.g. bash dynamic/gpu_runs.sh 215 dynamic/scans/gpu_s41.toml 4 (docs/stability.md §10.8; the
-# pulses and spectra of runs/s41/fam2000.h5 as in dynamic/scans/gpu_td1.10.toml). The scan is cut
+# e.g. bash dynamic/gpu_runs.sh 215 dynamic/scans/gpu_check_and_pairs.toml 4 (docs/stability.md §10.8; the
+# pulses and spectra of runs/steady/fam2000.h5 as in dynamic/scans/gpu_td1.10.toml). The scan is cut
 # at BUDGET_S seconds; finished cases stay (one file per case). Its directory, the case files
-# without their slip-rate snapshots, goes to $OUT/<scan name>.tar.gz (default OUT: runs/s41/gpu).
+# without their slip-rate snapshots, goes to $OUT/<scan name>.tar.gz (default OUT: runs/gpu).
 set -u
 PY=${PYTHON:-python3}
 BUDGET=$1; SCAN=$2; WORKERS=${3:-2}
-OUT=${OUT:-runs/s41/gpu}
+OUT=${OUT:-runs/gpu}
 mkdir -p "$OUT"
 export PYTHONPATH=$PWD/src PYTHONUNBUFFERED=1 NUMBA_CACHE_DIR=/tmp/slippulse_numba
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1

@@ -18,7 +18,7 @@ def pulse12():
 @pytest.fixture(scope="session")
 def spectrum12(pulse12):
     """The leading eigenvalue and mode of ``pulse12`` (``pulse_spectrum``, no extra search; ~10 s),
-    shared by the tests that need a stored spectrum (issue 20)."""
+    shared by the tests that need a stored spectrum."""
     from slippulse.stability.spectrum import pulse_spectrum
     return pulse_spectrum(pulse12.to_pulse(), DEFAULT, extra=False)
 

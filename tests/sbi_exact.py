@@ -1,4 +1,4 @@
-"""Exact solutions for the SBI tests (shared by tests/test_sbi_*.py and benchmarks/bench_sbi.py).
+"""Exact solutions for the SBI tests (shared by tests/test_sbi_*.py and the sbi benchmarks of benchmarks/suite.py).
 
 Everything here is computed independently of the SBI code path (closed forms, scipy special
 functions and quadrature), so a test comparing the stepper against it can fail.
@@ -109,7 +109,7 @@ def steady_translating_stress(x, t, *, V_amp, a, lam, c, c_s, mu, tau_d, v_stick
 
 
 # ----------------------------------------------------------------------------- drivers
-# (the SBI runs of the exact tests, shared with benchmarks/bench_sbi.py)
+# (the SBI runs of the exact tests, shared with benchmarks/suite.py)
 
 def run_kostrov(n, v_r_ratio, policy="full", lam=1.0, dtau=1e6, a_end=0.3, history_options=None,
                 threads=1):

@@ -125,7 +125,7 @@ def test_fig3_png_draws_the_pulses_where_the_data_says(tmp_path):
     pulses = [ln for ln in ax.get_lines() if ln.get_label() == r"$\beta$ (pulses)"][0]
     assert np.array_equal(pulses.get_xdata(), x) and np.array_equal(pulses.get_ydata(), beta)
     assert np.array_equal(ax2.get_lines()[0].get_ydata(), Lt)
-    paper = [ln for ln in ax.get_lines() if ln.get_label().startswith("paper's constants")][0]
+    paper = [ln for ln in ax.get_lines() if ln.get_label().startswith(r"$\beta$, paper's")][0]
     xp = np.asarray(paper.get_xdata())
     assert np.allclose(paper.get_ydata(), an.scaling_law(xp, params=data.params, **PAPER)[0],
                        rtol=1e-12)
@@ -138,3 +138,19 @@ def test_fig3_png_draws_the_pulses_where_the_data_says(tmp_path):
     off = ax.transData.transform(np.column_stack([x, np.clip(beta + 0.15, 0, 0.95)]))
     inside = [(px, py) for (px, py), b in zip(off, beta) if b + 0.15 < 0.6]   # below the legend
     assert inside and not any(_pixels_near(img, px, py, c0) for px, py in inside)
+
+
+def test_fig3_gives_each_curve_its_own_legend_entry(tmp_path):
+    """β and L-tilde by the paper's constants are two dotted curves on two axes: two legend
+    entries, each in its axis' colour (they shared one grey entry)."""
+    from matplotlib.colors import to_rgba
+    fam = make_synthetic_family(str(tmp_path / "fam.h5"))
+    fig = plotting.fig3(plotting.load_family(fam))
+    ax, ax2 = fig.axes[0], fig.axes[1]
+    legend = ax.get_legend()
+    entries = {t.get_text(): h for t, h in zip(legend.get_texts(), legend.legend_handles)}
+    drawn = [ln for a in (ax, ax2) for ln in a.get_lines() if not ln.get_label().startswith("_")]
+    assert len(drawn) == len(entries) and {ln.get_label() for ln in drawn} == set(entries)
+    dotted = [ln for ln in drawn if ln.get_linestyle() == ":"]
+    assert len(dotted) == 2
+    assert len({to_rgba(ln.get_color()) for ln in dotted}) == 2

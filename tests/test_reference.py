@@ -1,4 +1,4 @@
-"""Reference values live in data files with provenance, not in code constants (issue 22)."""
+"""Reference values live in data files with provenance, not in code constants."""
 import os
 import tomllib
 

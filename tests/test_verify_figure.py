@@ -52,8 +52,8 @@ def _result(ratio, s_true, travelled=0.2, n=101, a0=4e-5, seed=0, s_eig=None):
 
 def test_drift_verdict():
     ok, text = drift_verdict(_result(1.2, 22.9))
-    assert ok is True and "consistent with the unstable mode s = 22.65 per L (eigenvalue, " \
-        "stored in test.h5)" in text
+    assert ok is True and "consistent with the unstable mode s = 22.65 ± 1e-06 (the " \
+        "translation eigenvalue's size) per L (eigenvalue, stored in test.h5)" in text
     assert "not a numerical error" in text
     # a rate far outside the band: not the mode
     bad = 22.654 * (1 + 2 * GROWTH_TOLERANCE)
@@ -61,7 +61,7 @@ def test_drift_verdict():
     assert ok is False and "NOT consistent" in text
     # any τ_d: the eigenvalue the run carries (1.3 τ_min, outside the old table)
     ok, text = drift_verdict(_result(1.3, 30.0, s_eig=29.5))
-    assert ok is True and "s = 29.5 per L" in text
+    assert ok is True and "s = 29.5 ± 1e-06" in text
     # no eigenvalue: not attributed
     ok, text = drift_verdict(_result(1.3, 23.5))
     assert ok is None and "no eigenvalue" in text

@@ -1,5 +1,5 @@
 """Every kind of output file opens with xarray (engine h5netcdf) with named dimensions, coordinates
-and units (issue 12, item 1); version-1 layouts stay readable; newer versions are refused."""
+and units; version-1 layouts stay readable; newer versions are refused."""
 import os
 import sys
 

@@ -9,6 +9,11 @@ from ..core.params import ParameterError
 from ..steady import analysis
 
 
+#: the default c_d/c_s of the mode-II mapping (``steady.modeii``), as the help states them
+CD_CS_DEFAULTS = ("1.6, sqrt(3) and 2, the P-to-S wave speed ratios of solids of Poisson's ratio "
+                  "0.18, 1/4 and 1/3")
+
+
 def check_cd_over_cs(values):
     """c_d/c_s values of the mode-II mapping from the command line (None: the default set),
     each a finite number > 1; else ParameterError naming ``cd-cs``."""

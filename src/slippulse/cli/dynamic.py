@@ -71,7 +71,7 @@ def register(subparsers) -> None:
     v.add_argument("--samples", type=int, default=100, help="measurements (default 100)")
     v.add_argument("--device", choices=("cpu", "cupy"), default="cpu",
                    help="where the steps run after seeding: cpu (default) or cupy, a CUDA GPU "
-                        "through CuPy (the same scheme, dynamics/device.py; docs/dynamic.md §11)")
+                        "through CuPy (the same scheme and history, in double precision)")
     _mode_args(v)
     v.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     v.add_argument("--allow-unconverged", action="store_true",

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 
+from .analyse import CD_CS_DEFAULTS
 from .app import UsageError
 from .paramargs import add_params_args, check_files
 
@@ -19,8 +20,7 @@ def register(subparsers):
                    help="second family file (another domain size) for Fig. S1(b)")
     p.add_argument("--formats", default="png,pdf", help="comma-separated formats (default png,pdf)")
     p.add_argument("--cd-cs", type=float, nargs="+", default=None, metavar="RATIO",
-                   help="c_d/c_s of the mode-II figure S4 (default: three values, "
-                        "steady/modeii.py CD_OVER_CS); each > 1")
+                   help=f"c_d/c_s of the mode-II figure S4 (default {CD_CS_DEFAULTS}); each > 1")
     p.add_argument("--skip-unconverged", action="store_true",
                    help="leave out the pulses marked converged=False (default: refuse the file)")
     add_params_args(p)

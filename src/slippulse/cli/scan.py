@@ -22,8 +22,10 @@ def register(sub) -> None:
         description="Run every case of SCAN.toml (cartesian product of [grid] over [defaults], "
                     "then the [[case]] tables) through the scan's runner, one HDF5 file per case "
                     "in scan.out_dir; finished cases are reused. Writes summary.csv and summary.h5 "
-                    "in scan.out_dir. Format: src/slippulse/stability/scan.py, example: "
-                    "dynamic/scans/example.toml.")
+                    "in scan.out_dir. SCAN.toml holds a [scan] table (name, out_dir, optionally "
+                    "runner = \"module:function\"), [defaults] (values shared by every case), "
+                    "[grid] (lists whose cartesian product gives cases) and [[case]] tables "
+                    "(extra cases); values are scalars. Example: dynamic/scans/example.toml.")
     p.add_argument("scan", metavar="SCAN.toml", help="scan description (TOML)")
     p.add_argument("--workers", type=int, default=1, metavar="N",
                    help="local worker processes (default 1: runs are CPU-bound and may be "

@@ -13,19 +13,22 @@ from ..core.h5io import check_writable, pulse_label, stored_converged, write_pul
 from .checks import check_figure, check_outdir, finite  # noqa: F401
 from ..steady.newton import SOLVERS
 from ..core.params import DEFAULT, ParameterError
+from .analyse import CD_CS_DEFAULTS
 from .paramargs import add_params_args, check_files, params_for_output
 from ..steady.solver import MAX_POINTS, check_points, solve_pulse
 from ..steady.continuation.arclength import DeepSettings
 
 
 def summary_line(pulse, params) -> str:
-    """One-line summary: β, c_p, L, L̃, v_max, τ_max/τ_min, τ_m/τ_min, max|Δ|, N, wall time."""
+    """One-line summary: β, c_p, L, L̃, v_max, τ_max/τ_min, τ_m/τ_min, max|Δ|, N, wall time, and
+    that these numbers carry no error estimate (one grid)."""
     return (f"tau_d/tau_min={pulse.tau_d_ratio:.4f} beta={pulse.beta:.8g} c_p={pulse.c_p:.6g} m/s "
             f"L={pulse.L:.6g} m L~={pulse.L_tilde:.6g} v_max={pulse.v_max:.4e} m/s "
             f"tau_max/tau_min={pulse.tau.max() / pulse.tau_min:.6f} "
             f"tau_m/tau_min={pulse.tau.min() / pulse.tau_min:.6f} max|D|={pulse.max_residual:.2e} "
             f"N={pulse.n_points} wall={pulse.wall_time:.2f} s "
-            f"{'converged' if pulse.converged else 'NOT CONVERGED'}")
+            f"{'converged' if pulse.converged else 'NOT CONVERGED'}; no error estimate (one grid; "
+            "`steady family` grid-checks each pulse at 2N - 1)")
 
 
 def _ratio(text: str, params=DEFAULT) -> float:
@@ -166,7 +169,7 @@ def _solve_any(params, tau_d_ratio, args):
     prog = FamilyProgress(GUESS_RATIO, tau_d_ratio, -h)
     bar = tqdm(total=prog.total, desc=f"steady {pulse_label(tau_d_ratio)} (from {GUESS_RATIO})",
                unit="step", disable=args.quiet, file=sys.stderr,
-               bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}{postfix}]")
+               bar_format="{l_bar}{bar}| {n}/{total} steps [{elapsed}<{remaining}{postfix}]")
     prog.bar = bar
     try:
         return reach_pulse(params, tau_d_ratio, n_points=args.points, method=args.method, tol=args.tol,
@@ -196,8 +199,13 @@ class FamilyProgress:
                                 min(self.total, 1.0 + (self.start - pulse.tau_d_ratio) / self.step))
             state = f"{pulse.tau_d_ratio:.5f} beta={pulse.beta:.6f} L={pulse.L:.5g}m"
         if self.bar is not None:
-            self.bar.n = round(self.position, 2)
+            self.bar.n = int(self.position + 1e-9)   # targets passed (the postfix moves between)
             self.bar.set_postfix_str(state)     # refreshes the bar
+
+
+def _count(n: int, word: str) -> str:
+    """'1 pulse', '3 pulses'."""
+    return f"{n} {word}" + ("" if n == 1 else "s")
 
 
 def final_status(rep, start, stop, out) -> str:
@@ -207,8 +215,10 @@ def final_status(rep, start, stop, out) -> str:
             f"tau_d/tau_min={rep.reached:.5f}, {rep.attempts} solves attempted, "
             f"{len(rep.failures)} failed, wall={rep.wall_time:.1f} s")
     if rep.checks:
-        line += (f", {rep.checks} grid checks ({len(rep.failed_checks)} failed, written as "
-                 f"failed), L={rep.reached_L:.5g} m")
+        nf = len(rep.failed_checks)
+        line += (f", {_count(rep.checks, 'grid check')}, "
+                 + ("all passed" if not nf else f"{nf} failed (those pulses written, marked failed)")
+                 + f", L={rep.reached_L:.5g} m")
     if rep.limit_reached:
         line += f"\nstopped at --max-length: {rep.stop_reason}"
     if rep.stopped_early:
@@ -243,10 +253,14 @@ def cmd_family(args) -> int:
     check_writable(args.out or os.path.join("runs", "steady", "family.h5"), "out")
     if args.points is not None:
         check_points(args.points)
-    prog = FamilyProgress(start, stop, args.step)
-    bar = tqdm(total=prog.total, desc="family", unit="pulse", disable=args.quiet, file=sys.stderr,
-               bar_format="{l_bar}{bar}| {n:.1f}/{total} [{elapsed}<{remaining}{postfix}]")
-    prog.bar = bar
+    hi = params.tau_peak / params.tau_min
+    for flag, val in (("--from", start), ("--to", stop)):
+        if not 1.0 < val < hi:
+            raise ParameterError(f"{flag}={val:g} is invalid: must be in (1, {hi:.6g}) "
+                                 "(tau_d/tau_min: a pulse needs tau_min < tau_d < tau_peak)")
+    if not stop < start:
+        raise ParameterError(f"--to={stop:g} is invalid: must be < --from={start:g} (the family "
+                             "is continued downward in tau_d)")
     from ..steady.continuation import FAMILY_POINTS
     n_deep = FAMILY_POINTS[1] if args.points is None else args.points
     if args.max_points < n_deep:
@@ -272,10 +286,18 @@ def cmd_family(args) -> int:
         if not args.quiet:
             tqdm.write(msg, file=sys.stderr)
 
-    rep = run_family(params, out, start=start, stop=stop, step=args.step, n_points=args.points,
-                     progress=prog, deep=args.deep, deep_settings=deep, n_max=args.max_points,
-                     max_length=args.max_length, log=log)
-    bar.close()
+    prog = FamilyProgress(start, stop, args.step)
+    # the bar appears after a second of work: an input the run refuses at once leaves no stub
+    bar = tqdm(total=prog.total, desc="family", unit="target", disable=args.quiet,
+               file=sys.stderr, delay=1.0,
+               bar_format="{l_bar}{bar}| {n}/{total} targets [{elapsed}<{remaining}{postfix}]")
+    prog.bar = bar
+    try:
+        rep = run_family(params, out, start=start, stop=stop, step=args.step,
+                         n_points=args.points, progress=prog, deep=args.deep, deep_settings=deep,
+                         n_max=args.max_points, max_length=args.max_length, log=log)
+    finally:
+        bar.close()
     if rep.resumed_from:
         print(f"resumed from {rep.resumed_from} in {out}", file=sys.stderr)
     print(final_status(rep, start, stop, out))
@@ -498,23 +520,39 @@ def cmd_rates(args) -> int:
     win = (x <= args.below) & res & (y > 0)
     fits, parts = {}, []
     tau_star = args.tau_star
-    try:
-        if tau_star is None:
+    n_win = int(np.sum(win))
+    if n_win < x.size:                  # say what the window left out, not only "got 0"
+        parts.append(f"{n_win} of the {_count(x.size, 'rated pulse')} are fitted (resolved, "
+                     f"unstable, tau_d/tau_min <= --below {args.below:g})")
+
+    def fit(name, make, describe):
+        try:
+            fits[name] = make()
+            parts.append(describe(fits[name]))
+        except ValueError as exc:
+            parts.append(f"no fit against {name_of[name]}: {exc}")
+    name_of = {"shift": "tau_d/tau_min - tau_star", "one": "tau_d/tau_min - 1", "L": "L"}
+    if n_win < 3:
+        parts.append(f"no power-law fit: {_count(n_win, 'pulse')} to fit, a fit needs 3 (4 to "
+                     "fit tau_star too)")
+    elif tau_star is None:
+        try:
             sh = fit_shifted_power_law(x[win], y[win], e[win], lo=1.0)
             tau_star = sh.x_star
             fits["shift"] = sh.law
             parts.append(f"tau_star = {sh.x_star:.5f} ± {sh.x_star_err:.1g} (fitted), "
                          + sh.law.describe("(tau_d/tau_min - tau_star)", "s L/c_p"))
-        else:
-            fits["shift"] = fit_power_law(x[win] - tau_star, y[win], e[win])
-            parts.append(f"tau_star = {tau_star:.5f} (given), "
-                         + fits["shift"].describe("(tau_d/tau_min - tau_star)", "s L/c_p"))
-        fits["one"] = fit_power_law(x[win] - 1.0, y[win], e[win])
-        parts.append(fits["one"].describe("(tau_d/tau_min - 1)", "s L/c_p"))
-        fits["L"] = fit_power_law(r["L"][win], y[win], e[win])
-        parts.append(fits["L"].describe("L/m", "s L/c_p"))
-    except ValueError as exc:
-        parts.append(f"no fit: {exc}")
+        except ValueError as exc:
+            parts.append(f"no tau_star: {exc}")
+    else:
+        fit("shift", lambda: fit_power_law(x[win] - tau_star, y[win], e[win]),
+            lambda f: f"tau_star = {tau_star:.5f} (given), "
+            + f.describe("(tau_d/tau_min - tau_star)", "s L/c_p"))
+    if n_win >= 3:
+        fit("one", lambda: fit_power_law(x[win] - 1.0, y[win], e[win]),
+            lambda f: f.describe("(tau_d/tau_min - 1)", "s L/c_p"))
+        fit("L", lambda: fit_power_law(r["L"][win], y[win], e[win]),
+            lambda f: f.describe("L/m", "s L/c_p"))
     for line in parts:
         print("fit: " + line)
     if tau_star is not None and np.sum(win & (x > tau_star)) >= 2:
@@ -543,10 +581,11 @@ def cmd_rates(args) -> int:
         print("fit: " + fits["R"].describe("L/m", "R = s L/c_p / |d tau_d/d ln L|"))
         _print_exponents("d ln R/d ln L", r["L"][mR], R[mR], R_err[mR],
                          lambda a: f"L = {a:.3g} m")
-    if args.figure and tau_star is not None:
+    if args.figure:
         from ..plotting.rates import plot_rates
         plot_rates(r, fits, args.figure, tau_star, fold=(R, R_err))
-        print(f"figure: {args.figure}")
+        print(f"figure: {args.figure}" + ("" if tau_star is not None else
+              " (no tau_star fitted or given: panel (a) is drawn against tau_d/tau_min - 1)"))
     cross = ("s changes sign" if n_un and n_st else
              "s does not cross zero (unstable at every resolved pulse)" if n_un and not n_st else
              "no resolved unstable pulse")
@@ -589,8 +628,9 @@ def family_summary(path, done, rep) -> str:
     unstable = [r.label for r in refined if r.refined.sign_resolved and r.refined.s > 0]
     stable = [r.label for r in refined if r.refined.sign_resolved and r.refined.s < 0]
     unresolved = [r.label for r in refined if not r.refined.sign_resolved]
-    parts = [f"stability {path}: {len(done)} pulses solved, {len(rep.skipped)} kept, "
-             f"{len(rep.failed)} failed"]
+    parts = [f"stability {path}: {_count(len(done), 'pulse')} solved"
+             + (f", {len(rep.skipped)} kept (already stored)" if rep.skipped else "")
+             + (f", {len(rep.failed)} failed" if rep.failed else ", none failed")]
     if refined:
         parts.append(f"unstable (s > 2 s_err) at {len(unstable)}, stable (s < -2 s_err) at "
                      f"{len(stable)}, sign not resolved at {len(unresolved)}"
@@ -788,8 +828,7 @@ def register(sub) -> None:
     p.add_argument("file", metavar="FILE", help="HDF5 family file")
     p.add_argument("--no-write", action="store_true", help="print only; leave FILE unchanged")
     p.add_argument("--cd-cs", type=float, nargs="+", default=None, metavar="RATIO",
-                   help="c_d/c_s of the mode-II mapping (default sqrt(3) and two others, "
-                        "steady/modeii.py CD_OVER_CS); each > 1")
+                   help=f"c_d/c_s of the mode-II mapping (default {CD_CS_DEFAULTS}); each > 1")
     p.add_argument("--skip-unconverged", action="store_true",
                    help="leave out the pulses marked converged=False (default: refuse the file); "
                         "they are named in the output")

@@ -24,7 +24,8 @@ def _loglog(a, xv, yv, ev, m, fit, var, color, label, xlabel, ylabel):
 def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
     """Three panels: s L/c_p against τ_d/τ_min − τ̃* and against L (log–log, error bars, fits),
     and s L/c_p against τ_d/τ_min (linear, the sign). `rates`: :func:`stability.law.family_rates`;
-    `fits`: dict name → PowerLaw (keys 'shift', 'L', 'R') or None. ``fold`` = (R, R_err) of
+    `fits`: dict name → PowerLaw (keys 'shift', 'one', 'L', 'R') or None. ``tau_star`` None
+    (too few rates to fit it): panel (a) is against τ_d/τ_min − 1 with the fit 'one'. ``fold`` = (R, R_err) of
     :func:`stability.law.fold_ratio` adds a fourth panel: R against L (docs/stability.md §9.5)."""
     import matplotlib
     matplotlib.use("Agg")
@@ -34,12 +35,15 @@ def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
     pos = y > 0
     panels = 3 if fold is None else 4
     fig, ax = plt.subplots(1, panels, figsize=(4.7 * panels, 4.3))
-    for a, xv, name, xl in ((ax[0], x - tau_star, "shift",
-                             f"τ_d/τ_min − τ̃*  (τ̃* = {tau_star:.5f})"),
+    first = ((x - tau_star, "shift", f"τ_d/τ_min − τ̃*  (τ̃* = {tau_star:.5f})")
+             if tau_star is not None else
+             (x - 1.0, "one", "τ_d/τ_min − 1  (no τ̃*: too few rates to fit it)"))
+    for a, xv, name, xl in ((ax[0],) + first,
                             (ax[1], rates["L"], "L", "pulse length L (m)")):
         _loglog(a, xv, y, e, pos & (xv > 0), fits.get(name), "x", "C0",
                 "s L/c_p ± s_err (spectrum)", xl, "growth per pulse length  s L/c_p")
-    ax[0].set_title("(a) growth rate against the distance to τ̃*")
+    ax[0].set_title("(a) growth rate against the distance to τ̃*" if tau_star is not None
+                    else "(a) growth rate against τ_d/τ_min − 1")
     ax[1].set_title("(b) against the pulse length")
     a = ax[2]
     a.axhline(0.0, color="0.4", lw=1)
@@ -49,7 +53,8 @@ def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
         a.errorbar(x[bad] - 1.0, y[bad], yerr=e[bad], fmt="x", ms=6, color="C1", capsize=2,
                    label="sign not resolved")
         a.legend(fontsize=8)
-    a.axvline(tau_star - 1.0, color="C3", ls="--", lw=1, label="τ̃*")
+    if tau_star is not None:
+        a.axvline(tau_star - 1.0, color="C3", ls="--", lw=1, label="τ̃*")
     a.set_xscale("log")
     a.set_yscale("symlog", linthresh=1e-4)
     a.set_xlabel("τ_d/τ_min − 1")

@@ -177,7 +177,8 @@ def plot_verify_result(path_png: str, res: VerifyResult, pulse, params) -> None:
         lnA = float(np.mean(np.log(err[base]) - sv * dist[base]))
         dd = np.linspace(0.0, float(np.nanmax(dist)), 200)
         ax.semilogy(dd, np.exp(lnA + sv * dd), "k--", lw=1.2,
-                    label=f"e^(s d), unstable mode s = {sv:.4g} per L (eigenvalue)")
+                    label=f"e^(s d), unstable mode s = {sv:.4g}"
+                    + (f" ± {serr:.1g}" if np.isfinite(serr) else "") + " per L (eigenvalue)")
     ax.set_xlabel("distance travelled d (L⁰)")
     ax.set_ylabel("|v_max error|")
     verdict, text = drift_verdict(res)

@@ -199,22 +199,24 @@ def fig3(data):
         s = data.fam["scaling"]
         xx = np.linspace(max(s["tau_star"] + 1e-4, x.min() - 0.002), x.max(), 400)
         bb, LL = an.scaling_law(xx, s["tau_star"], s["a_v"], s["a_G"], prm)
-        lab = (r"Eqs. 3–4: $\tilde\tau_*$=%.4f, $a_v$=%.2f, $a_G$=%.2f (fit on shaded %g–%g)"
-               % (s["tau_star"], s["a_v"], s["a_G"], s["window"][0], s["window"][1]))
-        h3, = ax.plot(xx, bb, "-", color="C0", lw=1.2, label=lab)
-        ax2.semilogy(xx, LL, "-", color="C3", lw=1.2)
-        handles.append(h3)
+        h3, = ax.plot(xx, bb, "-", color="C0", lw=1.2,
+                      label=(r"$\beta$, Eq. 3 fit: $\tilde\tau_*$=%.4f, $a_v$=%.2f (on shaded %g–%g)"
+                             % (s["tau_star"], s["a_v"], s["window"][0], s["window"][1])))
+        h3b, = ax2.semilogy(xx, LL, "-", color="C3", lw=1.2,
+                            label=r"$\tilde L$, Eq. 4 fit: $a_G$=%.2f" % s["a_G"])
+        handles += [h3, h3b]
         ax.axvspan(max(s["window"][0], xx[0]), min(s["window"][1], x.max()), color="0.92",
                    zorder=0)
     # the paper's constants, for a side-by-side comparison
     xp = np.linspace(max(PAPER_SCALING["tau_star"] + 1e-4, x.min() - 0.002), x.max(), 400)
     bp, Lp = an.scaling_law(xp, params=prm, **PAPER_SCALING)
-    h4, = ax.plot(xp, bp, ":", color="0.45", lw=1.2,
-                  label=(r"paper's constants ($\tilde\tau_*$=%.4f, $a_v$=%.2f, $a_G$=%.2f)"
-                         % (PAPER_SCALING["tau_star"], PAPER_SCALING["a_v"],
-                            PAPER_SCALING["a_G"])))
-    ax2.semilogy(xp, Lp, ":", color="0.45", lw=1.2)
-    handles.append(h4)
+    # one legend entry per curve: β (left axis) and L̃ (right axis) in their axes' colours
+    h4, = ax.plot(xp, bp, ":", color="C0", lw=1.4,
+                  label=(r"$\beta$, paper's constants: $\tilde\tau_*$=%.4f, $a_v$=%.2f"
+                         % (PAPER_SCALING["tau_star"], PAPER_SCALING["a_v"])))
+    h5, = ax2.semilogy(xp, Lp, ":", color="C3", lw=1.4,
+                       label=r"$\tilde L$, paper's constants: $a_G$=%.2f" % PAPER_SCALING["a_G"])
+    handles += [h4, h5]
     ax.set_xlabel(r"$\tau_d/\tau_{min}$")
     ax.set_ylabel(r"$\beta = c_p/c_s$", color="C0")
     ax2.set_ylabel(r"$\tilde L = \tau_{min}^2 L/(\mu G_c^*)$  ($G_c^*$ = 0.65 J/m$^2$)", color="C3")
@@ -223,7 +225,7 @@ def fig3(data):
     ax.legend(handles=handles, fontsize=7, loc="upper right")
     deep = x < DEEP_INSET
     if deep.sum() >= 2:
-        # the deep family (issue 18: down to L ≥ 1.5 km) crowds at the left edge: zoomed in
+        # the deep family (down to L ≥ 1.5 km) crowds at the left edge: zoomed in
         ins = ax.inset_axes([0.43, 0.40, 0.30, 0.30])
         near = x < DEEP_INSET + 0.004
         ins.semilogy(x[near], Lt[near], "s", color="C3", ms=3, mfc="none")

@@ -70,6 +70,9 @@ class Eigenmode:
         Where the mode comes from ("stored in FILE" or "computed").
     translation_s_per_L : float
         The translation eigenvalue σ_t L/c_p (exact 0): the discretisation's error indicator.
+    s_err_per_L : float
+        The stored error of the growth rate (``steady stability``'s ladder of grids); NaN when
+        the spectrum has none (computed on the fly, or stored without a ladder).
     """
 
     label: str
@@ -85,6 +88,7 @@ class Eigenmode:
     c_p: float
     source: str
     translation_s_per_L: float = math.nan
+    s_err_per_L: float = math.nan
 
     @property
     def s_per_L(self) -> float:
@@ -102,7 +106,8 @@ def _from_stored(d: dict, label: str, source: str) -> Eigenmode:
                      delta=d["delta"][0], V=d["V"][0], phi=d["phi"][0], lnv=d["lnv"][0],
                      tau_d_ratio=float(d["tau_d_ratio"]), L=float(d["L"]), c_p=float(d["c_p"]),
                      source=source,
-                     translation_s_per_L=float(d.get("translation_s_per_L", math.nan)))
+                     translation_s_per_L=float(d.get("translation_s_per_L", math.nan)),
+                     s_err_per_L=float(d.get("s_err_per_L", math.nan)))
 
 
 def stored_mode(path: str, label: str) -> Eigenmode | None:

@@ -67,8 +67,13 @@ def analyse_pulse(pulse, params, tau_m=None, edge_window=None):
     try:
         es = edge_singularity(p.xi, p.v, p.tau, tm, params.c_s, params.sigma,
                               window=edge_window, L=L)
+        note = ""
+        if not np.isfinite(es["zeta_err"]):      # say which part of the error is missing
+            note = ("no variant of the fit window (r_min, r_max scaled by 0.5-2 with "
+                    "r_max/r_min >= 3) lies on the grid" if not np.isfinite(es["zeta_err_window"])
+                    else "the fit's covariance is singular")
         row.update(zeta=es["zeta"], zeta_err=es["zeta_err"], xi_p=es["xi_p"],
-                   zeta_at_bound=es["at_bound"], zeta_note="")
+                   zeta_at_bound=es["at_bound"], zeta_note=note)
     except (ValueError, np.linalg.LinAlgError) as exc:
         row.update(zeta=float("nan"), zeta_err=float("nan"), xi_p=float("nan"),
                    zeta_at_bound=False, zeta_note=str(exc))

@@ -17,6 +17,8 @@ def format_table(rows):
     lines = [" ".join(f"{heads.get(c, c):>{w}s}" for (c, _), w in zip(cols, widths))]
     for r in rows:
         lines.append(" ".join(fmt.format(r[c]) for c, fmt in cols))
+    if rows:
+        lines.extend(_table_notes(rows))
     fam = rows[0].get("family") if rows else None
     if fam:
         if fam.get("skipped_unconverged"):
@@ -48,3 +50,25 @@ def format_table(rows):
         else:
             lines.append(f"G_c: not done ({fam['fracture_error']})")
     return "\n".join(lines)
+
+
+def _table_notes(rows):
+    """What the table's numbers are worth: the columns without an uncertainty, and why ζ or its
+    error is NaN where it is (by reason, with the pulses it concerns)."""
+    import math
+    notes = ["no uncertainty in this table but zeta's: beta ... Gmax are measured on each pulse's "
+             "own grid (`steady family` grid-checks its pulses at 2N - 1: |dbeta| <= 1e-5, "
+             "|dL|/L <= 1e-4); max|res| is the solver's residual, not an error"]
+    why = {}
+    for r in rows:
+        if not math.isfinite(r["zeta"]):
+            reason = f"zeta not fitted: {r.get('zeta_note') or 'no reason recorded'}"
+        elif not math.isfinite(r["zeta_err"]):
+            reason = ("zeta_err not estimated: " + (r.get("zeta_note") or "no reason recorded"))
+        else:
+            continue
+        why.setdefault(reason, []).append(r["label"])
+    for reason, labels in why.items():
+        shown = ", ".join(labels[:4]) + (f" ... ({len(labels)} pulses)" if len(labels) > 4 else "")
+        notes.append(f"{reason} ({shown})")
+    return notes

@@ -315,7 +315,7 @@ class SteadyProblem:
     state_order : {4, 2}
         State integrator (:data:`STATE_ORDERS`): 4, Radau IIA on the remainder
         (:func:`integrate_state_radau`, default); 2, the exponential update with w frozen on half
-        cells (:func:`integrate_state`, the scheme before issue 11).
+        cells (:func:`integrate_state`, the earlier scheme).
     """
 
     def __init__(self, params, tau_d_ratio, xi, pin_index, y_pin, hilbert="cubic", H=None,

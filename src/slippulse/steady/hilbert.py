@@ -121,8 +121,8 @@ def add_times_slopes(out, B, xi, overwrite_b=False):
     X = B T⁻¹ row by row (xᵢ T = bᵢ: the Thomas recursion of Tᵀ, factored once; T is strictly
     diagonally dominant, twice over, so no pivoting is needed), then X R with R tridiagonal with
     rows (lo, di, up): (X R)[:, k] = X[:, k] di_k + X[:, k+1] lo_{k+1} + X[:, k−1] up_{k−1}; one
-    compiled pass over each row while it is in cache (stop 39: 0.04 s against 0.5 s for the
-    banded LAPACK solve and the numpy products at N = 3542, BENCHMARKS.md "Stop 39"). B may be
+    compiled pass over each row while it is in cache (0.04 s against 0.5 s for the banded
+    LAPACK solve and the numpy products at N = 3542). B may be
     complex; `overwrite_b` is accepted for the callers and has no effect. Returns out.
     """
     T, (lo, di, up) = _spline_system(xi)
@@ -258,7 +258,7 @@ def hilbert_matrix(xi, kind: str = "cubic", tails: bool = True, center: float | 
 #: The last matrix of :func:`hilbert_matrix` and its arguments, returned (read-only) when the
 #: same grid comes again: the spectrum's ladder solves the steady pulse on a mapped grid
 #: (:class:`~slippulse.steady.equations.SteadyProblem`) and then builds the stability operator
-#: on the same grid (0.9 s at N = 5009, stop 39).
+#: on the same grid (0.9 s at N = 5009).
 _LAST_H = {}
 
 
