@@ -7,7 +7,7 @@ The kernel 𝒲̃(σ) of the stability operator has an exponential part e^{−(1
 κ = σ/(c_s(1 − β²)). Before stop 33 every segment longer than 1/|κ| was split into ⌈|κ| h⌉
 sub-panels on both sides while the slower decay, (1 − β) Re κ, left it alive. On the side r < 0
 the exponential turns at (1 − β)|κ| only, ≈ 2e-3 |κ| at the deep pulses: the product splits each
-side by its own rate (``split_per_side``, :func:`slippulse.stability.spectrum_kernels.assemble_w`).
+side by its own rate (``split_per_side``, :func:`slippulse.spectrum.kernels.assemble_w`).
 
 For each σ on the contour of a count (units c_p/L): the seconds of M(σ), M′(σ) by each rule
 (one thread: run with OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1), their ratio, and the relative
@@ -25,10 +25,10 @@ import time
 import numpy as np
 
 from slippulse.core.h5io import read_pulse
-from slippulse.stability.count import count_unstable
-from slippulse.stability.operators import StabilityOperator
-from slippulse.stability.spectrum import order4_pulse
-from slippulse.stability.spectrum_kernels import KernelTables, assemble_w
+from slippulse.spectrum.count import count_unstable
+from slippulse.spectrum.operators import StabilityOperator
+from slippulse.spectrum.pulse import order4_pulse
+from slippulse.spectrum.kernels import KernelTables, assemble_w
 
 POINTS = (1e-4 + 0.01j, 1e-4 + 1j, 1e-4 + 4j, 0.5 + 0.5j, 2 + 4j, 4 + 4j, 4 + 0j)
 

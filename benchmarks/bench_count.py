@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from slippulse.stability.count import count_unstable
+from slippulse.spectrum.count import count_unstable
 
 
 class Known:
@@ -51,9 +51,9 @@ class Known:
 
 def pulse_operator(path, label, n0):
     from slippulse.core.h5io import read_pulse
-    from slippulse.stability.spectrum import order4_pulse
-    from slippulse.stability.spectrum_family import _level0
-    from slippulse.stability.operators import StabilityOperator
+    from slippulse.spectrum.pulse import order4_pulse
+    from slippulse.spectrum.family import _level0
+    from slippulse.spectrum.operators import StabilityOperator
     from slippulse.steady.grid import GridMap
     pulse, params = read_pulse(path, label)
     pulse = order4_pulse(pulse, params)

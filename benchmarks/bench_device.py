@@ -27,15 +27,15 @@ def one(path, label, dx, ahead, behind, steps, device, out=None):
 
     from slippulse.core.h5io import read_pulse
     from slippulse.dynamics.stepper import TimeStepRule
-    from slippulse.stability.perturbation import HISTORIES
-    from slippulse.stability.seeding import DomainSpec, follow_pulse, seed_pulse
-    from slippulse.stability.verify import front_position
+    from slippulse.timedomain.perturbation import HISTORIES
+    from slippulse.timedomain.seeding import DomainSpec, follow_pulse, seed_pulse
+    from slippulse.timedomain.verify import front_position
 
     pulse, params = read_pulse(path, label)
     seed = seed_pulse(pulse, params, DomainSpec(dx=dx, ahead=ahead, behind=behind),
                       rule=TimeStepRule(kind="adaptive"), history_options=HISTORIES["cheap"])
     try:
-        from slippulse.stability.eigenmode import leading_mode, perturb_along_mode
+        from slippulse.timedomain.eigenmode import leading_mode, perturb_along_mode
         perturb_along_mode(seed, leading_mode(pulse, params, path=path), 3e-3, frame="front")
     except Exception as exc:                    # noqa: BLE001 - no spectrum: the steady pulse
         print(f"  ({label}: unperturbed: {exc})", file=sys.stderr)

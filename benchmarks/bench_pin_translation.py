@@ -17,8 +17,8 @@ import argparse
 import time
 
 from slippulse.core.h5io import read_pulse
-from slippulse.stability.refine import mapped_pulse, refine_leading
-from slippulse.stability.spectrum import order4_pulse, pulse_spectrum
+from slippulse.spectrum.refine import mapped_pulse, refine_leading
+from slippulse.spectrum.pulse import order4_pulse, pulse_spectrum
 from slippulse.steady.grid import GridMap
 
 
@@ -45,7 +45,7 @@ def main(argv=None):
     gmap = GridMap(pulse.xi)
     guess = a.guess
     if guess is None:
-        from slippulse.stability.spectrum import read_spectrum
+        from slippulse.spectrum.pulse import read_spectrum
         st = read_spectrum(a.file, a.label)
         guess = float(st["leading_s_per_L"]) if st else 1.0
     ladders = [tuple(int(x) for x in spec.split(":")) for spec in a.ladders]

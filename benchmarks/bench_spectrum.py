@@ -18,7 +18,7 @@ import numpy as np
 
 from slippulse.core.h5io import list_pulses, read_pulse
 from slippulse.steady.solver import solve_pulse
-from slippulse.stability.spectrum import pulse_spectrum
+from slippulse.spectrum.pulse import pulse_spectrum
 
 
 def main(argv=None):

@@ -70,8 +70,8 @@ def references(paths, labels=None):
 def compare(path, ref_paths):
     """The stored rates of `path` against the references; the goal of the defaults."""
     from slippulse.core.h5io import label_ratio
-    from slippulse.stability.refine import goal
-    from slippulse.stability.spectrum_family import DEFAULT_REL_TARGET, DEFAULT_TARGET
+    from slippulse.spectrum.refine import goal
+    from slippulse.spectrum.family import DEFAULT_REL_TARGET, DEFAULT_TARGET
     ref = references(ref_paths)
     with h5py.File(path, "r") as h5:
         labels = sorted(h5["pulses"], key=lambda k: -label_ratio(k))

@@ -8,7 +8,7 @@ For each pulse: ``run_spectrum`` as ``slippulse steady stability FILE --labels L
 fresh copy of the family file each time, first with
 ``spectrum_family.LEVEL0_CREEP = 0`` (before: a clipped level-0 re-solve that cannot converge
 runs its 60 Newton iterations before the pulse's own N is taken) and then with the default
-(:data:`slippulse.stability.spectrum_family.LEVEL0_CREEP`). Prints per run the wall time, the
+(:data:`slippulse.spectrum.family.LEVEL0_CREEP`). Prints per run the wall time, the
 level-0 and finest N, s L/c_p ± err; then the ratio of the walls and the largest difference of
 the two rates (they must be equal: both runs end on the same levels). Pulses beyond L ≈ 2.8 km
 (N = 3542) are the ones whose clipped re-solve fails; shallower ones run the same way in both.
@@ -21,7 +21,7 @@ import sys
 import tempfile
 import time
 
-import slippulse.stability.spectrum_family as sf
+import slippulse.spectrum.family as sf
 
 
 def one(family, label, guess, creep):

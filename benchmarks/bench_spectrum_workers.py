@@ -19,7 +19,7 @@ import shutil
 import tempfile
 import time
 
-from slippulse.stability.spectrum_family import run_spectrum
+from slippulse.spectrum.family import run_spectrum
 
 
 def one(family, labels, guess, workers):

@@ -19,7 +19,7 @@ import h5py
 import numpy as np
 
 from slippulse.core.h5io import read_parameters, read_pulse
-from slippulse.stability.spectrum import StabilityOperator, order4_pulse
+from slippulse.spectrum.pulse import StabilityOperator, order4_pulse
 
 
 def main():

@@ -1,12 +1,12 @@
-"""The argument-principle count of eigenvalues (slippulse.stability.count) and the refinement's
-error estimate (slippulse.stability.refine), on operators whose answers are known."""
+"""The argument-principle count of eigenvalues (slippulse.spectrum.count) and the refinement's
+error estimate (slippulse.spectrum.refine), on operators whose answers are known."""
 import math
 
 import numpy as np
 import pytest
 
-from slippulse.stability.count import arg_det, count_unstable
-from slippulse.stability.refine import RefinedRate
+from slippulse.spectrum.count import arg_det, count_unstable
+from slippulse.spectrum.refine import RefinedRate
 
 
 class _Diag:
@@ -115,7 +115,7 @@ def test_count_follows_a_large_smooth_phase_drift_with_few_points(lams, expected
 
 
 def test_arg_det_derivative_is_jacobi_formula():
-    from slippulse.stability.count import log_det_derivative
+    from slippulse.spectrum.count import log_det_derivative
     rng = np.random.default_rng(5)
     A, B = (rng.normal(size=(7, 7)) + 1j * rng.normal(size=(7, 7)) for _ in range(2))
     z, h = 0.3 + 0.2j, 1e-6
@@ -153,8 +153,8 @@ def test_count_of_the_1p2_pulse_in_the_product(tmp_path, pulse12, params):
     [0.5, 34] × ±34 c_p/L (the search's one real mode, s L/c_p ≈ 22.65), the walk's criteria
     met and stored."""
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum import read_spectrum
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum.pulse import read_spectrum
+    from slippulse.spectrum.family import run_spectrum
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
     rep = run_spectrum(f, extra=False, levels=0, level0_points=300, count_box=(0.5, 4.0, 4.0))
@@ -173,7 +173,7 @@ def test_cli_count_budget_bad_input_and_documented_default(tmp_path, pulse12, pa
     import subprocess
     import sys
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum_family import COUNT_EVALS
+    from slippulse.spectrum.family import COUNT_EVALS
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
     r = cli_inproc.run(["steady", "stability", f, "--count", "0.5", "4", "4", "--count-evals", "5"])
@@ -236,7 +236,7 @@ def test_count_checkpoint_resumes_an_exhausted_walk_without_evaluating_again(tmp
 
 def test_count_checkpoint_write_is_atomic(tmp_path, monkeypatch):
     """A write interrupted after the temporary file is opened leaves the previous checkpoint."""
-    from slippulse.stability import count as cmod
+    from slippulse.spectrum import count as cmod
     ck = str(tmp_path / "walk.npz")
     op = _Diag(np.array([0.5], complex))
     cmod._write_checkpoint(ck, cmod.operator_key(op), {0.5 + 1j: (0.25, 2.0 + 0j, -3.5)})
@@ -260,8 +260,8 @@ def test_count_checkpoint_in_the_product(tmp_path, pulse12, params):
     removes the file."""
     import os
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum import read_spectrum
-    from slippulse.stability.spectrum_family import count_checkpoint_path, run_spectrum
+    from slippulse.spectrum.pulse import read_spectrum
+    from slippulse.spectrum.family import count_checkpoint_path, run_spectrum
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
     ck = count_checkpoint_path(f, "td1.2000")
@@ -305,8 +305,8 @@ def test_count_of_a_conjugate_symmetric_operator_evaluates_one_half():
 
 
 def test_pulse_operator_is_conjugate_symmetric(pulse12, params):
-    from slippulse.stability.operators import StabilityOperator
-    from slippulse.stability.spectrum import order4_pulse
+    from slippulse.spectrum.operators import StabilityOperator
+    from slippulse.spectrum.pulse import order4_pulse
     op = StabilityOperator(order4_pulse(pulse12.to_pulse(), params), params,
                            pin_translation=True)
     assert op.conjugate_symmetric
@@ -341,8 +341,8 @@ def test_count_on_worker_processes_walks_the_same_points(tmp_path):
 def test_count_of_the_pulse_operator_on_workers(pulse12, params):
     """The pulse operator survives the trip to the workers (pickled once per worker): the same
     count and arguments as the serial walk on the 1.2 τ_min pulse."""
-    from slippulse.stability.operators import StabilityOperator
-    from slippulse.stability.spectrum import order4_pulse
+    from slippulse.spectrum.operators import StabilityOperator
+    from slippulse.spectrum.pulse import order4_pulse
     op = StabilityOperator(order4_pulse(pulse12.to_pulse(), params), params,
                            pin_translation=True)
     box = (5.0, 34.0, 34.0)
@@ -362,8 +362,8 @@ def test_guess_starts_the_search_where_the_default_shifts_find_nothing(tmp_path,
     import subprocess
     import sys
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability import spectrum
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum import pulse as spectrum
+    from slippulse.spectrum.family import run_spectrum
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
     monkeypatch.setattr(spectrum, "DEFAULT_SHIFTS", ())

@@ -1,11 +1,11 @@
 """The smooth grid map (slippulse.steady.grid.GridMap) and the three-level error estimate of the
-leading growth rate (slippulse.stability.refine.estimate), on inputs whose answers are known."""
+leading growth rate (slippulse.spectrum.refine.estimate), on inputs whose answers are known."""
 import math
 
 import numpy as np
 import pytest
 
-from slippulse.stability.refine import LEVEL_RATIO, SAFETY, estimate, level_points
+from slippulse.spectrum.refine import LEVEL_RATIO, SAFETY, estimate, level_points
 from slippulse.steady.grid import GridMap
 
 
@@ -97,7 +97,7 @@ def _fake_ladder(monkeypatch, s_inf, c, p):
     """refine_leading on stubs: level k of N points gives s = s_inf + c (N/1000)^−p (c/L = 1)."""
     from types import SimpleNamespace as NS
 
-    import slippulse.stability.refine as refine
+    import slippulse.spectrum.refine as refine
 
     def pulse(n):
         return NS(n_points=n, c_p=1.0, L=1.0, xi=np.linspace(0, 1, n))
@@ -148,8 +148,8 @@ def test_tracking_is_seeded_from_the_nearest_stored_spectrum_above(tmp_path):
 
     from slippulse.core import h5io
     from slippulse.core.params import DEFAULT as P
-    from slippulse.stability.spectrum import PulseSpectrum, write_spectrum
-    from slippulse.stability.spectrum_family import _seed
+    from slippulse.spectrum.pulse import PulseSpectrum, write_spectrum
+    from slippulse.spectrum.family import _seed
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from test_analysis import _synthetic_pulse
     f = str(tmp_path / "fam.h5")

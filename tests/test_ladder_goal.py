@@ -4,7 +4,7 @@ cost; docs/spectrum.md §5). Newton judges the pair it returns."""
 import numpy as np
 import pytest
 
-from slippulse.stability.refine import goal, level0_size
+from slippulse.spectrum.refine import goal, level0_size
 
 
 def test_goal_is_absolute_or_relative_whichever_is_larger():
@@ -25,8 +25,8 @@ def test_level0_is_the_pulse_N_clipped_unless_given():
 @pytest.fixture(scope="module")
 def ladder12(pulse12, params):
     """Level 0 of the 1.2 tau_min pulse on its map at N = 400, with its leading eigenvalue."""
-    from slippulse.stability.refine import mapped_pulse
-    from slippulse.stability.spectrum import pulse_spectrum
+    from slippulse.spectrum.refine import mapped_pulse
+    from slippulse.spectrum.pulse import pulse_spectrum
     from slippulse.steady.grid import GridMap
     p = pulse12.to_pulse()
     gmap = GridMap(p.xi)
@@ -38,7 +38,7 @@ def ladder12(pulse12, params):
 
 
 def test_ladder_stops_at_the_goal_and_says_when_its_cap_stops_it(ladder12, params):
-    from slippulse.stability.refine import refine_leading
+    from slippulse.spectrum.refine import refine_leading
     p0, gmap, first = ladder12
     kw = dict(levels=1, pin_translation=True, max_points=800)
     easy = refine_leading(p0, params, first, gmap, target=1.0, **kw)
@@ -60,9 +60,9 @@ def test_newton_reports_the_true_residual_of_the_pair_it_returns(ladder12, param
     σ with the matrices in hand; it must be the true backward error of the pair returned."""
     from scipy.interpolate import CubicSpline
 
-    from slippulse.stability.eigensolve import _relres, newton_eigen
-    from slippulse.stability.refine import mapped_pulse
-    from slippulse.stability.spectrum import StabilityOperator
+    from slippulse.spectrum.eigensolve import _relres, newton_eigen
+    from slippulse.spectrum.refine import mapped_pulse
+    from slippulse.spectrum.pulse import StabilityOperator
     p0, gmap, first = ladder12
     q = mapped_pulse(params, p0, gmap, 566).to_pulse()
     V = first.modes[0]["V"]
@@ -95,7 +95,7 @@ def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, puls
     their own N = 3542. Here the re-solve is made to fail below the pulse's own N (700): level 0
     then uses N = 700, and says nothing failed; where the own N fails too, the message names both."""
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability import spectrum_family as sf
+    from slippulse.spectrum import family as sf
     path = str(tmp_path / "td12.h5")
     write_pulse(path, pulse12.to_pulse(), params)
     tried = []
@@ -140,7 +140,7 @@ def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, puls
 def test_creep_reaches_the_newton_of_a_mapped_resolve(pulse12, params, monkeypatch):
     """mapped_pulse(creep=k) → resolve_on_grid → solve_on_grid → newton(creep=k); the other
     solvers, which have no creep stop, are not given it."""
-    from slippulse.stability.refine import mapped_pulse
+    from slippulse.spectrum.refine import mapped_pulse
     from slippulse.steady import newton as nw
     from slippulse.steady.grid import GridMap
     seen = []
@@ -168,7 +168,7 @@ def test_a_clipped_level0_climbs_a_third_level_and_a_short_stored_ladder_is_redo
     import h5py
 
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability import spectrum_family as sf
+    from slippulse.spectrum import family as sf
     assert sf.CLIPPED_LEVELS == 2
     assert sf.clipped_levels(1, 2828, 3542) == 2 and sf.clipped_levels(1, 3542, 3542) == 1
     assert sf.clipped_levels(3, 2828, 3542) == 3 and sf.clipped_levels(0, 2828, 3542) == 0

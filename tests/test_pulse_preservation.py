@@ -28,8 +28,8 @@ BENCHMARKS.md ("Seeded steady pulses")), so 1.2 τ_min cannot be "preserved" ove
 import numpy as np
 import pytest
 
-from slippulse.stability.verify import verify_pulse
-from slippulse.stability.seeding import DomainSpec
+from slippulse.timedomain.verify import verify_pulse
+from slippulse.timedomain.seeding import DomainSpec
 from slippulse.dynamics.stepper import TimeStepRule
 
 TOL = 2e-3

@@ -13,7 +13,7 @@ import h5py
 import pytest
 
 from slippulse.cli.app import UsageError, main
-from slippulse.stability.scan import (Case, case_id, expand_cases, load_scan, parse_scan, read_summary_h5,
+from slippulse.timedomain.scan import (Case, case_id, expand_cases, load_scan, parse_scan, read_summary_h5,
                             run_scan, scan_states)
 
 TESTS = os.path.dirname(os.path.abspath(__file__))
@@ -94,7 +94,7 @@ def test_load_scan_file(tmp_path, monkeypatch):
     # relative out_dir is relative to the current directory; runner defaults to stability
     monkeypatch.chdir(tmp_path)
     s = parse_scan({"scan": {"name": "x", "out_dir": "rel"}, "grid": {"a": [1, 2]}})
-    assert s.out_dir == str(tmp_path / "rel") and s.runner == "slippulse.stability.perturbation:run_case"
+    assert s.out_dir == str(tmp_path / "rel") and s.runner == "slippulse.timedomain.perturbation:run_case"
 
 
 @pytest.mark.parametrize("data, words", [
@@ -287,7 +287,7 @@ def test_cli_help_dry_run_and_errors(tmp_path, capsys):
 def test_example_scan_parses():
     root = os.path.dirname(TESTS)
     scan = load_scan(os.path.join(root, "dynamic", "scans", "example.toml"))
-    assert scan.runner == "slippulse.stability.perturbation:run_case" and len(scan.cases) >= 4
+    assert scan.runner == "slippulse.timedomain.perturbation:run_case" and len(scan.cases) >= 4
     assert all(isinstance(c, Case) for c in scan.cases)
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from slippulse.stability import eigensolve as es
+from slippulse.spectrum import eigensolve as es
 
 
 def _dense_slopes(xi):
@@ -40,7 +40,7 @@ def test_add_times_slopes_is_B_times_the_slope_matrix(n):
 def _reference_matrices(op, sigma, deriv=True):
     """M(σ), M′(σ) of the operator from its parts with numpy products (the assembly before the
     fused rows of stop 39): X = λW + (λσ/πc)H + (λγ/π)H₀, X D by times_D4."""
-    from slippulse.stability.spectrum_kernels import times_D4
+    from slippulse.spectrum.kernels import times_D4
     el = op.elastic
     lam, c, n = el.lam, op.c, op.n
     cplx = complex(sigma).imag != 0.0
@@ -68,7 +68,7 @@ def _reference_matrices(op, sigma, deriv=True):
 
 @pytest.mark.parametrize("pin", [False, True])
 def test_the_fused_assembly_equals_the_assembly_from_its_parts(pulse12, params, pin):
-    from slippulse.stability.operators import StabilityOperator
+    from slippulse.spectrum.operators import StabilityOperator
     op = StabilityOperator(pulse12.to_pulse(), params, pin_translation=pin)
     u = op.rate_unit
     for sigma in (0.0, 0.37 * u, (5.0 + 2.0j) * u):
@@ -140,7 +140,7 @@ def test_a_clip_that_failed_on_the_pulse_above_is_not_tried_again(tmp_path, puls
     """Level 0 goes straight to the pulse's own N where the neighbour above, of the same own N,
     had its ladder start there (its clip failed): the deep pulses skip a re-solve bound to give
     up. Where the neighbour's ladder started below its own N, or at another N, the clip is tried."""
-    from slippulse.stability import spectrum_family as sf
+    from slippulse.spectrum import family as sf
     p = pulse12.to_pulse()
     tried = []
     real = sf._level0
@@ -211,7 +211,7 @@ def test_mapped_resolves_reuse_their_LU_and_reach_the_same_pulse(pulse12, params
     fewer factorisations, the same tolerance, the same pulse to 1e-12."""
     import scipy.linalg as sla
 
-    from slippulse.stability.refine import mapped_pulse
+    from slippulse.spectrum.refine import mapped_pulse
     from slippulse.steady import newton as nw
     from slippulse.steady import solver
     from slippulse.steady.grid import GridMap
@@ -325,7 +325,7 @@ def test_a_purified_start_vector_makes_the_first_step_second_order():
 def test_the_ladder_start_is_extrapolated_from_the_two_pulses_before():
     """Newton's start at each level: the neighbour's value moved linearly in τ_d through the
     pulse before it, where both have the level and the steps are alike; else the neighbour's."""
-    from slippulse.stability.spectrum_family import EXTRAPOLATE_RATIO, _predicted_ladder
+    from slippulse.spectrum.family import EXTRAPOLATE_RATIO, _predicted_ladder
 
     def s(t, n):                                     # a smooth family, one law per level
         return 1e-4 * (1.0 + 50.0 * (t - 1.0086)) * (1.0 + 1e3 / n) + 3.0 * (t - 1.0086) ** 2
@@ -380,7 +380,7 @@ def test_a_mapped_resolve_falls_back_to_the_residual_line_search(pulse12, params
     """Where the natural line search does not converge (at 6.70 km it stalled at max|r| =
     1.2e−5), the re-solve is made again with the ‖r‖₂ test; where both fail, the message says
     both, and the solution is marked not converged."""
-    from slippulse.stability import refine
+    from slippulse.spectrum import refine
     from slippulse.steady import solver
     from slippulse.steady.grid import GridMap
     p = pulse12.to_pulse()

@@ -5,9 +5,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from slippulse.stability.eigensolve import newton_eigen
-from slippulse.stability.spectrum import MIN_RE, SCAN_LO, scan_below
-from slippulse.stability.spectrum_family import split_chunks
+from slippulse.spectrum.eigensolve import newton_eigen
+from slippulse.spectrum.pulse import MIN_RE, SCAN_LO, scan_below
+from slippulse.spectrum.family import split_chunks
 
 
 class _DiagonalOp:
@@ -83,7 +83,7 @@ def test_split_chunks_are_contiguous_and_cover_every_label():
 def test_two_workers_claim_a_run_from_both_ends_once_each():
     """Two workers on one run: one from the top, one from the bottom, each index exactly once,
     in their own directions, whatever the interleaving; they stop where they meet."""
-    from slippulse.stability.spectrum_family import claim
+    from slippulse.spectrum.family import claim
     rng = np.random.default_rng(4)
     for n in (1, 2, 7, 40):
         counter = [0, n - 1]
@@ -106,8 +106,8 @@ def test_two_workers_give_the_sequential_spectrum(tmp_path, pulse12, params, spe
     starts from the default search, not from the first; both must give the eigenvalue of the
     sequential solve (same grid, unpinned)."""
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum import read_spectrum
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum.pulse import read_spectrum
+    from slippulse.spectrum.family import run_spectrum
     f = str(tmp_path / "fam.h5")
     base = pulse12.to_pulse()
     for q in (1.2, 1.19):
@@ -142,7 +142,7 @@ def test_newton_onto_a_real_eigenvalue_never_carries_a_subnormal_imaginary_part(
     """Quadratic convergence squares Im σ at each step (1e-17, 1e-34, ... 1e-318): a subnormal
     imaginary part then slowed every kernel assembly 20× (stop 37). Iterates of Newton onto a
     real eigenvalue, started from a guess with a subnormal imaginary part, are exactly real."""
-    from slippulse.stability.eigensolve import snap_real
+    from slippulse.spectrum.eigensolve import snap_real
     op = _DiagonalOp([0.0, 0.37] + list(-np.linspace(0.01, 3.0, 28)))
     rng = np.random.default_rng(5)
     x0 = op.q[:, 1] + 0.05 * (rng.standard_normal(op.n) + 1j * rng.standard_normal(op.n))
@@ -158,7 +158,7 @@ def test_newton_onto_a_real_eigenvalue_never_carries_a_subnormal_imaginary_part(
 def test_a_worker_whose_parent_is_gone_stops(monkeypatch):
     """A spawned worker outlives a SIGKILL or SIGTERM of the command (its `finally` does not
     run): it checks its parent between pulses and stops once it has been re-parented."""
-    from slippulse.stability import spectrum_family as sf
+    from slippulse.spectrum import family as sf
     done = []
     monkeypatch.setattr(sf, "_pulse_result",
                         lambda lab, *a, **k: (done.append(lab), (None, None, None))[1])

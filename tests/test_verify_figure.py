@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from slippulse.plotting.stability import plot_verify_result
-from slippulse.stability.verify import (DEV_POINTS, GROWTH_TOLERANCE, VerifyResult, drift_verdict,
+from slippulse.timedomain.verify import (DEV_POINTS, GROWTH_TOLERANCE, VerifyResult, drift_verdict,
                                     growth_rate, mode_growth, summary)
 
 

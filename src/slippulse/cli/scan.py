@@ -1,6 +1,6 @@
 """``slippulse dynamic scan SCAN.toml [--workers N | --scheduler ADDRESS] [--dry-run] ...``.
 
-Runs the independent simulations of a scan (format and design: :mod:`slippulse.stability.scan`) in local
+Runs the independent simulations of a scan (format and design: :mod:`slippulse.timedomain.scan`) in local
 worker processes or on an existing Dask cluster, reusing the cases already finished, with a tqdm
 bar over the cases and a one-line summary at the end. Exit codes: 0 all cases fine, 1 some case
 (or the runner's figures) failed, 2 bad input.
@@ -22,7 +22,7 @@ def register(sub) -> None:
         description="Run every case of SCAN.toml (cartesian product of [grid] over [defaults], "
                     "then the [[case]] tables) through the scan's runner, one HDF5 file per case "
                     "in scan.out_dir; finished cases are reused. Writes summary.csv and summary.h5 "
-                    "in scan.out_dir. Format: src/slippulse/stability/scan.py, example: "
+                    "in scan.out_dir. Format: src/slippulse/timedomain/scan.py, example: "
                     "dynamic/scans/example.toml.")
     p.add_argument("scan", metavar="SCAN.toml", help="scan description (TOML)")
     p.add_argument("--workers", type=int, default=1, metavar="N",
@@ -52,8 +52,8 @@ def _show(path: str) -> str:
 def _figures_hook(scan):
     """The perturbation runner's figures (pair table + plots) live in the plotting layer; other
     runners bring their own ``scan_figures`` (None here: run_scan looks it up)."""
-    from ..stability import perturbation
-    from ..stability.scan import load_runner
+    from ..timedomain import perturbation
+    from ..timedomain.scan import load_runner
 
     if load_runner(scan.runner, scan.runner_path)[0] is perturbation.run_case:
         from ..plotting.stability import scan_figures
@@ -65,8 +65,8 @@ def _check_cases(scan) -> list[dict] | None:
     """Perturbation scans: every case's keys and values (``perturbation.check_case``), a bad one
     named (exit 2); the resolved cases, or None for another runner. Its files need not exist yet
     (a dry run lists the cases; a real run checks them, :func:`_check_steady_pulses`)."""
-    from ..stability import perturbation
-    from ..stability.scan import load_runner
+    from ..timedomain import perturbation
+    from ..timedomain.scan import load_runner
 
     if load_runner(scan.runner, scan.runner_path)[0] is not perturbation.run_case:
         return None
@@ -93,7 +93,7 @@ def _check_steady_pulses(scan) -> None:
 
 
 def cmd_scan(args) -> int:
-    from ..stability.scan import load_scan, run_scan, scan_states
+    from ..timedomain.scan import load_scan, run_scan, scan_states
 
     scan = load_scan(args.scan)
     # the cases' pulses keep the parameters they were solved with: given ones must agree

@@ -349,8 +349,8 @@ def _integer(name, value, lo, hi, what) -> None:
 
 
 def cmd_stability(args) -> int:
-    from ..stability.refine import MIN_REFINE_POINTS
-    from ..stability.spectrum_family import (COUNT_EVALS, DEFAULT_LEVELS, DEFAULT_REL_TARGET,
+    from ..spectrum.refine import MIN_REFINE_POINTS
+    from ..spectrum.family import (COUNT_EVALS, DEFAULT_LEVELS, DEFAULT_REL_TARGET,
                                              DEFAULT_TARGET, MAX_SPECTRUM_POINTS,
                                              MIN_SPECTRUM_POINTS, check_family_file,
                                              run_spectrum)
@@ -444,8 +444,8 @@ def cmd_stability(args) -> int:
 
 def _print_exponents(what, x, y, err, where):
     """One line of local exponents, each a weighted fit over a window of 10 % in x
-    (:func:`slippulse.stability.law.windowed_exponents`), with its error bar."""
-    from ..stability.law import EXPONENT_WINDOW, windowed_exponents
+    (:func:`slippulse.spectrum.law.windowed_exponents`), with its error bar."""
+    from ..spectrum.law import EXPONENT_WINDOW, windowed_exponents
     xm, k, ke, n = windowed_exponents(x, y, err)
     if xm.size == 0:
         print(f"local exponents {what}: too few pulses (3 per window)")
@@ -458,9 +458,9 @@ def _print_exponents(what, x, y, err, where):
 def cmd_rates(args) -> int:
     import numpy as np
 
-    from ..stability.law import (family_curve, family_rates, family_slope, fit_power_law,
+    from ..spectrum.law import (family_curve, family_rates, family_slope, fit_power_law,
                                  fit_shifted_power_law, fold_ratio, folds)
-    from ..stability.spectrum_family import check_family_file
+    from ..spectrum.family import check_family_file
     if not (math.isfinite(args.below) and 1.0 < args.below <= 2.0):
         raise ParameterError(f"below={args.below!r} is invalid: must be in (1, 2] "
                              "(tau_d/tau_min)")

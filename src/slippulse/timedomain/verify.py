@@ -1,6 +1,6 @@
 """Propagate a seeded steady pulse and measure its drift from the steady solution (issue 4).
 
-``verify_pulse`` seeds the SBI stepper with a steady pulse (:mod:`slippulse.stability.seeding`), steps it over
+``verify_pulse`` seeds the SBI stepper with a steady pulse (:mod:`slippulse.timedomain.seeding`), steps it over
 a given number of pulse lengths with adaptive time steps, keeps it in a frame that follows it
 (``seeding.follow_pulse``) and measures, in the co-moving frame:
 

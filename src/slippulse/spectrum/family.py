@@ -1,10 +1,10 @@
 """The spectrum of every pulse of a file, with the leading rate's error estimate and an optional
 count (``slippulse steady stability``; method: docs/spectrum.md).
 
-Per pulse: :func:`slippulse.stability.spectrum.pulse_spectrum` on the pulse's grid (tracked from
-its neighbour), :func:`slippulse.stability.refine.refine_leading` on a ladder of mapped grids (s ± s_err),
-:func:`slippulse.stability.count.count_unstable` if asked; stored by
-:func:`slippulse.stability.spectrum.write_spectrum` in the pulse's group, resumable.
+Per pulse: :func:`slippulse.spectrum.pulse.pulse_spectrum` on the pulse's grid (tracked from
+its neighbour), :func:`slippulse.spectrum.refine.refine_leading` on a ladder of mapped grids (s ± s_err),
+:func:`slippulse.spectrum.count.count_unstable` if asked; stored by
+:func:`slippulse.spectrum.pulse.write_spectrum` in the pulse's group, resumable.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from ..steady.grid import GridMap
 from .count import count_unstable
 from .refine import (MAX_LADDER_POINTS, check_refinable, level0_size, level_points,
                      mapped_pulse, refine_leading)
-from .spectrum import (MIN_RE, NEWTON_TOL, PulseSpectrum, order4_pulse, pulse_spectrum,
+from .pulse import (MIN_RE, NEWTON_TOL, PulseSpectrum, order4_pulse, pulse_spectrum,
                        read_spectrum, write_spectrum)
 
 COUNT_EVALS = 400           # default budget of det M evaluations per count (docs/spectrum.md §6)
@@ -431,12 +431,12 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
     message and no eigenvalues. progress(label, result or None, stored dict or None).
 
     levels : levels above level 0 for the leading eigenvalue's error estimate
-        (:func:`slippulse.stability.refine.refine_leading`: grids of N_0 √2^k points sampled from
+        (:func:`slippulse.spectrum.refine.refine_leading`: grids of N_0 √2^k points sampled from
         one smooth map of the pulse's grid, :class:`slippulse.steady.grid.GridMap`); a level
         that fails marks the pulse failed and stores no eigenvalue. 0 skips the estimate (no s,
         s_err stored).
     count_box : (x0, x1, y1) in c_p/L, or None: also count the eigenvalues in that box by the
-        argument principle (:func:`slippulse.stability.count.count_unstable`), on the pulse's grid.
+        argument principle (:func:`slippulse.spectrum.count.count_unstable`), on the pulse's grid.
         x1 and y1 are raised to 1.5 times the leading s L/c_p where that is larger. Its
         evaluations are kept in :func:`count_checkpoint_path` as it goes and read back by a
         rerun on the same operator (an interrupted or out-of-budget count goes on from them);
@@ -444,7 +444,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
     level_progress : callable(str) or None, told about each refinement level / count evaluation.
     target, rel_target : the goal s_err L/c_p <= max(target, rel_target |s L/c_p|); levels
         are added beyond `levels` until it is met (or the next level would exceed
-        :data:`slippulse.stability.refine.MAX_LADDER_POINTS`; then the pulse keeps its estimate
+        :data:`slippulse.spectrum.refine.MAX_LADDER_POINTS`; then the pulse keeps its estimate
         and ``refine_target_met`` = 0). target None: the fixed `levels`.
     min_points, max_points : level 0 has N_0 = N clipped to [min_points, max_points] points
         (the steady equations re-solved on the map; with levels = 0 and N inside, the pulse's
@@ -467,7 +467,7 @@ def run_spectrum(path, labels=None, overwrite=False, extra=True, tol=NEWTON_TOL,
         that their work balances whatever each pulse costs. This process writes each result as
         it arrives. The worker from the top of the first run starts as with one worker; the
         others from the default search, which below MIN_RE c/L finds the leading real
-        eigenvalue by the sign of det M (:data:`slippulse.stability.spectrum.SCAN_LO`), at the
+        eigenvalue by the sign of det M (:data:`slippulse.spectrum.pulse.SCAN_LO`), at the
         cost of a few assemblies. Where they meet depends on the timing, and a pulse's Newton
         starts (and, near where a clip to `max_points` starts failing, its ladder) on which of
         the two reached it: the values agree within Newton's tolerance, the ladders within

@@ -20,7 +20,7 @@ from ..core.h5io import UNSTORED_STATE_ORDER, state_order_of
 from .eigensolve import (PURIFY_SOLVES, Eigen, det_sign, linearised_candidates, neutral_modes,
                          newton_eigen, real_eigenvalues)
 from .operators import ElasticOperator, StabilityOperator, slope_matrix, symbol
-from .spectrum_store import MODE_FIELDS, SPECTRUM_GROUP, read_spectrum, write_spectrum
+from .store import MODE_FIELDS, SPECTRUM_GROUP, read_spectrum, write_spectrum
 
 __all__ = ["DEFAULT_SHIFTS", "MIN_RE", "MODE_FIELDS", "NEWTON_TOL", "SPECTRUM_GROUP", "TRACK_FLOOR", "Eigen",
            "ElasticOperator", "PulseSpectrum", "StabilityOperator", "linearised_candidates", "neutral_modes",
@@ -59,8 +59,8 @@ class PulseSpectrum:
     newton_iterations: int = 0
     failures: list = field(default_factory=list)
     stage_times: dict = field(default_factory=dict)
-    refined: object = None        # RefinedRate of the leading eigenvalue (stability.refine)
-    count: object = None          # ContourCount (stability.count), if asked for
+    refined: object = None        # RefinedRate of the leading eigenvalue (spectrum.refine)
+    count: object = None          # ContourCount (spectrum.count), if asked for
     operator: object = field(default=None, repr=False)   # the StabilityOperator (not stored)
     xi: object = None             # the grid of the modes (the pulse's, or a nested refinement)
 
@@ -176,7 +176,7 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
         two more assemblies at σ = 0, an Arnoldi and a dense product). Pinned, σ_t = 0 by
         construction and is stored as nan (not computed); the uniform-slip error is computed.
         False stores nan for both: the refinement levels of a pinned ladder
-        (:func:`slippulse.stability.refine.refine_leading`).
+        (:func:`slippulse.spectrum.refine.refine_leading`).
     """
     t0 = time.perf_counter()
     op = StabilityOperator(order4_pulse(pulse, params), params, pin_translation)

@@ -13,7 +13,7 @@ MODE_FIELDS = {"delta": ("m", "slip perturbation delta_1 (mode normalised: max |
 
 
 def write_spectrum(path, res, settings: dict):
-    """Store `res` (a :class:`~slippulse.stability.spectrum.PulseSpectrum`) as /pulses/<label>/spectrum (replacing an earlier one), atomically.
+    """Store `res` (a :class:`~slippulse.spectrum.pulse.PulseSpectrum`) as /pulses/<label>/spectrum (replacing an earlier one), atomically.
 
     Layout (xarray: ``open_datatree(path, engine="h5netcdf")``): coordinate ``eigenvalue`` (index,
     by decreasing Re σ); ``sigma_real``/``sigma_imag`` (1/s) and ``s_per_L_*`` on it; mode fields

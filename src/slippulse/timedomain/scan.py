@@ -13,7 +13,7 @@ SCAN.toml
     [scan]
     name = "growth_td1.05"                   # required
     out_dir = "runs/scans/growth_td1.05"     # required; relative to the current directory
-    runner = "slippulse.stability.perturbation:run_case"  # optional ("module:function", this default)
+    runner = "slippulse.timedomain.perturbation:run_case"  # optional ("module:function", this default)
     runner_path = ["tools"]                  # optional: directories prepended to sys.path (in the
                                              # main process and in every worker) to import runner
     [defaults]                               # keys shared by every case (any scalar)
@@ -101,7 +101,7 @@ from dataclasses import dataclass, field
 from ..core.atomic import replacing_open
 from ..core.errors import UsageError
 
-DEFAULT_RUNNER = "slippulse.stability.perturbation:run_case"
+DEFAULT_RUNNER = "slippulse.timedomain.perturbation:run_case"
 TOP_LEVEL = ("scan", "defaults", "grid", "case")
 SCAN_KEYS = {"name": "str, required", "out_dir": "str, required",
              "runner": f"'module:function', default {DEFAULT_RUNNER!r}",

@@ -36,7 +36,7 @@ from scipy.interpolate import CubicSpline
 
 from ..core.errors import UsageError
 from ..steady import solver
-from .spectrum import NEWTON_TOL, order4_pulse, pulse_spectrum  # noqa: F401 (re-export)
+from .pulse import NEWTON_TOL, order4_pulse, pulse_spectrum  # noqa: F401 (re-export)
 
 #: The error estimate needs a pulse of at least this many points to map.
 MIN_REFINE_POINTS = 200

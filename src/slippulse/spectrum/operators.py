@@ -28,7 +28,7 @@ from ..core import friction as fr
 from ..core.h5io import state_order_of
 from ..steady.equations import RADAU_A, RADAU_C, integrate_state_radau, radau_stage_values
 from ..steady.hilbert import add_times_slopes, hilbert_matrix, tail_columns
-from .spectrum_kernels import (SPLIT_PER_SIDE, KernelTables, assemble_w, slip_coefficients4,
+from .kernels import (SPLIT_PER_SIDE, KernelTables, assemble_w, slip_coefficients4,
                                stability_rows, state_rows4)
 
 
@@ -47,7 +47,7 @@ class ElasticOperator:
 
     H: PV Hilbert matrix of the cubic spline with the algebraic far-field tails (the steady
     solver's operator), H₀: the same without tails, 𝒲̃: product integration of the kernel W̃
-    (:mod:`slippulse.stability.spectrum_kernels`). At σ = 0, K_0 = (λ/π) H S is the steady operator acting on
+    (:mod:`slippulse.spectrum.kernels`). At σ = 0, K_0 = (λ/π) H S is the steady operator acting on
     V = −c δ′.
     """
 

@@ -15,7 +15,7 @@ whose σ-derivative is ∂_σ W̃ = x F′(x)/(σ π r²), x F′ = sβx − x²
 This module holds what is compiled: the kernel tables in u = ln|r| (series for |x| ≤ 2, scaled
 Bessel functions beyond), the product integration of W̃ against the cubic-spline interpolant on a
 non-uniform grid (log part of near segments exact, Gauss–Legendre elsewhere), and the state
-recursion of the linearised ageing law. Orchestration lives in :mod:`slippulse.stability.spectrum`.
+recursion of the linearised ageing law. Orchestration lives in :mod:`slippulse.spectrum.pulse`.
 """
 from __future__ import annotations
 
@@ -631,7 +631,7 @@ def times_D4(X, dX, a, B, j0s, da, dB, XD, dXD, deriv):
 @njit(parallel=True, cache=True)
 def stability_rows(W, dW, H, H0, cx, cdx, Phi, dPhi, corr, fphi, fv, ch, a, B, j0s, da, dB,
                    pin_r, pin_t, tau, has_w, pinned, deriv):
-    """M(σ) and M′(σ) of :meth:`slippulse.stability.operators.StabilityOperator.matrices`, row by
+    """M(σ) and M′(σ) of :meth:`slippulse.spectrum.operators.StabilityOperator.matrices`, row by
     row in one pass, written over Phi and dPhi (which hold Φ(σ) and ∂_σΦ on entry):
 
         X  = cx[0] W + cx[1] H + cx[2] H0,      X′ = cdx[0] W′ + cdx[1] H + cdx[2] H0,
