@@ -27,6 +27,7 @@ import time
 
 import numpy as np
 
+from slippulse.core.executor import ExecutorSettings
 from slippulse.spectrum.count import count_unstable
 
 
@@ -52,13 +53,13 @@ class Known:
 def pulse_operator(path, label, n0):
     from slippulse.core.h5io import read_pulse
     from slippulse.spectrum.pulse import order4_pulse
-    from slippulse.spectrum.family import _level0
+    from slippulse.spectrum.family import solve_level0
     from slippulse.spectrum.operators import StabilityOperator
     from slippulse.steady.grid import GridMap
     pulse, params = read_pulse(path, label)
     pulse = order4_pulse(pulse, params)
     if n0:
-        pulse, why = _level0(pulse, params, GridMap(pulse.xi), n0)
+        pulse, why = solve_level0(pulse, params, GridMap(pulse.xi), n0)
         if why:
             raise SystemExit(f"{label}: level 0 on N = {n0} failed: {why}")
     return StabilityOperator(pulse, params, pin_translation=True)
@@ -97,7 +98,7 @@ def workers_row(path, label, box, n0, workers, threads, serial_threads):
     out = []
     for k, t in ((1, serial_threads), (workers, threads)):
         t0 = time.perf_counter()
-        r = count_unstable(op, box, max_evals=20000, workers=k, threads_per_worker=t)
+        r = count_unstable(op, box, max_evals=20000, executor=ExecutorSettings(workers=k, threads=t))
         out.append((r, time.perf_counter() - t0))
     (a, ta), (b, tb) = out
     same = np.array_equal(a.points, b.points)

@@ -31,7 +31,7 @@ def one(family, label, guess, creep):
         shutil.copy(family, path)
         sf.LEVEL0_CREEP = creep
         t0 = time.perf_counter()
-        rep = sf.run_spectrum(path, labels=[label], extra=False, guess=guess)
+        rep = sf.run_spectrum(path, sf.SpectrumSettings(extra=False), labels=[label], guess=guess)
         wall = time.perf_counter() - t0
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -19,7 +19,8 @@ import shutil
 import tempfile
 import time
 
-from slippulse.spectrum.family import run_spectrum
+from slippulse.core.executor import ExecutorSettings
+from slippulse.spectrum.family import SpectrumSettings, run_spectrum
 
 
 def one(family, labels, guess, workers):
@@ -28,7 +29,7 @@ def one(family, labels, guess, workers):
         path = os.path.join(tmp, "f.h5")
         shutil.copy(family, path)
         t0 = time.perf_counter()
-        rep = run_spectrum(path, labels=labels, extra=False, guess=guess, workers=workers)
+        rep = run_spectrum(path, SpectrumSettings(extra=False), labels=labels, guess=guess, executor=ExecutorSettings(workers=workers))
         wall = time.perf_counter() - t0
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -1,4 +1,4 @@
-"""Issue 20: the unstable eigenmode in time — its SBI seed with a growing past, the refusals, the
+"""The unstable eigenmode in time — its SBI seed with a growing past, the refusals, the
 verdict's eigenvalue, the front frame and the overlap with the family tangent."""
 import dataclasses
 import math
@@ -223,11 +223,11 @@ def test_seeded_mode_grows_at_its_eigenvalue_at_1p1(params, tmp_path):
     spectrum (the pinned ladder, ± 3e−5 per L), 4 mm SBI grid, 8+8 L domain (measured −0.5 %;
     on 4+4 L the mode's periodic images lower the rate by 1.4 %). ~2 min."""
     from slippulse.timedomain.perturbation import mode_pair_growth, read_series, run_case
-    from slippulse.spectrum.family import run_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     from slippulse.steady.continuation import run_family
     path = str(tmp_path / "fam.h5")
     run_family(params, path, start=1.2, stop=1.1, step=0.02, n_points=2000)
-    run_spectrum(path, labels=["td1.1000"], extra=False)
+    run_spectrum(path, SpectrumSettings(extra=False), labels=["td1.1000"])
     rows = []
     for eps in (1e-2, -1e-2):
         case = {"steady": path, "label": "td1.1000", "perturbation": "mode_front", "eps": eps,

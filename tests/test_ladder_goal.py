@@ -1,5 +1,5 @@
-"""The spectrum's ladder climbs to an accuracy goal, and its level 0 is clipped (issue 17, item 5:
-cost; docs/spectrum.md §5). Newton judges the pair it returns."""
+"""The spectrum's ladder climbs to an accuracy goal, and its level 0 is clipped (its
+cost: docs/spectrum.md §5). Newton judges the pair it returns."""
 
 import numpy as np
 import pytest
@@ -99,7 +99,7 @@ def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, puls
     path = str(tmp_path / "td12.h5")
     write_pulse(path, pulse12.to_pulse(), params)
     tried = []
-    real = sf._level0
+    real = sf.solve_level0
 
     creeps = []
 
@@ -110,8 +110,8 @@ def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, puls
             return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
         return real(pulse, prm, gmap, n0, creep)
 
-    monkeypatch.setattr(sf, "_level0", level0)
-    rep = sf.run_spectrum(path, extra=False, levels=0, min_points=0, max_points=500)
+    monkeypatch.setattr(sf, "solve_level0", level0)
+    rep = sf.run_spectrum(path, sf.SpectrumSettings(extra=False, levels=0, min_points=0, max_points=500))
     assert tried == [500, 700]
     # the clipped attempt, which has the own N to fall back on, gives up when it creeps; the
     # own N, the last resort, does not
@@ -124,16 +124,15 @@ def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, puls
         tried.append(n0)
         return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
 
-    monkeypatch.setattr(sf, "_level0", never)
+    monkeypatch.setattr(sf, "solve_level0", never)
     tried.clear()
-    rep = sf.run_spectrum(path, extra=False, levels=0, min_points=0, max_points=500,
-                          overwrite=True)
+    rep = sf.run_spectrum(path, sf.SpectrumSettings(extra=False, levels=0, min_points=0, max_points=500), overwrite=True)
     assert tried == [500, 700] and rep.failed == ["td1.2000"]
-    assert "(N = 500)" in rep.results[0].message
-    assert "on the pulse's own N = 700 too" in rep.results[0].message
+    assert "level 0 on the clipped N = 500" in rep.results[0].message
+    assert "level 0 on the pulse's own N = 700: " in rep.results[0].message
     # --points (an explicit level 0) is not overridden
     tried.clear()
-    sf.run_spectrum(path, extra=False, levels=0, level0_points=500, overwrite=True)
+    sf.run_spectrum(path, sf.SpectrumSettings(extra=False, levels=0, level0_points=500), overwrite=True)
     assert tried == [500]
 
 
@@ -162,7 +161,7 @@ def test_creep_reaches_the_newton_of_a_mapped_resolve(pulse12, params, monkeypat
 def test_a_clipped_level0_climbs_a_third_level_and_a_short_stored_ladder_is_redone(
         tmp_path, pulse12, params):
     """A level 0 below the pulse's own N (here 400 < 700) is not trusted on two levels: it
-    climbs CLIPPED_LEVELS levels, so that its estimate observes an order (stop 37: at 6.30 km the
+    climbs CLIPPED_LEVELS levels, so that its estimate observes an order (at 6.30 km the
     clipped two-level ladder was 2.1 times its summed bars off). A level 0 at or above the own N
     keeps the levels asked for; a two-level clipped ladder stored before the rule is redone."""
     import h5py
@@ -176,17 +175,17 @@ def test_a_clipped_level0_climbs_a_third_level_and_a_short_stored_ladder_is_redo
     path = str(tmp_path / "td12.h5")
     write_pulse(path, pulse12.to_pulse(), params)
     kw = dict(extra=False, levels=1, min_points=0, target=None)
-    rep = sf.run_spectrum(path, max_points=400, **kw)
+    rep = sf.run_spectrum(path, sf.SpectrumSettings(max_points=400, **kw))
     assert rep.results[0].refined.n_points == [400, 566, 800], rep.results[0].refined.message
     # the same pulse at its own N: one level above, as asked
-    own = sf.run_spectrum(path, max_points=None, overwrite=True, **kw)
+    own = sf.run_spectrum(path, sf.SpectrumSettings(max_points=None, **kw), overwrite=True)
     assert own.results[0].refined.n_points == [700, 990]
     # a clipped two-level ladder in the file (as written before the rule) is not kept
-    sf.run_spectrum(path, max_points=400, overwrite=True, **kw)
+    sf.run_spectrum(path, sf.SpectrumSettings(max_points=400, **kw), overwrite=True)
     with h5py.File(path, "r+") as h5:
         g = h5["pulses/td1.2000/spectrum"]
         g.attrs["refine_n_points"] = np.array([400, 566])
-    again = sf.run_spectrum(path, max_points=400, **kw)
+    again = sf.run_spectrum(path, sf.SpectrumSettings(max_points=400, **kw))
     assert again.skipped == [] and again.results[0].refined.n_points == [400, 566, 800]
-    kept = sf.run_spectrum(path, max_points=400, **kw)
+    kept = sf.run_spectrum(path, sf.SpectrumSettings(max_points=400, **kw))
     assert kept.skipped == ["td1.2000"] and kept.results == []

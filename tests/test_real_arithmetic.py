@@ -1,5 +1,5 @@
 """At real σ the stability matrices are real (M(σ̄) = conj M(σ)), and the eigen-solvers factorise
-them in real arithmetic: a third of the cost of a complex LU, the same answer (stop 38)."""
+them in real arithmetic: a third of the cost of a complex LU, the same answer."""
 import numpy as np
 import pytest
 

@@ -75,12 +75,12 @@ def _segment_entries(tab, xt, a, b, pieces):
 @pytest.mark.parametrize("sigma, phase", [(0.02 + 3j, 200.0), (1.5 + 1.5j, 200.0),
                                           (0.002 + 0.15j, 15.0)])
 def test_far_segments_on_both_sides_match_a_fine_reference(sigma, phase, rule):
-    """Stop 33: a segment on the side r < 0 of its target is split by that side's rate
+    """A segment on the side r < 0 of its target is split by that side's rate
     (1 − β)|κ|, not (1 + β)|κ|. At β = 0.95, σ = 0.02 + 3i (κ ≈ 0.2 + 31i, the top of a count's
     box) the exponential turns 310 rad along a segment of length 10 behind the target and 8 rad
     ahead of it. The entries of one far segment on each side against composite Gauss–Legendre
     on 2000 pieces (:func:`_segment_entries`) of the tabulated kernel, by both rules (``rule``
-    False: the rule before stop 33). At σ = 0.002 + 0.15i (|κ| h = 15) the segment behind is
+    False: the rule before). At σ = 0.002 + 0.15i (|κ| h = 15) the segment behind is
     split and then goes by Filon–Gauss only if its side is read right; swapped, it is left whole
     with 30 rad of phase on 10 Gauss points."""
     from slippulse.spectrum.kernels import assemble_w
@@ -98,7 +98,7 @@ def test_far_segments_on_both_sides_match_a_fine_reference(sigma, phase, rule):
 
 
 def test_filon_weights_and_a_tail_segment_past_the_old_cap():
-    """Filon–Gauss (stop 33): the weights integrate t^k e^{−αt} exactly for k < FILON_N; and a
+    """Filon–Gauss: the weights integrate t^k e^{−αt} exactly for k < FILON_N; and a
     segment of the graded tail with |κ| h ≈ 3100 (beyond the 512 sub-panels of the old rule),
     on each side of its target, matches a composite Gauss–Legendre reference to 5e-10 in W and
     ∂_σW. The old rule (``per_side=False``) misses ∂_σW behind the target by 23 %."""
@@ -415,10 +415,10 @@ def test_leading_eigenvalue_converged_in_N_and_domain(pulse12, params):
 def test_spectrum_group_opens_in_xarray(tmp_path, pulse12, params):
     xr = pytest.importorskip("xarray")
     from slippulse.core.h5io import write_pulse
-    from slippulse.spectrum.family import run_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
-    run_spectrum(str(f), extra=False, levels=0, min_points=0)
+    run_spectrum(str(f), SpectrumSettings(extra=False, levels=0, min_points=0))
     tree = xr.open_datatree(str(f), engine="h5netcdf")
     ds = tree["pulses/td1.2000/spectrum"].to_dataset()
     assert ds["lnv_real"].dims == ("eigenvalue", "xi")
@@ -442,7 +442,7 @@ def test_failed_eigen_solve_is_reported_and_stores_no_eigenvalue(tmp_path, pulse
                                                                  monkeypatch):
     import slippulse.spectrum.pulse as spm
     from slippulse.core.h5io import write_pulse
-    from slippulse.spectrum.family import run_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
 
     def never(op, sigma0, x0, **kw):
         return spm.Eigen(complex(sigma0), x0, False, 12, float("nan"), "no convergence (test)")
@@ -450,14 +450,14 @@ def test_failed_eigen_solve_is_reported_and_stores_no_eigenvalue(tmp_path, pulse
     monkeypatch.setattr(spm, "newton_eigen", never)
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
-    rep = run_spectrum(str(f), extra=False, levels=0, min_points=0)
+    rep = run_spectrum(str(f), SpectrumSettings(extra=False, levels=0, min_points=0))
     assert rep.failed == ["td1.2000"]
     st = spm.read_spectrum(str(f), "td1.2000")
     assert st["status"] == "failed" and "no convergence (test)" in st["message"]
     assert st["sigma"].size == 0 and st["lnv"].shape[0] == 0
     # a rerun does not keep a failed result: it tries again
     monkeypatch.undo()
-    rep2 = run_spectrum(str(f), extra=False, levels=0, min_points=0)
+    rep2 = run_spectrum(str(f), SpectrumSettings(extra=False, levels=0, min_points=0))
     assert rep2.skipped == [] and rep2.failed == []
 
 
@@ -487,7 +487,7 @@ def test_failed_refinement_is_reported_and_stores_no_number(tmp_path, pulse12, p
     import slippulse.spectrum.refine as refine
     import slippulse.spectrum.pulse as spm
     from slippulse.core.h5io import write_pulse
-    from slippulse.spectrum.family import run_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     real = refine.mapped_pulse
 
     def failing(params_, pulse, gmap, n, **kw):     # level 0 solves, level 1 does not
@@ -499,7 +499,7 @@ def test_failed_refinement_is_reported_and_stores_no_number(tmp_path, pulse12, p
     monkeypatch.setattr(refine, "mapped_pulse", failing)
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
-    rep = run_spectrum(str(f), extra=False, levels=1, min_points=0)
+    rep = run_spectrum(str(f), SpectrumSettings(extra=False, levels=1, min_points=0))
     assert rep.failed == ["td1.2000"]
     st = spm.read_spectrum(str(f), "td1.2000")
     assert st["status"] == "failed" and "refinement failed" in st["message"]
@@ -549,10 +549,10 @@ def default_family_to_1p02(tmp_path_factory, params):
 
 @pytest.mark.slow
 def test_default_family_pulse_near_1p0225_has_one_real_resolved_mode(default_family_to_1p02):
-    """Issue 17, item 2: on a family made with the defaults of `slippulse steady family`, a pulse
+    """On a family made with the defaults of `slippulse steady family`, a pulse
     between 1.025 and 1.02 τ_min gives, with the command's defaults (level 0 on the smooth map
     at N clipped to [1000, 2828], levels added until s_err L/c_p <= max(1e-4, 1e-3 s L/c_p)),
-    one real unstable eigenvalue (before issue 17: a spurious complex pair) whose sign is
+    one real unstable eigenvalue (not a spurious complex pair) whose sign is
     resolved (s > 2 s_err), and an s_err that covers the value of a finer, independent ladder
     (N_0 = 2000, three levels: the defaults of record). About 12 min on 2 cores with the
     family."""
@@ -560,12 +560,12 @@ def test_default_family_pulse_near_1p0225_has_one_real_resolved_mode(default_fam
 
     from slippulse.core.h5io import list_pulses, read_pulse
     from slippulse.spectrum.pulse import read_spectrum
-    from slippulse.spectrum.family import run_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     f = default_family_to_1p02
     inside = [lab for lab in list_pulses(f) if 1.02 < read_pulse(f, lab)[0].tau_d_ratio < 1.025]
     assert inside, list_pulses(f)
     lab = inside[len(inside) // 2]
-    rep = run_spectrum(f, [lab], extra=True)
+    rep = run_spectrum(f, SpectrumSettings(extra=True), labels=[lab])
     assert rep.failed == [], rep.results[0].message
     res = rep.results[0]
     assert res.n_unstable == 1 and abs(res.leading.imag) < 1e-8 * abs(res.leading)
@@ -574,8 +574,7 @@ def test_default_family_pulse_near_1p0225_has_one_real_resolved_mode(default_fam
     assert st["s_err_per_L"] <= max(1e-4, 1e-3 * st["s_per_L"]) and st["refine_target_met"]
     g = f + ".fine.h5"
     shutil.copy(f, g)
-    rep2 = run_spectrum(g, [lab], extra=False, overwrite=True, levels=2, min_points=2000,
-                        max_points=None, target=None)
+    rep2 = run_spectrum(g, SpectrumSettings(extra=False, levels=2, min_points=2000, max_points=None, target=None), labels=[lab], overwrite=True)
     assert rep2.failed == [], rep2.results[0].message
     fine = read_spectrum(g, lab)
     assert list(fine["refine_n_points"]) == [2000, 2828, 4000]
@@ -585,7 +584,7 @@ def test_default_family_pulse_near_1p0225_has_one_real_resolved_mode(default_fam
 
 @pytest.mark.slow
 def test_observed_order_and_translation_at_1p05(default_family_to_1p02):
-    """Issue 17, item 1: on the ladder of the smooth map (N = 1414, 2000, 2828, 4000) the leading
+    """On the ladder of the smooth map (N = 1414, 2000, 2828, 4000) the leading
     eigenvalue at 1.05 τ_min converges with observed order ≥ 3.5 (measured 3.8) and the
     translation eigenvalue (exact 0) falls with it (measured 1.4e-3, 3.6e-4, 8.9e-5, 2.2e-5
     c_p/L). Nested refinement of the adapted grid gave 0.7101, 0.6563, 0.6653: no order."""
@@ -645,10 +644,10 @@ def test_pinned_translation_gives_the_same_limit_with_a_smaller_error_at_1p05(
 def test_min_points_maps_a_coarse_pulse_before_level_0(tmp_path, pulse12, params):
     from slippulse.core.h5io import write_pulse
     from slippulse.spectrum.pulse import read_spectrum
-    from slippulse.spectrum.family import run_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
-    rep = run_spectrum(str(f), extra=False, levels=0, min_points=1000)
+    rep = run_spectrum(str(f), SpectrumSettings(extra=False, levels=0, min_points=1000))
     assert rep.failed == []
     st = read_spectrum(str(f), "td1.2000")
     assert st["n_points"] == 1000 and st["setting_min_points"] == 1000

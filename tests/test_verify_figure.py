@@ -1,4 +1,4 @@
-"""The verify figure and summary (issue 12, item 3): the unstable mode's growth rate table, the
+"""The verify figure and summary: the unstable mode's growth rate table, the
 verdict on the drift, the three-panel PNG."""
 import math
 

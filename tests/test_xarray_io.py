@@ -207,7 +207,7 @@ def test_scan_summary_opens_with_xarray(tmp_path):
     from slippulse.timedomain.scan import load_scan, read_summary_h5, run_scan
 
     path, _ = _write_scan(tmp_path, grid="eps = [1e-3, -1e-3]", defaults="sleep = 0.0")
-    res = run_scan(load_scan(path), workers=1, progress=False)
+    res = run_scan(load_scan(path), progress=False)
     ds = xr.open_dataset(res.summary_h5, engine="h5netcdf")
     assert ds.attrs["format"] == "slippulse-scan-summary"
     assert "id" in ds.coords and ds.sizes["id"] == 2

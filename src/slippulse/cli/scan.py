@@ -1,8 +1,9 @@
 """``slippulse dynamic scan SCAN.toml [--workers N | --scheduler ADDRESS] [--dry-run] ...``.
 
-Runs the independent simulations of a scan (format and design: :mod:`slippulse.timedomain.scan`) in local
-worker processes or on an existing Dask cluster, reusing the cases already finished, with a tqdm
-bar over the cases and a one-line summary at the end. Exit codes: 0 all cases fine, 1 some case
+Runs the independent simulations of a scan (format and design: :mod:`slippulse.timedomain.scan`) on
+the shared executor (:mod:`slippulse.core.executor`: this process, a local Dask cluster, or a Dask
+scheduler), reusing the cases already finished, with a progress bar over the cases and a one-line
+summary at the end. Exit codes: 0 all cases fine, 1 some case
 (or the runner's figures) failed, 2 bad input.
 """
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import os
 import sys
 
+from ..core.executor import add_executor_options, settings_from_args
 from ..core.params import ParameterError
 from .app import UsageError
 from .paramargs import add_params_args, check_files
@@ -22,15 +24,10 @@ def register(sub) -> None:
         description="Run every case of SCAN.toml (cartesian product of [grid] over [defaults], "
                     "then the [[case]] tables) through the scan's runner, one HDF5 file per case "
                     "in scan.out_dir; finished cases are reused. Writes summary.csv and summary.h5 "
-                    "in scan.out_dir. Format: src/slippulse/timedomain/scan.py, example: "
+                    "in scan.out_dir. Format: docs/dynamic.md, example: "
                     "dynamic/scans/example.toml.")
     p.add_argument("scan", metavar="SCAN.toml", help="scan description (TOML)")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="local worker processes (default 1: runs are CPU-bound and may be "
-                        "multi-threaded; keep N x threads per run within the cores)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="submit the cases to an existing Dask cluster, e.g. tcp://host:8786 "
-                        "(needs the 'dask' extra; --workers is then ignored)")
+    add_executor_options(p, "cases")
     p.add_argument("--overwrite", action="store_true",
                    help="rerun cases whose output file holds another case (default: refuse)")
     p.add_argument("--dry-run", action="store_true",
@@ -108,25 +105,16 @@ def cmd_scan(args) -> int:
             print(f"  {c.id:<{width}}  {_STATE[s]:<6}  {_show(scan.out_file(c))}")
         print(f"{states.count('done')} done, {len(states) - states.count('done')} to run")
         return 0
-    if args.workers < 1:
-        raise UsageError(f"--workers={args.workers} must be >= 1")
+    executor = settings_from_args(args)
     _check_steady_pulses(scan)
-    executor = "local"
-    if args.scheduler:
-        try:
-            import distributed  # noqa: F401
-        except ImportError:
-            raise UsageError("--scheduler needs dask.distributed: pip install "
-                             "'slippulse[dask]'") from None
-        executor = args.scheduler
     import signal
 
-    def _terminate(signum, frame):          # a kill stops the workers too (scan._run_local)
+    def _terminate(signum, frame):          # a kill stops the workers too (TaskPool's exit)
         raise KeyboardInterrupt
 
     old = signal.signal(signal.SIGTERM, _terminate)
     try:
-        res = run_scan(scan, executor=executor, workers=args.workers, overwrite=args.overwrite,
+        res = run_scan(scan, executor=executor, overwrite=args.overwrite,
                        progress=not args.no_progress, figures=_figures_hook(scan))
     finally:
         signal.signal(signal.SIGTERM, old)

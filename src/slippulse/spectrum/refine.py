@@ -185,11 +185,11 @@ def mapped_pulse(params, pulse, gmap, n, tol=1e-13, creep=0):
     its ln v interpolated there (creep > 0: give up once max|r| has not halved over `creep`
     iterations). Each full Newton step's LU is reused by chord iterations before a new Jacobian
     is formed (the start is close: measured on the deep pulses, 2 LUs instead of 4–5 at
-    N = 3542–5009, BENCHMARKS.md "Stop 39"), and the line search is Deuflhard's natural
+    N = 3542–5009, BENCHMARKS.md), and the line search is Deuflhard's natural
     monotonicity test (the healing front, a few cm off on the finer grid, no longer cuts the
-    steps: 15 → 3 LUs at L = 3.8 km, N = 5009, stop 40); where that fails, the re-solve is made
+    steps: 15 → 3 LUs at L = 3.8 km, N = 5009); where that fails, the re-solve is made
     again with the ‖r‖₂ line search (at 6.70 km, N = 3542, the natural test stopped at max|r| =
-    1.2e−5 after 31 iterations, where the ‖r‖₂ test converges; stop 40). The tolerance is the
+    1.2e−5 after 31 iterations, where the ‖r‖₂ test converges). The tolerance is the
     same. Returns a :class:`slippulse.steady.solver.SteadySolution`."""
     sol = solver.resolve_on_grid(params, pulse, gmap(n), tol=tol, state_order=4, creep=creep,
                                  reuse=True, line_search="natural")

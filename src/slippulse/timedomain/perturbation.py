@@ -715,7 +715,7 @@ def read_row(out_path: str) -> dict:
         for k in keys:
             v = h5.attrs[k]
             row[k] = v.item() if hasattr(v, "item") else v
-        v = h5.attrs.get("eigen_s_per_L", math.nan)       # files before issue 20: none
+        v = h5.attrs.get("eigen_s_per_L", math.nan)       # older files: none
         row["eigen_s_per_L"] = v.item() if hasattr(v, "item") else v
     return row
 

@@ -1,4 +1,4 @@
-"""Propagate a seeded steady pulse and measure its drift from the steady solution (issue 4).
+"""Propagate a seeded steady pulse and measure its drift from the steady solution.
 
 ``verify_pulse`` seeds the SBI stepper with a steady pulse (:mod:`slippulse.timedomain.seeding`), steps it over
 a given number of pulse lengths with adaptive time steps, keeps it in a frame that follows it
