@@ -102,7 +102,7 @@ def case_key(c):
 
 
 def run_case(c, pulse, params):
-    from slippulse.timedomain.verify import verify_pulse
+    from slippulse.timedomain.verify import VerifySettings, verify_pulse
     from slippulse.timedomain.seeding import SOE_CHEAP, DomainSpec
     from slippulse.timedomain.perturbation import HISTORIES
     from slippulse.dynamics.stepper import TimeStepRule
@@ -118,11 +118,11 @@ def run_case(c, pulse, params):
     rule = TimeStepRule(kind=c.get("stepping", "adaptive"), beta_cfl=c.get("beta_cfl", 0.5),
                         xi_stab=c["xi_stab"])
     spec = DomainSpec(dx=c["dx"], ahead=c["ahead"], behind=c["behind"])
-    res = verify_pulse(pulse, params, c["distance"], spec, rule=rule, n_samples=40,
-                       progress=False, history_options=opts, history=policy,
-                       history_start=c.get("history_start", "steady"),
-                       wrap_dislocation=c.get("wrap_dislocation", False),
-                       far_field=c.get("far_field", "steady"), follow=c.get("follow", True))
+    run = VerifySettings(rule=rule, n_samples=40, history_options=opts, history=policy,
+                         history_start=c.get("history_start", "steady"),
+                         wrap_dislocation=c.get("wrap_dislocation", False),
+                         far_field=c.get("far_field", "steady"), follow=c.get("follow", True))
+    res = verify_pulse(pulse, params, c["distance"], spec, run, progress=False)
     out = dict(c)
     out.update({k: res.errors[k] for k in KEYS})
     out.update(status=res.info["status"], wall_time=res.info["wall_time"],

@@ -12,13 +12,14 @@ from slippulse.core.params import ParameterError
 from slippulse.dynamics.device import DeviceStepper, cupy_unavailable
 from slippulse.dynamics.stepper import KostrovInterface, PredictorCorrector, TimeStepRule
 from slippulse.timedomain.seeding import DomainSpec
-from slippulse.timedomain.verify import verify_pulse
+from slippulse.timedomain.verify import VerifySettings, verify_pulse
 
 
 def _run(pulse, params, device, distance=0.1, perturbation=("excess", 1e-3)):
     return verify_pulse(pulse, params, distance, DomainSpec(dx=1e-2, ahead=2.0, behind=2.0),
-                        n_samples=6, n_snapshots=2, progress=False, track_every=2,
-                        perturbation=perturbation, device=device)
+                        VerifySettings(n_samples=6, n_snapshots=2, track_every=2,
+                                       perturbation=perturbation, device=device),
+                        progress=False)
 
 
 def test_numpy_engine_reproduces_the_host_run_bit_for_bit(pulse12, params):

@@ -174,12 +174,12 @@ def test_version1_dynamic_run_resumes(tmp_path):
 
 
 def test_verify_file_opens_with_xarray(tmp_path, pulse12):
-    from slippulse.timedomain.verify import verify_pulse, write_result
+    from slippulse.timedomain.verify import VerifySettings, verify_pulse, write_result
     from slippulse.timedomain.seeding import DomainSpec
 
     pulse = pulse12.to_pulse()
-    res = verify_pulse(pulse, P, 0.01, DomainSpec(dx=1e-2), n_samples=5, n_snapshots=3,
-                       progress=False)
+    res = verify_pulse(pulse, P, 0.01, DomainSpec(dx=1e-2),
+                       VerifySettings(n_samples=5, n_snapshots=3), progress=False)
     path = str(tmp_path / "verify.h5")
     write_result(path, res, P, source="x.h5", label=pulse.label)
     tree = _tree(path)

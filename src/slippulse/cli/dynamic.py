@@ -304,7 +304,7 @@ def cmd_verify(args) -> int:
     from ..core.h5io import SchemaError, check_writable, read_pulse
     from ..core.params import ParameterError
     from ..plotting.stability import plot_verify_result
-    from ..timedomain.verify import summary, verify_pulse, write_result
+    from ..timedomain.verify import VerifySettings, summary, verify_pulse, write_result
     from ..timedomain.seeding import DomainSpec
     from ..dynamics.stepper import TimeStepRule
 
@@ -336,11 +336,11 @@ def cmd_verify(args) -> int:
     try:
         spec = DomainSpec(dx=dx, ahead=args.ahead, behind=args.behind)
         rule = TimeStepRule(kind="adaptive", xi_stab=args.xi_stab)
-        res = verify_pulse(pulse, params, args.distance, spec, rule=rule,
-                           far_field=args.far_field, n_samples=args.samples,
-                           progress=not args.no_progress, eigen=eigen,
-                           perturbation=(args.perturb, args.eps) if seeded else None,
-                           device=args.device)
+        run = VerifySettings(rule=rule, far_field=args.far_field, n_samples=args.samples,
+                             perturbation=(args.perturb, args.eps) if seeded else None,
+                             device=args.device)
+        res = verify_pulse(pulse, params, args.distance, spec, run,
+                           progress=not args.no_progress, eigen=eigen)
     except ParameterError as exc:
         raise UsageError(str(exc))
     write_result(out, res, params, source=os.path.abspath(args.steady), label=label,

@@ -39,11 +39,17 @@ MAX_WORKERS = 256
 class ExecutorSettings:
     """Where independent tasks run (see the module notes).
 
-    workers : worker processes of a local cluster (1: in this process, no cluster).
-    scheduler : address of a Dask scheduler ('tcp://host:8786'), or None for the local choice.
-    threads : BLAS/OpenMP/numba threads of each local worker process.
-    processes : local cluster of processes (default); False: worker threads of this process
-        (cheap to start; for tests, or work that releases the GIL).
+    Attributes
+    ----------
+    workers : int
+        Worker processes of a local cluster (1: in this process, no cluster).
+    scheduler : str or None
+        Address of a Dask scheduler ('tcp://host:8786'), or None for the local choice.
+    threads : int
+        BLAS/OpenMP/numba threads of each local worker process.
+    processes : bool
+        Local cluster of processes (default); False: worker threads of this process (cheap to
+        start; for tests, or work that releases the GIL).
     """
 
     workers: int = 1

@@ -129,23 +129,34 @@ class SpectrumSettings:
     stability``); printed by the command and stored with every result (:meth:`stored`, the
     ``setting_*`` attributes a rerun compares before it keeps a stored spectrum).
 
-    levels : levels above level 0 for the leading eigenvalue's error estimate
-        (:func:`slippulse.spectrum.refine.refine_leading`: grids of N_0 √2^k points sampled from
-        one smooth map of the pulse's grid); a level that fails marks the pulse failed. 0: no
-        estimate (no s, s_err stored).
-    target, rel_target : the goal s_err L/c_p <= max(target, rel_target |s L/c_p|); levels are
-        added beyond `levels` until it is met (or the next level would exceed
+    Attributes
+    ----------
+    levels : int
+        Levels above level 0 for the leading eigenvalue's error estimate
+        (:func:`slippulse.spectrum.refine.refine_leading`: grids of N_0 √2^k points sampled
+        from one smooth map of the pulse's grid); a level that fails marks the pulse failed.
+        0: no estimate (no s, s_err stored).
+    target, rel_target : float
+        The goal s_err L/c_p <= max(target, rel_target |s L/c_p|); levels are added beyond
+        `levels` until it is met (or the next level would exceed
         :data:`slippulse.spectrum.refine.MAX_LADDER_POINTS`). target None: the fixed `levels`.
-    min_points, max_points : level 0 has N_0 = N clipped to [min_points, max_points] (the
-        steady equations re-solved on the map; with levels = 0 and N inside, the pulse's own
-        grid). max_points None: no bound.
-    level0_points : level 0 has exactly this many points (overrides the clip; no fallback).
-    pin_translation : solve with translation pinned (docs/spectrum.md §5).
-    extra : also seek the eigenvalues beyond the leading one.
-    tol : Newton's step criterion of the eigen-solve.
-    count_box : (x0, x1, y1) in c_p/L, or None: also count the eigenvalues in that box by the
-        argument principle (x1 and y1 raised to 1.5 times the leading s L/c_p where larger).
-    count_evals : budget of determinant evaluations of the count.
+    min_points, max_points : int
+        Level 0 has N_0 = N clipped to [min_points, max_points] (the steady equations
+        re-solved on the map; with levels = 0 and N inside, the pulse's own grid).
+        max_points None: no bound.
+    level0_points : int or None
+        Level 0 has exactly this many points (overrides the clip; no fallback).
+    pin_translation : bool
+        Solve with translation pinned (docs/spectrum.md §5).
+    extra : bool
+        Also seek the eigenvalues beyond the leading one.
+    tol : float
+        Newton's step criterion of the eigen-solve.
+    count_box : tuple or None
+        (x0, x1, y1) in c_p/L: also count the eigenvalues in that box by the argument
+        principle (x1 and y1 raised to 1.5 times the leading s L/c_p where larger).
+    count_evals : int
+        Budget of determinant evaluations of the count.
     """
 
     levels: int = DEFAULT_LEVELS
