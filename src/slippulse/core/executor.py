@@ -241,7 +241,7 @@ def _start_client(settings: ExecutorSettings, own: list):
         own.append(client)
         return client
     kwargs = dict(n_workers=settings.workers, threads_per_worker=1,
-                  processes=settings.processes, dashboard_address=None,
+                  processes=settings.processes, dashboard_address=":0",   # any free port
                   silence_logs=logging.ERROR)
     if settings.processes:
         # each worker process reads its thread count when it imports numpy and numba
