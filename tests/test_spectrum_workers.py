@@ -161,6 +161,31 @@ def test_the_family_spectrum_on_a_dask_cluster_stores_the_serial_values(tmp_path
         assert out == {-1: 1, -2: 2, 3: 3}
 
 
+def test_an_interrupted_cluster_run_resumes_from_what_was_written(tmp_path, pulse12, params):
+    """Interrupted after its first result (Ctrl-C or SIGTERM reach the command as
+    KeyboardInterrupt), a run on a Dask cluster stops and closes it; the result written so far
+    stays, and the rerun keeps it and computes only the others."""
+    from slippulse.core.executor import ExecutorSettings
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
+    from slippulse.spectrum.pulse import read_spectrum
+    f = _two_pulse_file(tmp_path, pulse12, params)
+    s = SpectrumSettings(levels=0, min_points=0, extra=False, pin_translation=False)
+    ex = ExecutorSettings(workers=2, processes=False)
+    done = []
+
+    def stop_after_one(lab, res, stored):
+        done.append(lab)
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_spectrum(f, s, executor=ex, progress=stop_after_one)
+    written = [lab for lab in ("td1.2000", "td1.1900", "td1.1800")
+               if read_spectrum(f, lab) is not None]
+    assert written == done
+    again = run_spectrum(f, s, executor=ex)
+    assert again.skipped == done and len(again.results) == 2 and not again.failed
+
+
 def test_cli_refuses_bad_worker_counts(tmp_path, pulse12, params):
     import cli_inproc
 
