@@ -7,7 +7,7 @@ Usage (from the repository root; needs the steady family runs/family_stab.h5, wh
     python benchmarks/bench_verify.py failure         # ~10 min: the failure map
     python benchmarks/bench_verify.py plot            # redraw from the stored JSON
 
-Each case seeds the steady pulse (``slippulse.stability.verify.verify_pulse``) and propagates it over a distance
+Each case seeds the steady pulse (``slippulse.timedomain.verify.verify_pulse``) and propagates it over a distance
 D_τ chosen so that the pulse's own unstable mode grows by at most ~e^{1.2} (1.2 τ_min: 0.05 L, growth
 24/L; 1.1 τ_min: 0.15 L, 8/L; 1.05 τ_min: 1 L, 0.6/L; docs/stability.md), so that the errors at
 D_τ measure the discretisation and seeding, not the physics. The deviation-vs-distance series are
@@ -102,9 +102,9 @@ def case_key(c):
 
 
 def run_case(c, pulse, params):
-    from slippulse.stability.verify import verify_pulse
-    from slippulse.stability.seeding import SOE_CHEAP, DomainSpec
-    from slippulse.stability.perturbation import HISTORIES
+    from slippulse.timedomain.verify import VerifySettings, verify_pulse
+    from slippulse.timedomain.seeding import SOE_CHEAP, DomainSpec
+    from slippulse.timedomain.perturbation import HISTORIES
     from slippulse.dynamics.stepper import TimeStepRule
 
     hist = c.get("history", "cheap")
@@ -118,11 +118,11 @@ def run_case(c, pulse, params):
     rule = TimeStepRule(kind=c.get("stepping", "adaptive"), beta_cfl=c.get("beta_cfl", 0.5),
                         xi_stab=c["xi_stab"])
     spec = DomainSpec(dx=c["dx"], ahead=c["ahead"], behind=c["behind"])
-    res = verify_pulse(pulse, params, c["distance"], spec, rule=rule, n_samples=40,
-                       progress=False, history_options=opts, history=policy,
-                       history_start=c.get("history_start", "steady"),
-                       wrap_dislocation=c.get("wrap_dislocation", False),
-                       far_field=c.get("far_field", "steady"), follow=c.get("follow", True))
+    run = VerifySettings(rule=rule, n_samples=40, history_options=opts, history=policy,
+                         history_start=c.get("history_start", "steady"),
+                         wrap_dislocation=c.get("wrap_dislocation", False),
+                         far_field=c.get("far_field", "steady"), follow=c.get("follow", True))
+    res = verify_pulse(pulse, params, c["distance"], spec, run, progress=False)
     out = dict(c)
     out.update({k: res.errors[k] for k in KEYS})
     out.update(status=res.info["status"], wall_time=res.info["wall_time"],

@@ -26,8 +26,8 @@ import sys
 import numpy as np
 
 from slippulse.core.h5io import read_pulse
-from slippulse.stability.eigenmode import family_overlaps, front_response, leading_mode
-from slippulse.stability.perturbation import read_series
+from slippulse.timedomain.eigenmode import family_overlaps, front_response, leading_mode
+from slippulse.timedomain.perturbation import read_series
 
 #: docs/stability.md §6 (generic ±ε pairs, the whole trajectory to the fate): median of
 #: |c_p/c_p⁰(L) − 1| of the + and − runs.
@@ -184,7 +184,7 @@ def cmd_figure(out, csvs, pair_dirs=(), labels=()):
             a = pair_analysis(key, p, m)
             pulse, params = read_pulse(key[0], key[1])
             mode = leading_mode(pulse, params, path=key[0], compute=False)
-            from slippulse.stability.eigenmode import local_neighbours, pulse_overlap
+            from slippulse.timedomain.eigenmode import local_neighbours, pulse_overlap
             ov = pulse_overlap(pulse, mode, local_neighbours(pulse, params), params.v_star)
             f = 1 - ov["line_slope"] * a["dL_per_dv_sbi"] / a["dc_per_dv_sbi"]
             sbi.append((pulse.tau_d_ratio, f))

@@ -39,8 +39,8 @@ def family():
 def _rows(name):
     """Rows of the finished cases of scan ``name`` (case keys + ``stability.read_row``), in case
     order; unfinished cases are skipped, so a report can be drawn while a scan runs."""
-    from slippulse.stability.scan import case_state, load_scan
-    from slippulse.stability.perturbation import read_row
+    from slippulse.timedomain.scan import case_state, load_scan
+    from slippulse.timedomain.perturbation import read_row
 
     scan = load_scan(os.path.join("dynamic", "scans", name + ".toml"))
     out = []
@@ -74,7 +74,7 @@ def _variant(p, base):
 
 def report():
     from slippulse.plotting.stability import stability_figures
-    from slippulse.stability.perturbation import pair_table
+    from slippulse.timedomain.perturbation import pair_table
 
     all_rows, table = [], []
     for name in SCANS:
@@ -113,7 +113,7 @@ def report():
         print(f"{name}: s = {b:.4g}/L (base); relative changes: "
               + ", ".join(f"{k}: {v:+.1%}" for k, v in dev.items()))
     # how closely the runs of each base pair follow the steady line c_p⁰(L)
-    from slippulse.stability.perturbation import line_deviation, read_series, smoothed_c_p, steady_curve
+    from slippulse.timedomain.perturbation import line_deviation, read_series, smoothed_c_p, steady_curve
     curve = steady_curve(*[f for f in (FAMILY, UPPER) if os.path.exists(f)])
     print("\n| τ_d/τ_min | run | fate | L range (m) | c_p/c_s range | median of abs(c_p/c_p⁰(L) − 1) | "
           "max | fraction of samples in the line's L range |")

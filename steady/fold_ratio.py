@@ -6,7 +6,7 @@
 A real eigenvalue of a pulse crosses zero only at a fold of the family in τ_d (§9.5); near one,
 s L/c_p ≈ R |dτ_d/d ln L|. This driver takes the rates of record (the ``[spectrum."LABEL"]``
 entries of the records file: s L/c_p ± err and L) and the family's slope dτ_d/d ln L at each
-record's L from the converged pulses of the family files (:func:`slippulse.stability.law.family_slope`;
+record's L from the converged pulses of the family files (:func:`slippulse.spectrum.law.family_slope`;
 any march of the one family: the pulses need not be those the rates were measured on). Records
 beyond the files' deepest pulse take the slope from the records' own (τ_d, L) points (marked
 "records"; coarser). Prints, as Markdown, the table (L, τ_d, s L/c_p, the slope, R, the source of
@@ -22,7 +22,7 @@ import tomllib
 import numpy as np
 
 from slippulse.core.h5io import label_decimals, label_ratio
-from slippulse.stability.law import (family_curve, family_slope, fit_power_law, fold_ratio,
+from slippulse.spectrum.law import (family_curve, family_slope, fit_power_law, fold_ratio,
                                      folds, local_exponents)
 
 

@@ -45,8 +45,8 @@ def scan_pairs(name):
         from stability import _rows  # dynamic/stability.py
     except Exception:
         return []
-    from slippulse.stability.perturbation import pair_growth, pair_rows, read_series
-    from slippulse.stability.scan import load_scan
+    from slippulse.timedomain.perturbation import pair_growth, pair_rows, read_series
+    from slippulse.timedomain.scan import load_scan
     try:
         rows = _rows(name)
     except Exception:

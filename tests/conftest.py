@@ -19,7 +19,7 @@ def pulse12():
 def spectrum12(pulse12):
     """The leading eigenvalue and mode of ``pulse12`` (``pulse_spectrum``, no extra search; ~10 s),
     shared by the tests that need a stored spectrum."""
-    from slippulse.stability.spectrum import pulse_spectrum
+    from slippulse.spectrum.pulse import pulse_spectrum
     return pulse_spectrum(pulse12.to_pulse(), DEFAULT, extra=False)
 
 
@@ -27,7 +27,7 @@ def spectrum12(pulse12):
 def steady12_with_spectrum(tmp_path, pulse12, spectrum12):
     """A pulse file holding ``pulse12`` and its stored spectrum."""
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum import write_spectrum
+    from slippulse.spectrum.pulse import write_spectrum
     path = str(tmp_path / "td12.h5")
     write_pulse(path, pulse12.to_pulse(), DEFAULT)
     write_spectrum(path, spectrum12, {"tol": 1e-7, "extra": 0, "min_re_c_over_L": 1e-3})

@@ -1,4 +1,4 @@
-"""A small runner following the scan contract (slippulse.stability.scan), for tests/test_scan.py.
+"""A small runner following the scan contract (slippulse.timedomain.scan), for tests/test_scan.py.
 
 ``run_case`` sleeps ``case["sleep"]`` s (default 0.1), appends ``<pid> <eps>`` to ``case["log"]``
 (so tests count the runs), raises if ``case["fail"]`` is true, and writes an HDF5 file with the

@@ -1,12 +1,13 @@
-"""The argument-principle count of eigenvalues (slippulse.stability.count) and the refinement's
-error estimate (slippulse.stability.refine), on operators whose answers are known."""
+"""The argument-principle count of eigenvalues (slippulse.spectrum.count) and the refinement's
+error estimate (slippulse.spectrum.refine), on operators whose answers are known."""
 import math
 
 import numpy as np
 import pytest
 
-from slippulse.stability.count import arg_det, count_unstable
-from slippulse.stability.refine import RefinedRate
+from slippulse.core.executor import ExecutorSettings
+from slippulse.spectrum.count import arg_det, count_unstable
+from slippulse.spectrum.refine import RefinedRate
 
 
 class _Diag:
@@ -115,7 +116,7 @@ def test_count_follows_a_large_smooth_phase_drift_with_few_points(lams, expected
 
 
 def test_arg_det_derivative_is_jacobi_formula():
-    from slippulse.stability.count import log_det_derivative
+    from slippulse.spectrum.count import log_det_derivative
     rng = np.random.default_rng(5)
     A, B = (rng.normal(size=(7, 7)) + 1j * rng.normal(size=(7, 7)) for _ in range(2))
     z, h = 0.3 + 0.2j, 1e-6
@@ -153,11 +154,11 @@ def test_count_of_the_1p2_pulse_in_the_product(tmp_path, pulse12, params):
     [0.5, 34] × ±34 c_p/L (the search's one real mode, s L/c_p ≈ 22.65), the walk's criteria
     met and stored."""
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum import read_spectrum
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum.pulse import read_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
-    rep = run_spectrum(f, extra=False, levels=0, level0_points=300, count_box=(0.5, 4.0, 4.0))
+    rep = run_spectrum(f, SpectrumSettings(extra=False, levels=0, level0_points=300, count_box=(0.5, 4.0, 4.0)))
     assert rep.failed == []
     st = read_spectrum(f, "td1.2000")
     assert st["count_status"] == "converged", st["count_message"]
@@ -173,18 +174,18 @@ def test_cli_count_budget_bad_input_and_documented_default(tmp_path, pulse12, pa
     import subprocess
     import sys
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum_family import COUNT_EVALS
+    from slippulse.spectrum.family import COUNT_EVALS
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
     r = cli_inproc.run(["steady", "stability", f, "--count", "0.5", "4", "4", "--count-evals", "5"])
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0 and "count_evals=5" in r.stderr
-    r = cli_inproc.run(["steady", "stability", f, "--count", "0.5", "4", "4", "--count-workers", "0"])
+    r = cli_inproc.run(["steady", "stability", f, "--count", "0.5", "4", "4", "--workers", "0"])
     assert r.returncode == 2
-    assert r.stderr.strip().count("\n") == 0 and "count_workers=0" in r.stderr
-    r = cli_inproc.run(["steady", "stability", f, "--count", "0.5", "4", "4", "--count-threads", "-2"])
+    assert r.stderr.strip().count("\n") == 0 and "--workers=0 is invalid" in r.stderr
+    r = cli_inproc.run(["steady", "stability", f, "--count", "0.5", "4", "4", "--threads", "-2"])
     assert r.returncode == 2
-    assert r.stderr.strip().count("\n") == 0 and "count_threads=-2" in r.stderr
+    assert r.stderr.strip().count("\n") == 0 and "--threads=-2 is invalid" in r.stderr
     h = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", "--help"],
                        capture_output=True, text=True).stdout
     m = re.search(r"--count-evals N\s+budget of det M evaluations per count \(default (\d+)", h)
@@ -236,10 +237,10 @@ def test_count_checkpoint_resumes_an_exhausted_walk_without_evaluating_again(tmp
 
 def test_count_checkpoint_write_is_atomic(tmp_path, monkeypatch):
     """A write interrupted after the temporary file is opened leaves the previous checkpoint."""
-    from slippulse.stability import count as cmod
+    from slippulse.spectrum import count as cmod
     ck = str(tmp_path / "walk.npz")
     op = _Diag(np.array([0.5], complex))
-    cmod._write_checkpoint(ck, cmod.operator_key(op), {0.5 + 1j: (0.25, 2.0 + 0j, -3.5)})
+    cmod.write_checkpoint(ck, cmod.operator_key(op), {0.5 + 1j: (0.25, 2.0 + 0j, -3.5)})
 
     def broken(fh, **kw):
         fh.write(b"partial")
@@ -247,9 +248,9 @@ def test_count_checkpoint_write_is_atomic(tmp_path, monkeypatch):
 
     monkeypatch.setattr(cmod.np, "savez", broken)
     with pytest.raises(KeyboardInterrupt):
-        cmod._write_checkpoint(ck, cmod.operator_key(op), {0.1 + 0j: (0.0, 1.0 + 0j, 0.0)})
+        cmod.write_checkpoint(ck, cmod.operator_key(op), {0.1 + 0j: (0.0, 1.0 + 0j, 0.0)})
     monkeypatch.undo()
-    cache, note = cmod._read_checkpoint(ck, cmod.operator_key(op))
+    cache, note = cmod.read_checkpoint(ck, cmod.operator_key(op))
     assert note == "" and cache == {0.5 + 1j: (0.25, 2.0 + 0j, -3.5)}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["walk.npz"]     # no temporary left
 
@@ -260,16 +261,16 @@ def test_count_checkpoint_in_the_product(tmp_path, pulse12, params):
     removes the file."""
     import os
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum import read_spectrum
-    from slippulse.stability.spectrum_family import count_checkpoint_path, run_spectrum
+    from slippulse.spectrum.pulse import read_spectrum
+    from slippulse.spectrum.family import count_checkpoint_path, SpectrumSettings, run_spectrum
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
     ck = count_checkpoint_path(f, "td1.2000")
     kw = dict(extra=False, levels=0, level0_points=300, count_box=(0.5, 4.0, 4.0))
-    rep = run_spectrum(f, count_evals=16, **kw)
+    rep = run_spectrum(f, SpectrumSettings(count_evals=16, **kw))
     cnt = rep.results[0].count
     assert cnt.status == "failed" and os.path.exists(ck) and ck in cnt.message
-    rep = run_spectrum(f, overwrite=True, **kw)
+    rep = run_spectrum(f, SpectrumSettings(**kw), overwrite=True)
     cnt = rep.results[0].count
     assert cnt.status == "converged" and cnt.count == 1
     assert 0 < cnt.resumed <= 16 and not os.path.exists(ck)
@@ -305,8 +306,8 @@ def test_count_of_a_conjugate_symmetric_operator_evaluates_one_half():
 
 
 def test_pulse_operator_is_conjugate_symmetric(pulse12, params):
-    from slippulse.stability.operators import StabilityOperator
-    from slippulse.stability.spectrum import order4_pulse
+    from slippulse.spectrum.operators import StabilityOperator
+    from slippulse.spectrum.pulse import order4_pulse
     op = StabilityOperator(order4_pulse(pulse12.to_pulse(), params), params,
                            pin_translation=True)
     assert op.conjugate_symmetric
@@ -317,15 +318,16 @@ def test_pulse_operator_is_conjugate_symmetric(pulse12, params):
     assert np.abs(dMc - dM.conj()).max() <= 1e-10 * np.abs(dM).max()
 
 
-def test_count_on_worker_processes_walks_the_same_points(tmp_path):
-    """workers=2: each round's points evaluated at once by two spawned processes; the walk visits
+def test_count_on_workers_walks_the_same_points(tmp_path):
+    """Two workers (a Dask LocalCluster of threads): each round's points evaluated at once; the walk visits
     the same points, reads the same arguments and counts the same as the serial walk, and
     evaluates each point once (the checkpoint holds exactly its points)."""
     lams = np.array([0.5, 2 + 1j, 2 - 1j, -1.0], complex)
     serial = count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), max_evals=2000)
     ck = str(tmp_path / "walk.npz")
     seen = []
-    par = count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), max_evals=2000, workers=2,
+    par = count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), max_evals=2000,
+                         executor=ExecutorSettings(workers=2, processes=False),
                          checkpoint=ck, progress=seen.append)
     assert serial.status == par.status == "converged"
     assert par.count == serial.count == 3
@@ -335,19 +337,20 @@ def test_count_on_worker_processes_walks_the_same_points(tmp_path):
         assert f["z"].size == par.n_evals
     assert seen == sorted(seen) and seen[-1] == par.n_evals      # progress only moves forward
     with pytest.raises(ValueError, match="workers=0"):
-        count_unstable(_Drift(lams, T=5.0), (0.01, 4.0, 4.0), workers=0)
+        ExecutorSettings(workers=0)
 
 
 def test_count_of_the_pulse_operator_on_workers(pulse12, params):
-    """The pulse operator survives the trip to the workers (pickled once per worker): the same
+    """The pulse operator survives the trip to two worker processes of a local Dask cluster
+    (sent once to each): the same
     count and arguments as the serial walk on the 1.2 τ_min pulse."""
-    from slippulse.stability.operators import StabilityOperator
-    from slippulse.stability.spectrum import order4_pulse
+    from slippulse.spectrum.operators import StabilityOperator
+    from slippulse.spectrum.pulse import order4_pulse
     op = StabilityOperator(order4_pulse(pulse12.to_pulse(), params), params,
                            pin_translation=True)
     box = (5.0, 34.0, 34.0)
     serial = count_unstable(op, box, max_evals=400)
-    par = count_unstable(op, box, max_evals=400, workers=2)
+    par = count_unstable(op, box, max_evals=400, executor=ExecutorSettings(workers=2))
     assert serial.status == par.status == "converged", (serial.message, par.message)
     assert par.count == serial.count == 1
     assert np.array_equal(par.points, serial.points)
@@ -362,15 +365,15 @@ def test_guess_starts_the_search_where_the_default_shifts_find_nothing(tmp_path,
     import subprocess
     import sys
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability import spectrum
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum import pulse as spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
     monkeypatch.setattr(spectrum, "DEFAULT_SHIFTS", ())
-    kw = dict(extra=False, levels=0, level0_points=300, overwrite=True)
-    blind = run_spectrum(f, **kw).results[0]
+    s = SpectrumSettings(extra=False, levels=0, level0_points=300)
+    blind = run_spectrum(f, s, overwrite=True).results[0]
     assert blind.sigmas.size == 0
-    found = run_spectrum(f, guess=20.0, **kw).results[0]
+    found = run_spectrum(f, s, overwrite=True, guess=20.0).results[0]
     assert found.status == "converged" and found.sigmas.size == 1
     assert abs(found.leading / found.rate_unit - 22.65) < 0.1
     r = subprocess.run([sys.executable, "-m", "slippulse", "steady", "stability", f,

@@ -11,14 +11,15 @@ import pytest
 from slippulse.core.params import ParameterError
 from slippulse.dynamics.device import DeviceStepper, cupy_unavailable
 from slippulse.dynamics.stepper import KostrovInterface, PredictorCorrector, TimeStepRule
-from slippulse.stability.seeding import DomainSpec
-from slippulse.stability.verify import verify_pulse
+from slippulse.timedomain.seeding import DomainSpec
+from slippulse.timedomain.verify import VerifySettings, verify_pulse
 
 
 def _run(pulse, params, device, distance=0.1, perturbation=("excess", 1e-3)):
     return verify_pulse(pulse, params, distance, DomainSpec(dx=1e-2, ahead=2.0, behind=2.0),
-                        n_samples=6, n_snapshots=2, progress=False, track_every=2,
-                        perturbation=perturbation, device=device)
+                        VerifySettings(n_samples=6, n_snapshots=2, track_every=2,
+                                       perturbation=perturbation, device=device),
+                        progress=False)
 
 
 def test_numpy_engine_reproduces_the_host_run_bit_for_bit(pulse12, params):
@@ -38,7 +39,7 @@ def test_numpy_engine_reproduces_the_host_run_bit_for_bit(pulse12, params):
 def test_engine_fields_read_only_until_assigned(pulse12, params):
     """A field read from the device is a read-only copy (an in-place write would be lost); an
     assigned field is the host's until the next step uploads it."""
-    from slippulse.stability.seeding import seed_pulse
+    from slippulse.timedomain.seeding import seed_pulse
 
     seed = seed_pulse(pulse12.to_pulse(), params, DomainSpec(dx=1e-2, ahead=2.0, behind=2.0))
     st = DeviceStepper.from_host(seed.stepper, "numpy")

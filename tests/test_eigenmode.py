@@ -1,4 +1,4 @@
-"""Issue 20: the unstable eigenmode in time — its SBI seed with a growing past, the refusals, the
+"""The unstable eigenmode in time — its SBI seed with a growing past, the refusals, the
 verdict's eigenvalue, the front frame and the overlap with the family tangent."""
 import dataclasses
 import math
@@ -9,11 +9,11 @@ import pytest
 
 from slippulse.core import friction as fr
 from slippulse.core.h5io import write_pulse
-from slippulse.stability.eigenmode import (EPS_MAX, Eigenmode, SpectrumError, check_same_pulse,
+from slippulse.timedomain.eigenmode import (EPS_MAX, Eigenmode, SpectrumError, check_same_pulse,
                                            front_response, leading_mode, mode_overlap,
                                            mode_on_grid, perturb_along_mode, pulse_overlap,
                                            stored_mode)
-from slippulse.stability.seeding import DomainSpec, seed_pulse
+from slippulse.timedomain.seeding import DomainSpec, seed_pulse
 
 
 def _imbalance(seed, params):
@@ -77,7 +77,7 @@ def test_front_frame_seed_moves_the_body_and_carries_the_displacement_exactly(
     the front-frame field, at most ε, with no displacement spike; the slip of the past (the
     pulse on X(t) = ct + a(e^{σt} − 1), a = ε η, plus the growing body) equals the quadrature of
     ∫_{−∞}^0 ΔV_k(t) dt at low k, which checks the series of exponentials independently."""
-    from slippulse.stability.eigenmode import front_frame_seed_fields
+    from slippulse.timedomain.eigenmode import front_frame_seed_fields
     pu = pulse12.to_pulse()
     m = leading_mode(pu, params, path=steady12_with_spectrum, compute=False)
     spec = DomainSpec(dx=4e-3, ahead=2.0, behind=3.0)
@@ -114,7 +114,7 @@ def test_front_frame_seed_moves_the_body_and_carries_the_displacement_exactly(
 def test_cli_mode_seed_refuses_bad_input_and_writes_nothing(tmp_path, steady12_with_spectrum,
                                                             pulse12, spectrum12, params, capsys):
     from slippulse.cli.app import main
-    from slippulse.stability.spectrum import write_spectrum
+    from slippulse.spectrum.pulse import write_spectrum
     src = steady12_with_spectrum
     out = tmp_path / "seed.h5"
     base = ["dynamic", "seed", "--steady", src, "--dx", "8e-3", "--ahead", "2", "--behind", "2",
@@ -222,12 +222,12 @@ def test_seeded_mode_grows_at_its_eigenvalue_at_1p1(params, tmp_path):
     from 0.1 L (docs/stability.md §10.7). Steady pulse N = 2000 (continued from 1.2), its
     spectrum (the pinned ladder, ± 3e−5 per L), 4 mm SBI grid, 8+8 L domain (measured −0.5 %;
     on 4+4 L the mode's periodic images lower the rate by 1.4 %). ~2 min."""
-    from slippulse.stability.perturbation import mode_pair_growth, read_series, run_case
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.timedomain.perturbation import mode_pair_growth, read_series, run_case
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     from slippulse.steady.continuation import run_family
     path = str(tmp_path / "fam.h5")
     run_family(params, path, start=1.2, stop=1.1, step=0.02, n_points=2000)
-    run_spectrum(path, labels=["td1.1000"], extra=False)
+    run_spectrum(path, SpectrumSettings(extra=False), labels=["td1.1000"])
     rows = []
     for eps in (1e-2, -1e-2):
         case = {"steady": path, "label": "td1.1000", "perturbation": "mode_front", "eps": eps,
@@ -241,7 +241,7 @@ def test_seeded_mode_grows_at_its_eigenvalue_at_1p1(params, tmp_path):
 
 def test_scan_case_with_mode_perturbation_is_checked():
     from slippulse.core.params import ParameterError
-    from slippulse.stability.perturbation import check_case
+    from slippulse.timedomain.perturbation import check_case
     ok = check_case({"steady": "f.h5", "label": "td1.2000", "perturbation": "mode", "eps": -1e-3})
     assert ok["mode_file"] == ""
     with pytest.raises(ParameterError, match="0.01"):

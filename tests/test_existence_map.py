@@ -1,5 +1,5 @@
-"""steady/existence_map.py and param_continuation.py: the classification of (b, α) points and
-continuation in the parameters (issue 21 item 4)."""
+"""The existence map (slippulse.steady.existence_map) and param_continuation: the
+classification of (b, α) points and continuation in the parameters."""
 import numpy as np
 import pytest
 
@@ -51,3 +51,51 @@ def test_continuation_in_params_reaches_b_0_1():
     assert path[-1][:2] == (1.0, True) and sol.problem.params == target
     assert judge(sol) == (True, "")
     assert abs(sol.beta - 0.0286) < 5e-4
+
+
+def test_map_on_a_dask_cluster_is_the_serial_map_and_resumes(tmp_path):
+    """Two points at N = 500: the map computed on a dask.distributed LocalCluster of two worker
+    threads (cheap to start; the same submit/as_completed path as processes or a scheduler) is
+    the serial one. Each solve is kept in the checkpoint as it arrives; a rerun reads them back
+    instead of solving (a value altered in the file comes back altered)."""
+    import json
+
+    from slippulse.core.executor import ExecutorSettings
+    b, a = [0.075], [0.005, 0.0075]
+    serial = existence_map(b, a, n_points=500)
+    ck = str(tmp_path / "map.partial.json")
+    par = existence_map(b, a, n_points=500, checkpoint=ck,
+                        executor=ExecutorSettings(workers=2, processes=False))
+    for name in ("guess_status", "cont_status", "shape_status"):
+        assert np.array_equal(getattr(par, name), getattr(serial, name)), name
+    assert np.allclose(par.beta, serial.beta, rtol=1e-12, equal_nan=True)
+    assert par.guess_reason.tolist() == serial.guess_reason.tolist()
+    assert par.cont_reason.tolist() == serial.cont_reason.tolist()
+    assert par.solves == serial.solves and FOUND in par.cont_status
+    with open(ck) as fh:
+        d = json.load(fh)
+    assert set(d["solves"]) >= {"guess 0 0", "guess 0 1", "start"}
+    assert serial.guess_status[0, 0] == FOUND          # Table I: β from the guess solve
+    d["solves"]["guess 0 0"]["measures"][0] = 0.5
+    with open(ck, "w") as fh:
+        json.dump(d, fh)
+    again = existence_map(b, a, n_points=500, checkpoint=ck)
+    assert again.beta[0, 0] == 0.5
+    assert np.allclose(again.beta[0, 1:], serial.beta[0, 1:], rtol=1e-12, equal_nan=True)
+
+
+def test_cli_refuses_bad_input_in_one_line(tmp_path):
+    """`slippulse steady existence-map`: bad values name the option and its range (exit 2), and
+    nothing is written."""
+    import os
+    import sys
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import cli_inproc
+    out = tmp_path / "m.h5"
+    for args, msg in ((["--workers", "0"], "--workers=0 is invalid"),
+                      (["--b", "-0.1"], "--b=[-0.1] is invalid"),
+                      (["--tau-d", "0.9"], "--tau-d=0.9 is invalid"),
+                      (["--points", "20"], "--points=20 is invalid")):
+        r = cli_inproc.run(["steady", "existence-map", "--out", out, *args])
+        assert r.returncode == 2 and msg in r.stderr, (args, r.stderr)
+        assert r.stderr.strip().count("\n") == 0 and not out.exists()

@@ -54,9 +54,9 @@ def stubs(monkeypatch):
     import slippulse.cli.steady as cs
     import slippulse.dynamics.stepper as stepper
     import slippulse.plotting.steady as ps
-    import slippulse.stability.seeding as seeding
-    import slippulse.stability.spectrum_family as spectrum
-    import slippulse.stability.verify as verify
+    import slippulse.timedomain.seeding as seeding
+    import slippulse.spectrum.family as spectrum
+    import slippulse.timedomain.verify as verify
     import slippulse.steady.analysis as an
     import slippulse.steady.continuation as cont
     for mod, name in ((cs, "_solve_any"), (cont, "run_family"), (verify, "verify_pulse"),

@@ -1,11 +1,11 @@
 """The smooth grid map (slippulse.steady.grid.GridMap) and the three-level error estimate of the
-leading growth rate (slippulse.stability.refine.estimate), on inputs whose answers are known."""
+leading growth rate (slippulse.spectrum.refine.estimate), on inputs whose answers are known."""
 import math
 
 import numpy as np
 import pytest
 
-from slippulse.stability.refine import LEVEL_RATIO, SAFETY, estimate, level_points
+from slippulse.spectrum.refine import LEVEL_RATIO, SAFETY, estimate, level_points
 from slippulse.steady.grid import GridMap
 
 
@@ -97,7 +97,7 @@ def _fake_ladder(monkeypatch, s_inf, c, p):
     """refine_leading on stubs: level k of N points gives s = s_inf + c (N/1000)^−p (c/L = 1)."""
     from types import SimpleNamespace as NS
 
-    import slippulse.stability.refine as refine
+    import slippulse.spectrum.refine as refine
 
     def pulse(n):
         return NS(n_points=n, c_p=1.0, L=1.0, xi=np.linspace(0, 1, n))
@@ -148,19 +148,19 @@ def test_tracking_is_seeded_from_the_nearest_stored_spectrum_above(tmp_path):
 
     from slippulse.core import h5io
     from slippulse.core.params import DEFAULT as P
-    from slippulse.stability.spectrum import PulseSpectrum, write_spectrum
-    from slippulse.stability.spectrum_family import _seed
+    from slippulse.spectrum.pulse import PulseSpectrum, write_spectrum
+    from slippulse.spectrum.family import NO_TRACKING, seed_tracking
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from test_analysis import _synthetic_pulse
     f = str(tmp_path / "fam.h5")
     for r in (1.2, 1.1, 1.05):
         h5io.write_pulse(f, _synthetic_pulse(r, 0.3, 0.2), P)
-    assert _seed(f, ["td1.1000"]) == (None, None)          # nothing stored above
+    assert seed_tracking(f, ["td1.1000"]) is NO_TRACKING  # nothing stored above
     p = h5io.read_pulse(f, "td1.2000")[0]
     V = np.exp(-((p.xi / p.L) ** 2)) + 0j
     modes = [{k: V for k in ("delta", "V", "phi", "lnv")}]
     write_spectrum(f, PulseSpectrum("td1.2000", np.array([7.0 + 0j]), modes, np.zeros(2), 0.0,
                                     2.0, p.n_points, "converged", "", 0.0), {})
-    prev, mode = _seed(f, ["td1.0500"])                   # the nearest stored one above
-    assert prev[0][0] == 7.0 and prev[1] == 2.0
-    assert np.allclose(mode[0], p.xi / p.L) and np.allclose(mode[1], V)
+    tr = seed_tracking(f, ["td1.0500"])                   # the nearest stored one above
+    assert tr.sigmas[0] == 7.0 and tr.rate_unit == 2.0
+    assert np.allclose(tr.mode[0], p.xi / p.L) and np.allclose(tr.mode[1], V)

@@ -1,10 +1,10 @@
-"""The spectrum's ladder climbs to an accuracy goal, and its level 0 is clipped (issue 17, item 5:
-cost; docs/spectrum.md §5). Newton judges the pair it returns."""
+"""The spectrum's ladder climbs to an accuracy goal, and its level 0 is clipped (its
+cost: docs/spectrum.md §5). Newton judges the pair it returns."""
 
 import numpy as np
 import pytest
 
-from slippulse.stability.refine import goal, level0_size
+from slippulse.spectrum.refine import goal, level0_size
 
 
 def test_goal_is_absolute_or_relative_whichever_is_larger():
@@ -25,8 +25,8 @@ def test_level0_is_the_pulse_N_clipped_unless_given():
 @pytest.fixture(scope="module")
 def ladder12(pulse12, params):
     """Level 0 of the 1.2 tau_min pulse on its map at N = 400, with its leading eigenvalue."""
-    from slippulse.stability.refine import mapped_pulse
-    from slippulse.stability.spectrum import pulse_spectrum
+    from slippulse.spectrum.refine import mapped_pulse
+    from slippulse.spectrum.pulse import pulse_spectrum
     from slippulse.steady.grid import GridMap
     p = pulse12.to_pulse()
     gmap = GridMap(p.xi)
@@ -38,7 +38,7 @@ def ladder12(pulse12, params):
 
 
 def test_ladder_stops_at_the_goal_and_says_when_its_cap_stops_it(ladder12, params):
-    from slippulse.stability.refine import refine_leading
+    from slippulse.spectrum.refine import refine_leading
     p0, gmap, first = ladder12
     kw = dict(levels=1, pin_translation=True, max_points=800)
     easy = refine_leading(p0, params, first, gmap, target=1.0, **kw)
@@ -60,9 +60,9 @@ def test_newton_reports_the_true_residual_of_the_pair_it_returns(ladder12, param
     σ with the matrices in hand; it must be the true backward error of the pair returned."""
     from scipy.interpolate import CubicSpline
 
-    from slippulse.stability.eigensolve import _relres, newton_eigen
-    from slippulse.stability.refine import mapped_pulse
-    from slippulse.stability.spectrum import StabilityOperator
+    from slippulse.spectrum.eigensolve import _relres, newton_eigen
+    from slippulse.spectrum.refine import mapped_pulse
+    from slippulse.spectrum.pulse import StabilityOperator
     p0, gmap, first = ladder12
     q = mapped_pulse(params, p0, gmap, 566).to_pulse()
     V = first.modes[0]["V"]
@@ -95,11 +95,11 @@ def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, puls
     their own N = 3542. Here the re-solve is made to fail below the pulse's own N (700): level 0
     then uses N = 700, and says nothing failed; where the own N fails too, the message names both."""
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability import spectrum_family as sf
+    from slippulse.spectrum import family as sf
     path = str(tmp_path / "td12.h5")
     write_pulse(path, pulse12.to_pulse(), params)
     tried = []
-    real = sf._level0
+    real = sf.solve_level0
 
     creeps = []
 
@@ -110,8 +110,8 @@ def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, puls
             return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
         return real(pulse, prm, gmap, n0, creep)
 
-    monkeypatch.setattr(sf, "_level0", level0)
-    rep = sf.run_spectrum(path, extra=False, levels=0, min_points=0, max_points=500)
+    monkeypatch.setattr(sf, "solve_level0", level0)
+    rep = sf.run_spectrum(path, sf.SpectrumSettings(extra=False, levels=0, min_points=0, max_points=500))
     assert tried == [500, 700]
     # the clipped attempt, which has the own N to fall back on, gives up when it creeps; the
     # own N, the last resort, does not
@@ -124,23 +124,22 @@ def test_level0_falls_back_to_the_pulse_own_N_when_the_clip_fails(tmp_path, puls
         tried.append(n0)
         return pulse, f"steady re-solve on the mapped grid (N = {n0}) did not converge: mock"
 
-    monkeypatch.setattr(sf, "_level0", never)
+    monkeypatch.setattr(sf, "solve_level0", never)
     tried.clear()
-    rep = sf.run_spectrum(path, extra=False, levels=0, min_points=0, max_points=500,
-                          overwrite=True)
+    rep = sf.run_spectrum(path, sf.SpectrumSettings(extra=False, levels=0, min_points=0, max_points=500), overwrite=True)
     assert tried == [500, 700] and rep.failed == ["td1.2000"]
-    assert "(N = 500)" in rep.results[0].message
-    assert "on the pulse's own N = 700 too" in rep.results[0].message
+    assert "level 0 on the clipped N = 500" in rep.results[0].message
+    assert "level 0 on the pulse's own N = 700: " in rep.results[0].message
     # --points (an explicit level 0) is not overridden
     tried.clear()
-    sf.run_spectrum(path, extra=False, levels=0, level0_points=500, overwrite=True)
+    sf.run_spectrum(path, sf.SpectrumSettings(extra=False, levels=0, level0_points=500), overwrite=True)
     assert tried == [500]
 
 
 def test_creep_reaches_the_newton_of_a_mapped_resolve(pulse12, params, monkeypatch):
     """mapped_pulse(creep=k) → resolve_on_grid → solve_on_grid → newton(creep=k); the other
     solvers, which have no creep stop, are not given it."""
-    from slippulse.stability.refine import mapped_pulse
+    from slippulse.spectrum.refine import mapped_pulse
     from slippulse.steady import newton as nw
     from slippulse.steady.grid import GridMap
     seen = []
@@ -162,13 +161,13 @@ def test_creep_reaches_the_newton_of_a_mapped_resolve(pulse12, params, monkeypat
 def test_a_clipped_level0_climbs_a_third_level_and_a_short_stored_ladder_is_redone(
         tmp_path, pulse12, params):
     """A level 0 below the pulse's own N (here 400 < 700) is not trusted on two levels: it
-    climbs CLIPPED_LEVELS levels, so that its estimate observes an order (stop 37: at 6.30 km the
+    climbs CLIPPED_LEVELS levels, so that its estimate observes an order (at 6.30 km the
     clipped two-level ladder was 2.1 times its summed bars off). A level 0 at or above the own N
     keeps the levels asked for; a two-level clipped ladder stored before the rule is redone."""
     import h5py
 
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability import spectrum_family as sf
+    from slippulse.spectrum import family as sf
     assert sf.CLIPPED_LEVELS == 2
     assert sf.clipped_levels(1, 2828, 3542) == 2 and sf.clipped_levels(1, 3542, 3542) == 1
     assert sf.clipped_levels(3, 2828, 3542) == 3 and sf.clipped_levels(0, 2828, 3542) == 0
@@ -176,17 +175,17 @@ def test_a_clipped_level0_climbs_a_third_level_and_a_short_stored_ladder_is_redo
     path = str(tmp_path / "td12.h5")
     write_pulse(path, pulse12.to_pulse(), params)
     kw = dict(extra=False, levels=1, min_points=0, target=None)
-    rep = sf.run_spectrum(path, max_points=400, **kw)
+    rep = sf.run_spectrum(path, sf.SpectrumSettings(max_points=400, **kw))
     assert rep.results[0].refined.n_points == [400, 566, 800], rep.results[0].refined.message
     # the same pulse at its own N: one level above, as asked
-    own = sf.run_spectrum(path, max_points=None, overwrite=True, **kw)
+    own = sf.run_spectrum(path, sf.SpectrumSettings(max_points=None, **kw), overwrite=True)
     assert own.results[0].refined.n_points == [700, 990]
     # a clipped two-level ladder in the file (as written before the rule) is not kept
-    sf.run_spectrum(path, max_points=400, overwrite=True, **kw)
+    sf.run_spectrum(path, sf.SpectrumSettings(max_points=400, **kw), overwrite=True)
     with h5py.File(path, "r+") as h5:
         g = h5["pulses/td1.2000/spectrum"]
         g.attrs["refine_n_points"] = np.array([400, 566])
-    again = sf.run_spectrum(path, max_points=400, **kw)
+    again = sf.run_spectrum(path, sf.SpectrumSettings(max_points=400, **kw))
     assert again.skipped == [] and again.results[0].refined.n_points == [400, 566, 800]
-    kept = sf.run_spectrum(path, max_points=400, **kw)
+    kept = sf.run_spectrum(path, sf.SpectrumSettings(max_points=400, **kw))
     assert kept.skipped == ["td1.2000"] and kept.results == []

@@ -1,9 +1,9 @@
-"""Power-law fits of the growth rate along a family (slippulse.stability.law), on data whose
+"""Power-law fits of the growth rate along a family (slippulse.spectrum.law), on data whose
 law is known."""
 import numpy as np
 import pytest
 
-from slippulse.stability.law import fit_power_law, local_exponents
+from slippulse.spectrum.law import fit_power_law, local_exponents
 
 
 def test_exact_power_law_is_recovered():
@@ -40,7 +40,7 @@ def test_too_few_points_is_refused():
 
 
 def test_shifted_law_finds_the_shift():
-    from slippulse.stability.law import fit_shifted_power_law
+    from slippulse.spectrum.law import fit_shifted_power_law
     x = np.array([1.05, 1.04, 1.03, 1.025, 1.02, 1.015, 1.0125, 1.011])
     y = 8.8e3 * (x - 1.0077) ** 3.0
     rng = np.random.default_rng(5)
@@ -84,7 +84,7 @@ def test_rates_command_fits_the_stored_law_and_draws_it(tmp_path):
     import subprocess
     import sys
 
-    from slippulse.stability.law import family_rates, fit_shifted_power_law
+    from slippulse.spectrum.law import family_rates, fit_shifted_power_law
     f = str(tmp_path / "fam.h5")
     _family_with_rates(f, lambda r: 8.8e3 * (r - 1.0077) ** 3, unresolved=(1.0125,))
     rates = family_rates(f)
@@ -121,7 +121,7 @@ def test_rates_command_refuses_a_file_without_rates(tmp_path):
 def test_shifted_fit_gives_a_nonzero_error_when_the_profile_is_narrower_than_its_grid():
     """With errors of 1e-6 (the deep rates' s_err are ~1e-3 of s) the χ² profile over x* is far
     narrower than the grid's spacing; the error of x* is still located (it was 0 before)."""
-    from slippulse.stability.law import fit_shifted_power_law
+    from slippulse.spectrum.law import fit_shifted_power_law
     x = np.linspace(1.0092, 1.0115, 9)
     rng = np.random.default_rng(3)
     y = 1.5e3 * (x - 1.0067) ** 2.66 * (1 + 1e-6 * rng.normal(size=x.size))
@@ -139,7 +139,7 @@ def _deep_family(n=40):
 
 
 def test_family_slope_recovers_an_exact_law_with_a_covering_error():
-    from slippulse.stability.law import family_slope
+    from slippulse.spectrum.law import family_slope
     tau, L, beta = _deep_family()
     exact = -0.12 * L ** -0.4
     g, e = family_slope(tau, L, beta)
@@ -165,7 +165,7 @@ def test_family_slope_recovers_an_exact_law_with_a_covering_error():
 def test_family_slope_where_the_length_turns():
     """Above 1.3 τ_min the default family's L has a minimum while β keeps falling: the slope is
     taken along β, is infinite at the turn, and a query by L there is refused (nan)."""
-    from slippulse.stability.law import family_slope
+    from slippulse.spectrum.law import family_slope
     beta = np.geomspace(1e-4, 1e-3, 41)
     u = np.log(beta / (1.0 - beta))
     lnL = (u - u[20]) ** 2                               # minimum of L at pulse 20
@@ -181,7 +181,7 @@ def test_family_slope_where_the_length_turns():
 
 
 def test_folds_are_found_where_tau_d_turns_and_only_there():
-    from slippulse.stability.law import folds
+    from slippulse.spectrum.law import folds
     tau, L, beta = _deep_family()
     assert folds(tau, beta) == []
     turned = tau.copy()
@@ -197,7 +197,7 @@ def test_folds_are_found_where_tau_d_turns_and_only_there():
 
 
 def test_fold_ratio_of_rates_proportional_to_the_slope():
-    from slippulse.stability.law import fold_ratio
+    from slippulse.spectrum.law import fold_ratio
     slope = np.array([-2e-3, -5e-4, -1e-4])
     R, e = fold_ratio(0.3 * np.abs(slope), 0.003 * np.abs(slope), slope, 0.02 * np.abs(slope))
     assert np.allclose(R, 0.3) and np.allclose(e, 0.3 * np.hypot(0.01, 0.02))
@@ -233,7 +233,7 @@ def test_windowed_exponents_follow_a_curving_law_with_covering_errors():
     """Dense data (0.2 % apart) with 1 % noise on a law whose exponent runs from -1.0 to -0.5:
     each window's slope within 3 of its error of the local exponent at its centre, the windows
     disjoint, ordered and covering every point; neighbour differences are useless there."""
-    from slippulse.stability.law import windowed_exponents
+    from slippulse.spectrum.law import windowed_exponents
     rng = np.random.default_rng(11)
     L = np.exp(np.arange(np.log(400.0), np.log(6700.0), 0.002))
     a0, a1 = -1.0, -0.5                    # exponent linear in ln L between the ends

@@ -1,5 +1,5 @@
-"""The package's layers: imports point down only (cli → plotting → stability → steady, dynamics →
-core), and no module imports itself back through others (issue 13)."""
+"""The package's layers: imports point down only (cli → plotting → timedomain → spectrum → steady,
+dynamics → core), and no module imports itself back through others."""
 import ast
 import os
 
@@ -9,8 +9,8 @@ import slippulse
 
 PKG = os.path.dirname(slippulse.__file__)
 #: rank of each subpackage; a module may import from a lower rank, or from its own subpackage
-LAYER = {"core": 0, "steady": 1, "dynamics": 1, "stability": 2, "plotting": 3, "cli": 4,
-         "__main__": 5}                    # ``python -m slippulse``: the entry point, above cli
+LAYER = {"core": 0, "steady": 1, "dynamics": 1, "spectrum": 2, "timedomain": 3, "plotting": 4,
+         "cli": 5, "__main__": 6}                    # ``python -m slippulse``: the entry point, above cli
 
 
 def _modules():
@@ -102,5 +102,5 @@ def test_the_checker_sees_an_upward_import(tmp_path):
     """The graph builder finds function-level and relative imports (so the tests above can fail)."""
     src = tmp_path / "m.py"
     src.write_text("def f():\n    from ..plotting.steady import fig1\n    from . import seeding\n")
-    known = {"plotting.steady", "stability.seeding", "stability.m"}
-    assert _imports("stability.m", str(src), known) == {"plotting.steady", "stability.seeding"}
+    known = {"plotting.steady", "timedomain.seeding", "timedomain.m"}
+    assert _imports("timedomain.m", str(src), known) == {"plotting.steady", "timedomain.seeding"}

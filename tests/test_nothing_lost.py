@@ -133,7 +133,7 @@ def test_every_reader_refuses_an_unconverged_pulse(real, tmp_path, capsys):
 
 
 def test_scan_runner_refuses_an_unconverged_pulse(real):
-    from slippulse.stability.perturbation import run_perturbation
+    from slippulse.timedomain.perturbation import run_perturbation
     with pytest.raises(h5io.UnconvergedPulseError, match="td1.2000"):
         run_perturbation({"steady": real["bad"], "label": "td1.2000", "distance": 0.01})
 

@@ -177,7 +177,7 @@ def test_verify_attributes_drift_to_the_pulses_eigenvalue_for_any_params():
     parameters (table_I False) gets its drift attributed to its eigenvalue; none without one."""
     import numpy as np
 
-    from slippulse.stability.verify import VerifyResult, drift_verdict, mode_growth
+    from slippulse.timedomain.verify import VerifyResult, drift_verdict, mode_growth
     info = {"tau_d_ratio": 1.2, "growth_rate_v_max": 48.5, "travelled": 0.3,
             "status": "finished", "table_I": False}
     res = VerifyResult(t=np.zeros(5), x_front=np.zeros(5), series={}, errors={}, info=info)

@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from slippulse.stability.eigensolve import newton_eigen, real_eigenvalues
-from slippulse.stability.refine import richardson
-from slippulse.stability.spectrum import StabilityOperator
+from slippulse.spectrum.eigensolve import newton_eigen, real_eigenvalues
+from slippulse.spectrum.refine import richardson
+from slippulse.spectrum.pulse import StabilityOperator
 
 
 class _Pencil:
@@ -93,11 +93,11 @@ def test_pinned_ladder_in_the_product(tmp_path, pulse12, params):
     """`run_spectrum(pin_translation=True, level0_points=...)`: a ladder below the pulse's own N,
     σ_t = 0 by construction, the setting stored, s within 1e-3 of the rate of record."""
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum import read_spectrum
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum.pulse import read_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     f = str(tmp_path / "one.h5")
     write_pulse(f, pulse12.to_pulse(), params)
-    rep = run_spectrum(f, extra=False, levels=2, level0_points=400, pin_translation=True)
+    rep = run_spectrum(f, SpectrumSettings(extra=False, levels=2, level0_points=400, pin_translation=True))
     assert rep.failed == []
     st = read_spectrum(f, "td1.2000")
     assert list(st["refine_n_points"]) == [400, 566, 800]

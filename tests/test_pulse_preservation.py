@@ -28,8 +28,8 @@ BENCHMARKS.md ("Seeded steady pulses")), so 1.2 τ_min cannot be "preserved" ove
 import numpy as np
 import pytest
 
-from slippulse.stability.verify import verify_pulse
-from slippulse.stability.seeding import DomainSpec
+from slippulse.timedomain.verify import VerifySettings, verify_pulse
+from slippulse.timedomain.seeding import DomainSpec
 from slippulse.dynamics.stepper import TimeStepRule
 
 TOL = 2e-3
@@ -46,7 +46,7 @@ def pulse105(params, tmp_path_factory):
 
 def test_pulse_preserved_over_half_a_length(pulse105, params):
     res = verify_pulse(pulse105, params, 0.5, DomainSpec(dx=4e-3, ahead=2.0, behind=2.0),
-                       n_samples=10, progress=False)
+                       VerifySettings(n_samples=10), progress=False)
     assert res.info["status"] == "finished"
     assert res.info["travelled"] >= 0.5 * (1 - 1e-3)
     for key in ("c_p_error", "v_max_error", "L_error", "lnv_error"):
@@ -60,7 +60,7 @@ def test_history_started_at_rest_breaks_the_pulse(pulse105, params):
     """Same slip and state, but no elastodynamic past: a start-up transient radiates and the
     pulse is off by far more than the tolerance within 0.05 L (measured: 0.59 in v_max)."""
     res = verify_pulse(pulse105, params, 0.05, DomainSpec(dx=4e-3, ahead=2.0, behind=2.0),
-                       n_samples=5, progress=False, history_start="rest")
+                       VerifySettings(n_samples=5, history_start="rest"), progress=False)
     # the run itself must succeed (a crash or a lost pulse is not the failure this test expects):
     # measured status 'finished', v_max error 0.59 at the first sample
     assert res.info["status"] == "finished"
@@ -78,8 +78,8 @@ def test_unstable_mode_growth_rate_is_converged(params):
     pulse = solve_pulse(params, 1.2, n_points=3000).to_pulse()
     rates = []
     for xi_stab in (0.5, 0.25):
-        res = verify_pulse(pulse, params, 0.42, DomainSpec(dx=2e-3), n_samples=17,
-                           rule=TimeStepRule(kind="adaptive", xi_stab=xi_stab), progress=False)
+        run = VerifySettings(n_samples=17, rule=TimeStepRule(kind="adaptive", xi_stab=xi_stab))
+        res = verify_pulse(pulse, params, 0.42, DomainSpec(dx=2e-3), run, progress=False)
         rates.append(res.info["growth_rate_v_max"])
     assert all(18 < g < 28 for g in rates), rates
     assert abs(rates[0] - rates[1]) < 0.1 * rates[0], rates
@@ -89,5 +89,5 @@ def test_without_far_field_the_short_domain_distorts_the_pulse(pulse105, params)
     """The bare period (λ = 4 L) is a train of pulses: their images distort the pulse
     (measured L error 8.6e-2 at 0.5 L), so the far-field load is what makes the short domain work."""
     res = verify_pulse(pulse105, params, 0.5, DomainSpec(dx=4e-3, ahead=2.0, behind=2.0),
-                       n_samples=10, progress=False, far_field="none")
+                       VerifySettings(n_samples=10, far_field="none"), progress=False)
     assert abs(res.errors["L_error"]) > 10 * TOL

@@ -1,9 +1,9 @@
 """At real σ the stability matrices are real (M(σ̄) = conj M(σ)), and the eigen-solvers factorise
-them in real arithmetic: a third of the cost of a complex LU, the same answer (stop 38)."""
+them in real arithmetic: a third of the cost of a complex LU, the same answer."""
 import numpy as np
 import pytest
 
-from slippulse.stability import eigensolve as es
+from slippulse.spectrum import eigensolve as es
 
 
 def test_real_if_real_only_where_every_imaginary_part_is_exactly_zero():
@@ -71,8 +71,8 @@ def test_newton_onto_a_real_eigenvalue_factorises_real_matrices(monkeypatch):
 def test_the_kernel_assembly_at_real_sigma_is_real_and_equals_the_complex_one(pulse12, params):
     """The product integration of W̃ runs in real arithmetic at real σ, with the same matrices as
     the complex assembly of the same σ + 0j (tables, Filon weights and all)."""
-    from slippulse.stability.operators import ElasticOperator
-    from slippulse.stability.spectrum_kernels import KernelTables, assemble_w
+    from slippulse.spectrum.operators import ElasticOperator
+    from slippulse.spectrum.kernels import KernelTables, assemble_w
     from slippulse.steady.hilbert import add_times_slopes
     p = pulse12.to_pulse()
     el = ElasticOperator(p.xi, p.beta, params.c_s, params.mu)
@@ -104,7 +104,7 @@ def test_the_stability_matrices_at_real_sigma_are_real_and_equal_the_complex_one
                                                                                    params):
     """M(σ), M′(σ) at real σ come out as real arrays (state, slip and kernel recursions in real
     arithmetic) and agree with the complex assembly at σ + 1e-300j to rounding."""
-    from slippulse.stability.operators import StabilityOperator
+    from slippulse.spectrum.operators import StabilityOperator
     p = pulse12.to_pulse()
     op = StabilityOperator(p, params, pin_translation=True)
     assert op.matrices(0.0)[0].dtype == float

@@ -1,4 +1,5 @@
-"""`slippulse dynamic scan`: TOML parsing and case expansion, Dask and local-process executors,
+"""`slippulse dynamic scan`: TOML parsing and case expansion, the executor (this process, a local
+Dask cluster, a scheduler's),
 resume without rerunning finished cases, error rows, summary files, CLI.
 
 The runner is tests/scan_fake_runner.py (sleeps 0.1 s, logs each call to case["log"]); workers
@@ -13,7 +14,7 @@ import h5py
 import pytest
 
 from slippulse.cli.app import UsageError, main
-from slippulse.stability.scan import (Case, case_id, expand_cases, load_scan, parse_scan, read_summary_h5,
+from slippulse.timedomain.scan import (Case, case_id, expand_cases, load_scan, parse_scan, read_summary_h5,
                             run_scan, scan_states)
 
 TESTS = os.path.dirname(os.path.abspath(__file__))
@@ -94,7 +95,7 @@ def test_load_scan_file(tmp_path, monkeypatch):
     # relative out_dir is relative to the current directory; runner defaults to stability
     monkeypatch.chdir(tmp_path)
     s = parse_scan({"scan": {"name": "x", "out_dir": "rel"}, "grid": {"a": [1, 2]}})
-    assert s.out_dir == str(tmp_path / "rel") and s.runner == "slippulse.stability.perturbation:run_case"
+    assert s.out_dir == str(tmp_path / "rel") and s.runner == "slippulse.timedomain.perturbation:run_case"
 
 
 @pytest.mark.parametrize("data, words", [
@@ -206,7 +207,8 @@ def test_dask_scan_runs_and_resumes(tmp_path):
 
 
 def test_local_processes_and_error_rows(tmp_path, capsys):
-    """Local spawned processes; a failing case gives an error row, the others finish, exit 1."""
+    """A local Dask cluster of two processes; a failing case gives an error row, the others
+    finish, exit 1."""
     path, log = _write_scan(tmp_path, grid="eps = [1e-3, -1e-3]",
                             extra='[[case]]\nlabel = "td1.1000"\neps = 5e-3\nfail = true\n')
     scan = load_scan(path)
@@ -228,7 +230,7 @@ def test_local_processes_and_error_rows(tmp_path, capsys):
     assert math.isnan(h5rows[2]["growth"]) and h5rows[2]["status"].startswith("error: Runtime")
 
     # rerun: only the failed case is retried (and fails again)
-    res = run_scan(scan, workers=1, progress=False)
+    res = run_scan(scan, progress=False)
     assert (res.n_run, res.n_reused, res.n_errors) == (1, 2, 1) and not res.ok
     assert len(_calls(log)) == 4 and _calls(log)[-1].endswith("0.005")
 
@@ -287,13 +289,14 @@ def test_cli_help_dry_run_and_errors(tmp_path, capsys):
 def test_example_scan_parses():
     root = os.path.dirname(TESTS)
     scan = load_scan(os.path.join(root, "dynamic", "scans", "example.toml"))
-    assert scan.runner == "slippulse.stability.perturbation:run_case" and len(scan.cases) >= 4
+    assert scan.runner == "slippulse.timedomain.perturbation:run_case" and len(scan.cases) >= 4
     assert all(isinstance(c, Case) for c in scan.cases)
 
 
 def test_sigterm_stops_the_workers(tmp_path):
-    """Killing `slippulse dynamic scan` (SIGTERM) stops its worker processes too: none keeps
-    running its case and no output file of an unfinished case appears."""
+    """Killing `slippulse dynamic scan --workers 2` (SIGTERM) stops its local cluster's worker
+    processes too: none keeps running its case and no output file of an unfinished case
+    appears."""
     import signal
     import subprocess
     import sys
@@ -313,7 +316,8 @@ log = "{log}"
 eps = [1e-3, -1e-3, 2e-3]
 """)
     proc = subprocess.Popen([sys.executable, "-m", "slippulse.cli", "dynamic", "scan", str(toml),
-                             "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                             "--workers", "2", "--no-progress"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
     deadline = time.time() + 60
     while time.time() < deadline and not _children(proc.pid):
         time.sleep(0.2)

@@ -1,4 +1,4 @@
-"""The linear stability spectrum (slippulse.stability.spectrum): operator against exact transforms, the
+"""The linear stability spectrum (slippulse.spectrum.pulse): operator against exact transforms, the
 neutral modes, the eigen-solver's convergence, the command and its bad-input errors."""
 import math
 import subprocess
@@ -10,9 +10,9 @@ import pytest
 from scipy.special import erfcx, kv
 
 from slippulse.steady.grid import build_grid
-from slippulse.stability.spectrum import (ElasticOperator, StabilityOperator, neutral_modes, pulse_spectrum,
+from slippulse.spectrum.pulse import (ElasticOperator, StabilityOperator, neutral_modes, pulse_spectrum,
                                 symbol, _translation_check)
-from slippulse.stability.spectrum_kernels import (KernelTables, kernel_series, slip_coefficients4,
+from slippulse.spectrum.kernels import (KernelTables, kernel_series, slip_coefficients4,
                                                   state_rows4, times_D4)
 from slippulse.steady.equations import (RADAU_A, RADAU_C, integrate_state_radau,
                                         radau_stage_values)
@@ -75,15 +75,15 @@ def _segment_entries(tab, xt, a, b, pieces):
 @pytest.mark.parametrize("sigma, phase", [(0.02 + 3j, 200.0), (1.5 + 1.5j, 200.0),
                                           (0.002 + 0.15j, 15.0)])
 def test_far_segments_on_both_sides_match_a_fine_reference(sigma, phase, rule):
-    """Stop 33: a segment on the side r < 0 of its target is split by that side's rate
+    """A segment on the side r < 0 of its target is split by that side's rate
     (1 − β)|κ|, not (1 + β)|κ|. At β = 0.95, σ = 0.02 + 3i (κ ≈ 0.2 + 31i, the top of a count's
     box) the exponential turns 310 rad along a segment of length 10 behind the target and 8 rad
     ahead of it. The entries of one far segment on each side against composite Gauss–Legendre
     on 2000 pieces (:func:`_segment_entries`) of the tabulated kernel, by both rules (``rule``
-    False: the rule before stop 33). At σ = 0.002 + 0.15i (|κ| h = 15) the segment behind is
+    False: the rule before). At σ = 0.002 + 0.15i (|κ| h = 15) the segment behind is
     split and then goes by Filon–Gauss only if its side is read right; swapped, it is left whole
     with 30 rad of phase on 10 Gauss points."""
-    from slippulse.stability.spectrum_kernels import assemble_w
+    from slippulse.spectrum.kernels import assemble_w
     beta = 0.95
     xi = np.array([-30.0, -20.0, 0.0, 20.0, 30.0])
     kappa = sigma / (CS * (1.0 - beta ** 2))
@@ -98,11 +98,11 @@ def test_far_segments_on_both_sides_match_a_fine_reference(sigma, phase, rule):
 
 
 def test_filon_weights_and_a_tail_segment_past_the_old_cap():
-    """Filon–Gauss (stop 33): the weights integrate t^k e^{−αt} exactly for k < FILON_N; and a
+    """Filon–Gauss: the weights integrate t^k e^{−αt} exactly for k < FILON_N; and a
     segment of the graded tail with |κ| h ≈ 3100 (beyond the 512 sub-panels of the old rule),
     on each side of its target, matches a composite Gauss–Legendre reference to 5e-10 in W and
     ∂_σW. The old rule (``per_side=False``) misses ∂_σW behind the target by 23 %."""
-    from slippulse.stability.spectrum_kernels import FILON_N, _FG_T, assemble_w, filon_weights
+    from slippulse.spectrum.kernels import FILON_N, _FG_T, assemble_w, filon_weights
     out = np.empty(FILON_N, complex)
     g, w = np.polynomial.legendre.leggauss(40)
     for alpha in (24j, 30 + 5j, 400j):
@@ -371,7 +371,7 @@ def test_cli_bad_input(tmp_path, pulse12, params):
 
 def test_cli_stores_and_resumes(tmp_path, pulse12, params):
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum import read_spectrum
+    from slippulse.spectrum.pulse import read_spectrum
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
     cmd = [sys.executable, "-m", "slippulse.cli", "steady", "stability", str(f), "-q", "--no-extra",
@@ -415,10 +415,10 @@ def test_leading_eigenvalue_converged_in_N_and_domain(pulse12, params):
 def test_spectrum_group_opens_in_xarray(tmp_path, pulse12, params):
     xr = pytest.importorskip("xarray")
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
-    run_spectrum(str(f), extra=False, levels=0, min_points=0)
+    run_spectrum(str(f), SpectrumSettings(extra=False, levels=0, min_points=0))
     tree = xr.open_datatree(str(f), engine="h5netcdf")
     ds = tree["pulses/td1.2000/spectrum"].to_dataset()
     assert ds["lnv_real"].dims == ("eigenvalue", "xi")
@@ -440,9 +440,9 @@ def test_translation_eigenvalue_at_N2000_below_1e_6_of_the_leading(params):
 
 def test_failed_eigen_solve_is_reported_and_stores_no_eigenvalue(tmp_path, pulse12, params,
                                                                  monkeypatch):
-    import slippulse.stability.spectrum as spm
+    import slippulse.spectrum.pulse as spm
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
 
     def never(op, sigma0, x0, **kw):
         return spm.Eigen(complex(sigma0), x0, False, 12, float("nan"), "no convergence (test)")
@@ -450,14 +450,14 @@ def test_failed_eigen_solve_is_reported_and_stores_no_eigenvalue(tmp_path, pulse
     monkeypatch.setattr(spm, "newton_eigen", never)
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
-    rep = run_spectrum(str(f), extra=False, levels=0, min_points=0)
+    rep = run_spectrum(str(f), SpectrumSettings(extra=False, levels=0, min_points=0))
     assert rep.failed == ["td1.2000"]
     st = spm.read_spectrum(str(f), "td1.2000")
     assert st["status"] == "failed" and "no convergence (test)" in st["message"]
     assert st["sigma"].size == 0 and st["lnv"].shape[0] == 0
     # a rerun does not keep a failed result: it tries again
     monkeypatch.undo()
-    rep2 = run_spectrum(str(f), extra=False, levels=0, min_points=0)
+    rep2 = run_spectrum(str(f), SpectrumSettings(extra=False, levels=0, min_points=0))
     assert rep2.skipped == [] and rep2.failed == []
 
 
@@ -468,7 +468,7 @@ def test_family_spectra_labels_survive_a_failed_pulse(tmp_path, pulse12, params)
 
     from slippulse.core.h5io import pulse_label, write_pulse
     from slippulse.plotting.spectrum import family_spectra
-    from slippulse.stability.spectrum import PulseSpectrum, write_spectrum
+    from slippulse.spectrum.pulse import PulseSpectrum, write_spectrum
     f = str(tmp_path / "fam.h5")
     base = pulse12.to_pulse()
     for q, status in ((1.20, "converged"), (1.19, "failed"), (1.18, "converged")):
@@ -484,10 +484,10 @@ def test_family_spectra_labels_survive_a_failed_pulse(tmp_path, pulse12, params)
 
 def test_failed_refinement_is_reported_and_stores_no_number(tmp_path, pulse12, params,
                                                             monkeypatch):
-    import slippulse.stability.refine as refine
-    import slippulse.stability.spectrum as spm
+    import slippulse.spectrum.refine as refine
+    import slippulse.spectrum.pulse as spm
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     real = refine.mapped_pulse
 
     def failing(params_, pulse, gmap, n, **kw):     # level 0 solves, level 1 does not
@@ -499,7 +499,7 @@ def test_failed_refinement_is_reported_and_stores_no_number(tmp_path, pulse12, p
     monkeypatch.setattr(refine, "mapped_pulse", failing)
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
-    rep = run_spectrum(str(f), extra=False, levels=1, min_points=0)
+    rep = run_spectrum(str(f), SpectrumSettings(extra=False, levels=1, min_points=0))
     assert rep.failed == ["td1.2000"]
     st = spm.read_spectrum(str(f), "td1.2000")
     assert st["status"] == "failed" and "refinement failed" in st["message"]
@@ -512,7 +512,7 @@ def test_order2_pulse_is_resolved_at_order4_and_a_coarse_grid_refused(tmp_path, 
 
     from slippulse.core.errors import UsageError
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.refine import check_refinable, order4_pulse
+    from slippulse.spectrum.refine import check_refinable, order4_pulse
     from slippulse.steady.solver import solve_pulse
     p2 = solve_pulse(params, 1.2, n_points=700, state_order=2).to_pulse()
     assert int(p2.extra.get("state_order", 2)) == 2
@@ -549,23 +549,23 @@ def default_family_to_1p02(tmp_path_factory, params):
 
 @pytest.mark.slow
 def test_default_family_pulse_near_1p0225_has_one_real_resolved_mode(default_family_to_1p02):
-    """Issue 17, item 2: on a family made with the defaults of `slippulse steady family`, a pulse
+    """On a family made with the defaults of `slippulse steady family`, a pulse
     between 1.025 and 1.02 τ_min gives, with the command's defaults (level 0 on the smooth map
     at N clipped to [1000, 2828], levels added until s_err L/c_p <= max(1e-4, 1e-3 s L/c_p)),
-    one real unstable eigenvalue (before issue 17: a spurious complex pair) whose sign is
+    one real unstable eigenvalue (not a spurious complex pair) whose sign is
     resolved (s > 2 s_err), and an s_err that covers the value of a finer, independent ladder
     (N_0 = 2000, three levels: the defaults of record). About 12 min on 2 cores with the
     family."""
     import shutil
 
     from slippulse.core.h5io import list_pulses, read_pulse
-    from slippulse.stability.spectrum import read_spectrum
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum.pulse import read_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     f = default_family_to_1p02
     inside = [lab for lab in list_pulses(f) if 1.02 < read_pulse(f, lab)[0].tau_d_ratio < 1.025]
     assert inside, list_pulses(f)
     lab = inside[len(inside) // 2]
-    rep = run_spectrum(f, [lab], extra=True)
+    rep = run_spectrum(f, SpectrumSettings(extra=True), labels=[lab])
     assert rep.failed == [], rep.results[0].message
     res = rep.results[0]
     assert res.n_unstable == 1 and abs(res.leading.imag) < 1e-8 * abs(res.leading)
@@ -574,8 +574,7 @@ def test_default_family_pulse_near_1p0225_has_one_real_resolved_mode(default_fam
     assert st["s_err_per_L"] <= max(1e-4, 1e-3 * st["s_per_L"]) and st["refine_target_met"]
     g = f + ".fine.h5"
     shutil.copy(f, g)
-    rep2 = run_spectrum(g, [lab], extra=False, overwrite=True, levels=2, min_points=2000,
-                        max_points=None, target=None)
+    rep2 = run_spectrum(g, SpectrumSettings(extra=False, levels=2, min_points=2000, max_points=None, target=None), labels=[lab], overwrite=True)
     assert rep2.failed == [], rep2.results[0].message
     fine = read_spectrum(g, lab)
     assert list(fine["refine_n_points"]) == [2000, 2828, 4000]
@@ -585,13 +584,13 @@ def test_default_family_pulse_near_1p0225_has_one_real_resolved_mode(default_fam
 
 @pytest.mark.slow
 def test_observed_order_and_translation_at_1p05(default_family_to_1p02):
-    """Issue 17, item 1: on the ladder of the smooth map (N = 1414, 2000, 2828, 4000) the leading
+    """On the ladder of the smooth map (N = 1414, 2000, 2828, 4000) the leading
     eigenvalue at 1.05 τ_min converges with observed order ≥ 3.5 (measured 3.8) and the
     translation eigenvalue (exact 0) falls with it (measured 1.4e-3, 3.6e-4, 8.9e-5, 2.2e-5
     c_p/L). Nested refinement of the adapted grid gave 0.7101, 0.6563, 0.6653: no order."""
     from slippulse.core.h5io import read_pulse
-    from slippulse.stability.refine import estimate, mapped_pulse, refine_leading
-    from slippulse.stability.spectrum import pulse_spectrum
+    from slippulse.spectrum.refine import estimate, mapped_pulse, refine_leading
+    from slippulse.spectrum.pulse import pulse_spectrum
     from slippulse.steady.grid import GridMap
     p, params_ = read_pulse(default_family_to_1p02, "td1.0500")
     gmap = GridMap(p.xi)
@@ -622,8 +621,8 @@ def test_pinned_translation_gives_the_same_limit_with_a_smaller_error_at_1p05(
     the limit of the unpinned ladder 2000/2828/4000 within 1e-4 per L, and at equal N (2000) an
     error ten times smaller (measured: 9.3e-5 against 1.5e-3, against the unpinned limit)."""
     from slippulse.core.h5io import read_pulse
-    from slippulse.stability.refine import mapped_pulse, refine_leading
-    from slippulse.stability.spectrum import pulse_spectrum
+    from slippulse.spectrum.refine import mapped_pulse, refine_leading
+    from slippulse.spectrum.pulse import pulse_spectrum
     from slippulse.steady.grid import GridMap
     p, params_ = read_pulse(default_family_to_1p02, "td1.0500")
     gmap = GridMap(p.xi)
@@ -644,11 +643,11 @@ def test_pinned_translation_gives_the_same_limit_with_a_smaller_error_at_1p05(
 
 def test_min_points_maps_a_coarse_pulse_before_level_0(tmp_path, pulse12, params):
     from slippulse.core.h5io import write_pulse
-    from slippulse.stability.spectrum import read_spectrum
-    from slippulse.stability.spectrum_family import run_spectrum
+    from slippulse.spectrum.pulse import read_spectrum
+    from slippulse.spectrum.family import SpectrumSettings, run_spectrum
     f = tmp_path / "one.h5"
     write_pulse(str(f), pulse12.to_pulse(), params)
-    rep = run_spectrum(str(f), extra=False, levels=0, min_points=1000)
+    rep = run_spectrum(str(f), SpectrumSettings(extra=False, levels=0, min_points=1000))
     assert rep.failed == []
     st = read_spectrum(str(f), "td1.2000")
     assert st["n_points"] == 1000 and st["setting_min_points"] == 1000

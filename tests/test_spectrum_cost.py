@@ -1,4 +1,4 @@
-"""The cost of the family's spectrum (issue 17, item 5; stop 39): what each saving changes, and
+"""The cost of the family's spectrum: what each saving changes, and
 that it changes nothing else. The slope product and the fused assembly against independent
 numpy forms of the same matrices; Newton's vector finished with the factor in hand; a clip that
 failed on the pulse above not tried again; the mapped re-solves reuse their LU."""
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from slippulse.stability import eigensolve as es
+from slippulse.spectrum import eigensolve as es
 
 
 def _dense_slopes(xi):
@@ -38,9 +38,9 @@ def test_add_times_slopes_is_B_times_the_slope_matrix(n):
 
 
 def _reference_matrices(op, sigma, deriv=True):
-    """M(σ), M′(σ) of the operator from its parts with numpy products (the assembly before the
-    fused rows of stop 39): X = λW + (λσ/πc)H + (λγ/π)H₀, X D by times_D4."""
-    from slippulse.stability.spectrum_kernels import times_D4
+    """M(σ), M′(σ) of the operator from its parts with numpy products (the assembly without the
+    fused rows): X = λW + (λσ/πc)H + (λγ/π)H₀, X D by times_D4."""
+    from slippulse.spectrum.kernels import times_D4
     el = op.elastic
     lam, c, n = el.lam, op.c, op.n
     cplx = complex(sigma).imag != 0.0
@@ -68,7 +68,7 @@ def _reference_matrices(op, sigma, deriv=True):
 
 @pytest.mark.parametrize("pin", [False, True])
 def test_the_fused_assembly_equals_the_assembly_from_its_parts(pulse12, params, pin):
-    from slippulse.stability.operators import StabilityOperator
+    from slippulse.spectrum.operators import StabilityOperator
     op = StabilityOperator(pulse12.to_pulse(), params, pin_translation=pin)
     u = op.rate_unit
     for sigma in (0.0, 0.37 * u, (5.0 + 2.0j) * u):
@@ -103,8 +103,7 @@ def test_newton_finishes_the_vector_with_the_factor_in_hand(monkeypatch):
     """σ within the step criterion, the vector not: noise of 1e-30 where the mode is below it
     (a mode interpolated from a coarser level: measured on the deep pulses, the backward error
     after the first step is 1e-5 at rows where |V₁| ≈ 1e-21). The next solves reuse the factor
-    of M(σ_0): one assembly, where Newton without them (FROZEN_SOLVES = 0, the code before
-    stop 39) needs two; the same σ, and the true backward error below the tolerance."""
+    of M(σ_0): one assembly, where Newton without them (FROZEN_SOLVES = 0) needs two; the same σ, and the true backward error below the tolerance."""
     rng = np.random.default_rng(0)
     op = _Pencil()
     x0 = op.v1.copy()
@@ -139,71 +138,77 @@ def test_a_clip_that_failed_on_the_pulse_above_is_not_tried_again(tmp_path, puls
                                                                   monkeypatch):
     """Level 0 goes straight to the pulse's own N where the neighbour above, of the same own N,
     had its ladder start there (its clip failed): the deep pulses skip a re-solve bound to give
-    up. Where the neighbour's ladder started below its own N, or at another N, the clip is tried."""
-    from slippulse.stability import spectrum_family as sf
+    up. Where the neighbour's ladder started below its own N, or at another N, the clip is tried.
+    The attempts follow LEVEL0_ATTEMPTS, and the one that held is recorded with the result."""
+    from slippulse.spectrum import family as sf
     p = pulse12.to_pulse()
     tried = []
-    real = sf._level0
+    real = sf.solve_level0
 
     def level0(pulse, prm, gmap, n0, creep=0):
         tried.append(n0)
         return real(pulse, prm, gmap, n0, creep)
 
-    monkeypatch.setattr(sf, "_level0", level0)
-    o = {"levels": 0, "min_points": 0, "level0_points": None, "max_points": 500,
-         "extra": False, "tol": 1e-6, "pin_translation": True, "target": None,
-         "rel_target": 0.0, "count_box": None, "count_evals": 1, "count_workers": 1,
-         "count_threads": 1, "path": str(tmp_path / "x.h5")}
-    guess = np.array([22.65 * p.c_p / p.L])
+    monkeypatch.setattr(sf, "solve_level0", level0)
+    s = sf.SpectrumSettings(levels=0, min_points=0, max_points=500, extra=False, tol=1e-6,
+                            target=None, rel_target=0.0)
     unit = p.c_p / p.L
+    guess = np.array([22.65 * unit])
+
+    def tracking(ladder):
+        return sf.Tracking(guess, unit, ladder)
+
     for ladder, expect in (({700: 22.6, 990: 22.65}, [700]),     # its clip failed: own N
                            ({500: 22.6, 707: 22.65}, [500]),     # its clip held: clip
                            ({1000: 22.6, 1414: 22.65}, [500]),   # another own N: clip
                            ({}, [500])):                         # no ladder: clip
         tried.clear()
-        res, prev, _ = sf._pulse_result(p.label, p, params, (guess, unit, ladder), None, o)
+        res, after = sf.pulse_task(p.label, p, params, tracking(ladder), s)
         assert tried == expect, (ladder, tried)
         assert res.status == "converged" and res.n_points == expect[0]
         assert res.leading.real / res.rate_unit == pytest.approx(22.65, rel=0.03)
-    assert sf._clip_failed_above(None, 700, p, 1) is False
+        assert f"N = {expect[0]}" in res.level0_attempt
+        assert after.sigmas[0] == res.sigmas[0] and after.tau == pytest.approx(1.2)
+    assert sf.NO_TRACKING.clip_failed_above(700, p, 1) is False
 
     def failing_where(fails):
         """A level 0 that records each (N, creep) tried and fails where fails(N, creep)."""
         def level0_mock(pulse, prm, gmap, n0, creep=0):
             tried.append((n0, creep))
             if fails(n0, creep):
-                return pulse, (f"steady re-solve on the mapped grid (N = {n0}) did not "
-                               "converge: mock")
+                return pulse, f"did not converge at {n0}/{creep}"
             return real(pulse, prm, gmap, n0, creep)
         return level0_mock
 
     # where the own N fails (creeping, as at 6.3-6.6 km), the clip is the fallback
-    monkeypatch.setattr(sf, "_level0", failing_where(lambda n0, creep: n0 == 700))
+    monkeypatch.setattr(sf, "solve_level0", failing_where(lambda n0, creep: n0 == 700))
     tried.clear()
-    res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
+    res, _ = sf.pulse_task(p.label, p, params, tracking({700: 22.6}), s)
     assert tried == [(700, sf.LEVEL0_CREEP), (500, sf.LEVEL0_CREEP)]
     assert res.status == "converged" and res.n_points == 500
+    assert res.level0_attempt == f"level 0 on the clipped N = 500 (creep stop {sf.LEVEL0_CREEP})"
 
     # where the clip fails too, the own N without the creep stop is the last resort (a slow
     # convergence, as at 6.0 km)
-    monkeypatch.setattr(sf, "_level0", failing_where(lambda n0, creep: creep or n0 == 500))
+    monkeypatch.setattr(sf, "solve_level0", failing_where(lambda n0, creep: creep or n0 == 500))
     tried.clear()
-    res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
+    res, _ = sf.pulse_task(p.label, p, params, tracking({700: 22.6}), s)
     assert tried == [(700, sf.LEVEL0_CREEP), (500, sf.LEVEL0_CREEP), (700, 0)]
     assert res.status == "converged" and res.n_points == 700
 
     # the clip without the creep stop is the last resort, after the own N without it (at
-    # 6.57 km the clip converges so, in 27 iterations, and the own N does not in 60; stop 40)
-    monkeypatch.setattr(sf, "_level0", failing_where(lambda n0, creep: creep or n0 == 700))
+    # 6.57 km the clip converges so, in 27 iterations, and the own N does not in 60)
+    monkeypatch.setattr(sf, "solve_level0", failing_where(lambda n0, creep: creep or n0 == 700))
     tried.clear()
-    res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
+    res, _ = sf.pulse_task(p.label, p, params, tracking({700: 22.6}), s)
     assert tried == [(700, sf.LEVEL0_CREEP), (500, sf.LEVEL0_CREEP), (700, 0), (500, 0)]
     assert res.status == "converged" and res.n_points == 500
-    monkeypatch.setattr(sf, "_level0", lambda pulse, prm, gmap, n0, creep=0: (
-        pulse, f"did not converge at {n0}/{creep}"))
-    res, _, _ = sf._pulse_result(p.label, p, params, (guess, unit, {700: 22.6}), None, o)
+    monkeypatch.setattr(sf, "solve_level0", failing_where(lambda n0, creep: True))
+    before = tracking({700: 22.6})
+    res, after = sf.pulse_task(p.label, p, params, before, s)
     assert res.status == "failed" and "700/4" in res.message and "500/4" in res.message \
         and "500/0" in res.message and "700/0" in res.message
+    assert after is before                       # a failed pulse leaves the tracking as it was
 
 
 def test_mapped_resolves_reuse_their_LU_and_reach_the_same_pulse(pulse12, params, monkeypatch):
@@ -211,7 +216,7 @@ def test_mapped_resolves_reuse_their_LU_and_reach_the_same_pulse(pulse12, params
     fewer factorisations, the same tolerance, the same pulse to 1e-12."""
     import scipy.linalg as sla
 
-    from slippulse.stability.refine import mapped_pulse
+    from slippulse.spectrum.refine import mapped_pulse
     from slippulse.steady import newton as nw
     from slippulse.steady import solver
     from slippulse.steady.grid import GridMap
@@ -235,7 +240,7 @@ def test_mapped_resolves_reuse_their_LU_and_reach_the_same_pulse(pulse12, params
     assert np.max(np.abs(np.log(q.v) - np.log(r.v))) < 1e-10
 
 
-# ---- stop 40: the re-solves' line search, the ladder's starts, the start vector, the heap ----
+# ---- the re-solves' line search, the ladder's starts, the start vector, the heap ----
 
 class _Steep:
     """Three unknowns (two like ln v, the last like β) and equations of very different steepness,
@@ -325,30 +330,34 @@ def test_a_purified_start_vector_makes_the_first_step_second_order():
 def test_the_ladder_start_is_extrapolated_from_the_two_pulses_before():
     """Newton's start at each level: the neighbour's value moved linearly in τ_d through the
     pulse before it, where both have the level and the steps are alike; else the neighbour's."""
-    from slippulse.stability.spectrum_family import EXTRAPOLATE_RATIO, _predicted_ladder
+    from slippulse.spectrum.family import EXTRAPOLATE_RATIO, NO_TRACKING, Tracking
 
     def s(t, n):                                     # a smooth family, one law per level
         return 1e-4 * (1.0 + 50.0 * (t - 1.0086)) * (1.0 + 1e3 / n) + 3.0 * (t - 1.0086) ** 2
 
     t2, t1, t0 = 1.008610, 1.008606, 1.008602
     older = {3542: s(t2, 3542), 5009: s(t2, 5009)}
-    prev = (None, 1.0, {3542: s(t1, 3542), 5009: s(t1, 5009), 7083: 1.0}, t1, (t2, older))
-    got = _predicted_ladder(prev, t0)
+    ladder = {3542: s(t1, 3542), 5009: s(t1, 5009), 7083: 1.0}
+    prev = Tracking(np.zeros(1, complex), 1.0, ladder, t1, (t2, older))
+    got = prev.predicted_ladder(t0)
     for n in (3542, 5009):
-        assert abs(got[n] - s(t0, n)) < 1e-2 * abs(prev[2][n] - s(t0, n))   # O(h²) vs O(h)
+        assert abs(got[n] - s(t0, n)) < 1e-2 * abs(ladder[n] - s(t0, n))   # O(h²) vs O(h)
     assert got[7083] == 1.0                          # no level 7083 before: the neighbour's
     far = t1 - (EXTRAPOLATE_RATIO + 0.5) * (t2 - t1)
-    assert _predicted_ladder(prev, far) == prev[2]   # a step too long: no extrapolation
+    assert prev.predicted_ladder(far) == ladder      # a step too long: no extrapolation
     back = t1 + 0.5 * (t2 - t1)
-    assert _predicted_ladder(prev, back) == prev[2]  # turned back: none
-    assert _predicted_ladder(prev[:3], t0) == prev[2]     # tracked from a stored spectrum
-    assert _predicted_ladder(None, t0) == {}
+    assert prev.predicted_ladder(back) == ladder     # turned back: none
+    stored = Tracking(np.zeros(1, complex), 1.0, ladder)    # tracked from a stored spectrum
+    assert stored.predicted_ladder(t0) == ladder
+    assert NO_TRACKING.predicted_ladder(t0) == {}
+    # the state after a pulse carries this one's ladder as the one before
+    assert prev.before[1] is older
 
 
 def test_keep_freed_memory_lets_a_freed_array_reuse_its_pages():
     """After keep_freed_memory() a 200 MB array freed and allocated again takes its pages from
     the heap (few page faults); without, glibc hands it back to the system and the next one
-    faults every page in again (the 14 % system time of the 271-pulse run, stop 39)."""
+    faults every page in again (the 14 % system time of the 271-pulse run)."""
     import subprocess
     import sys
     if not sys.platform.startswith("linux"):
@@ -380,7 +389,7 @@ def test_a_mapped_resolve_falls_back_to_the_residual_line_search(pulse12, params
     """Where the natural line search does not converge (at 6.70 km it stalled at max|r| =
     1.2e−5), the re-solve is made again with the ‖r‖₂ test; where both fail, the message says
     both, and the solution is marked not converged."""
-    from slippulse.stability import refine
+    from slippulse.spectrum import refine
     from slippulse.steady import solver
     from slippulse.steady.grid import GridMap
     p = pulse12.to_pulse()

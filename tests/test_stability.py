@@ -1,4 +1,4 @@
-"""Instability measurement (stability/perturbation.py): growth fits on exact exponentials, the ±ε protocol on
+"""Instability measurement (timedomain/perturbation.py): growth fits on exact exponentials, the ±ε protocol on
 real runs of the unstable 1.2 τ_min pulse, and a real perturbation scan through a Dask LocalCluster.
 
 The 1.2 τ_min pulse of the shared fixture is coarse (steady N = 700, SBI Δx = 8 mm): cheap runs whose
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from slippulse.core.params import ParameterError
-from slippulse.stability.perturbation import (check_case, fit_growth, pair_growth, pair_rows, read_row,
+from slippulse.timedomain.perturbation import (check_case, fit_growth, pair_growth, pair_rows, read_row,
                                  read_series, run_case)
 
 
@@ -120,7 +120,7 @@ def test_mode_pair_growth_fits_the_whole_regime_through_an_oscillation():
     """r = εA e^{st}(1 + 0.15 cos(2πt/0.1)) + a seed transient that dies within 0.05: the
     whole-regime fit after skip = 0.1 recovers s to 1 %; its error bar covers the truth; the
     samples before skip are left out."""
-    from slippulse.stability.perturbation import mode_pair_growth
+    from slippulse.timedomain.perturbation import mode_pair_growth
     t = np.linspace(0, 2, 81)
     s, eps = 0.66, 1e-2
     r = 1e-4 * np.exp(s * t) * (1 + 0.15 * np.cos(2 * np.pi * t / 0.1 + 0.3)) \
@@ -139,7 +139,7 @@ def test_mode_pair_growth_fits_the_whole_regime_through_an_oscillation():
 def test_offset_fit_recovers_an_integrated_exponential_that_the_log_fit_misses():
     """r = A e^{st} + B + an integrated oscillation: fit_growth_offset recovers s to 1e-5 and B;
     the log-linear fit of the same r (no offset) is off by more than 1 %."""
-    from slippulse.stability.perturbation import fit_growth_offset
+    from slippulse.timedomain.perturbation import fit_growth_offset
     t = np.linspace(0.0, 10.0, 801)
     s = 0.3
     r = 2.0 * np.exp(s * t) - 1.5 + 1e-3 * np.exp(s * t) * np.sin(2 * np.pi * t / 0.04)
@@ -154,7 +154,7 @@ def test_offset_fit_recovers_an_integrated_exponential_that_the_log_fit_misses()
 def test_mode_pair_growth_on_the_slip_potency():
     """S± = S₀(t) ± ε(A e^{st} + B), scaled by the potency of one transit: mode_pair_growth fits
     A e^{st} + B; pair_growth refuses the integrated observable; without potency_rate it says so."""
-    from slippulse.stability.perturbation import mode_pair_growth
+    from slippulse.timedomain.perturbation import mode_pair_growth
     t = np.linspace(0, 3, 121)
     s, eps = 0.3, 3e-3
     S0 = 5.0 * t + 0.2
@@ -179,7 +179,7 @@ def test_mode_pair_growth_ends_where_the_mean_state_drifts():
     """The pair's mean potency rate drifts (q = 1e-3 (e^{2t} − 1)) and the rate of r changes once
     |q| > 0.005 (t > ln 6/2 = 0.90): the regime ends there and s is the early one; with the bound
     lifted the fit takes in the late rate."""
-    from slippulse.stability.perturbation import mode_pair_growth
+    from slippulse.timedomain.perturbation import mode_pair_growth
     t = np.linspace(0, 2, 201)
     s, eps = 1.0, 1e-3
     drift = 1e-3 * np.expm1(2.0 * t)
@@ -200,7 +200,7 @@ def test_pair_rate_at_zero_drift_recovers_the_rate_of_the_undrifted_state():
     """The pair's mean state drifts (q = −2e−3 (e^{0.3t} − 1)) and the pair's rate moves with it,
     s(q) = s₀ + kq (rate +50 % at the end): the fit of A exp(s₀t + kQ) + B recovers s₀ and k,
     where the whole-run fit of A e^{st} + B is off by more than 10 %."""
-    from slippulse.stability.perturbation import mode_pair_growth, pair_rate_at_zero_drift
+    from slippulse.timedomain.perturbation import mode_pair_growth, pair_rate_at_zero_drift
     t = np.linspace(0.0, 6.0, 2401)                 # L/c_p = 0.5: 12 L of travel
     s0, k, eps = 0.4, -20.0, 3e-3
     q = -2e-3 * np.expm1(0.3 * t)
@@ -235,7 +235,7 @@ def test_pair_rate_at_zero_drift_recovers_the_rate_of_the_undrifted_state():
 def test_the_pair_table_carries_the_zero_drift_rate(monkeypatch):
     """pair_table: a mode-seeded pair gets the zero-drift columns from pair_rate_at_zero_drift
     (from ZERO_DRIFT_START), relative to the eigenvalue of its row."""
-    from slippulse.stability import perturbation as pt
+    from slippulse.timedomain import perturbation as pt
     t = np.linspace(0.0, 6.0, 2401)
     s0, k, eps = 0.4, -20.0, 3e-3
     q = -2e-3 * np.expm1(0.3 * t)
@@ -262,7 +262,7 @@ def test_potency_rate_does_not_see_whole_cell_shifts():
     """A whole-cell shift of the frame permutes the periodic grid: Σ V Δx is unchanged to
     rounding (no interpolation), and it is the integral of V."""
     from types import SimpleNamespace
-    from slippulse.stability.verify import potency_rate
+    from slippulse.timedomain.verify import potency_rate
     x = np.arange(4096) * 1e-3
     V = 1e-9 + np.exp(-((x - 1.3) / 0.05) ** 2) * (1 + 0.3 * np.sin(40 * x))
     a = potency_rate(SimpleNamespace(V=V, dx=1e-3))
@@ -345,8 +345,8 @@ def test_perturbed_pair_departs_both_ways_at_one_rate(pair12):
 
 def test_tau_d_perturbation_changes_the_load_only(steady12):
     from slippulse.core.h5io import read_pulse
-    from slippulse.stability.verify import perturb_seed
-    from slippulse.stability.seeding import DomainSpec, seed_pulse
+    from slippulse.timedomain.verify import perturb_seed
+    from slippulse.timedomain.seeding import DomainSpec, seed_pulse
     pulse, params = read_pulse(steady12, "td1.2000")
     seed = seed_pulse(pulse, params, DomainSpec(dx=8e-3, ahead=1.5, behind=2.0))
     load0, V0 = np.array(seed.stepper.law.tau_load, copy=True), seed.stepper.V.copy()
@@ -358,7 +358,7 @@ def test_tau_d_perturbation_changes_the_load_only(steady12):
 def test_real_scan_through_dask_localcluster_resumes(steady12, tmp_path):
     """≥ 4 real perturbation runs (tiny settings) through a Dask LocalCluster; a rerun redoes none."""
     distributed = pytest.importorskip("distributed")
-    from slippulse.stability.scan import load_scan, run_scan
+    from slippulse.timedomain.scan import load_scan, run_scan
     toml = tmp_path / "scan.toml"
     toml.write_text(f"""
 [scan]

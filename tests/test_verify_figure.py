@@ -1,4 +1,4 @@
-"""The verify figure and summary (issue 12, item 3): the unstable mode's growth rate table, the
+"""The verify figure and summary: the unstable mode's growth rate table, the
 verdict on the drift, the three-panel PNG."""
 import math
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from slippulse.plotting.stability import plot_verify_result
-from slippulse.stability.verify import (DEV_POINTS, GROWTH_TOLERANCE, VerifyResult, drift_verdict,
+from slippulse.timedomain.verify import (DEV_POINTS, GROWTH_TOLERANCE, VerifyResult, drift_verdict,
                                     growth_rate, mode_growth, summary)
 
 

@@ -174,12 +174,12 @@ def test_version1_dynamic_run_resumes(tmp_path):
 
 
 def test_verify_file_opens_with_xarray(tmp_path, pulse12):
-    from slippulse.stability.verify import verify_pulse, write_result
-    from slippulse.stability.seeding import DomainSpec
+    from slippulse.timedomain.verify import VerifySettings, verify_pulse, write_result
+    from slippulse.timedomain.seeding import DomainSpec
 
     pulse = pulse12.to_pulse()
-    res = verify_pulse(pulse, P, 0.01, DomainSpec(dx=1e-2), n_samples=5, n_snapshots=3,
-                       progress=False)
+    res = verify_pulse(pulse, P, 0.01, DomainSpec(dx=1e-2),
+                       VerifySettings(n_samples=5, n_snapshots=3), progress=False)
     path = str(tmp_path / "verify.h5")
     write_result(path, res, P, source="x.h5", label=pulse.label)
     tree = _tree(path)
@@ -204,10 +204,10 @@ def test_verify_file_opens_with_xarray(tmp_path, pulse12):
 def test_scan_summary_opens_with_xarray(tmp_path):
     from test_scan import _write_scan
 
-    from slippulse.stability.scan import load_scan, read_summary_h5, run_scan
+    from slippulse.timedomain.scan import load_scan, read_summary_h5, run_scan
 
     path, _ = _write_scan(tmp_path, grid="eps = [1e-3, -1e-3]", defaults="sleep = 0.0")
-    res = run_scan(load_scan(path), workers=1, progress=False)
+    res = run_scan(load_scan(path), progress=False)
     ds = xr.open_dataset(res.summary_h5, engine="h5netcdf")
     assert ds.attrs["format"] == "slippulse-scan-summary"
     assert "id" in ds.coords and ds.sizes["id"] == 2
@@ -220,7 +220,7 @@ def test_scan_summary_opens_with_xarray(tmp_path):
 
 
 def test_seed_file_opens_with_xarray(tmp_path, pulse12):
-    from slippulse.stability.seeding import DomainSpec, seed_pulse, write_seed
+    from slippulse.timedomain.seeding import DomainSpec, seed_pulse, write_seed
 
     seed = seed_pulse(pulse12.to_pulse(), P, DomainSpec(dx=1e-2, ahead=2.0, behind=2.0))
     path = str(tmp_path / "seed.h5")

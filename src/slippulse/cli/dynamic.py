@@ -112,7 +112,7 @@ def register(subparsers) -> None:
 
 
 def _mode_args(p) -> None:
-    """--perturb/--eps/--mode-file: the eigenmode-seeded start (stability/eigenmode.py)."""
+    """--perturb/--eps/--mode-file: the eigenmode-seeded start (timedomain/eigenmode.py)."""
     p.add_argument("--perturb", choices=("none", "mode", "mode_front"), default="none",
                    help="'mode': add eps x the pulse's unstable eigenmode, with a past that grew "
                         "as exp(sigma t) (docs/stability.md section 10); 'mode_front': the same "
@@ -131,7 +131,7 @@ def _eigenmode(args, pulse, params, required: bool):
     """The pulse's eigenmode for --perturb mode (required) or for the drift verdict (None when
     it has none). Bad input (eps, a mode of another pulse, no spectrum) is a UsageError."""
     from ..core.params import ParameterError
-    from ..stability.eigenmode import SpectrumError, check_eps, leading_mode, stored_mode
+    from ..timedomain.eigenmode import SpectrumError, check_eps, leading_mode, stored_mode
     try:
         if required:
             check_eps(args.eps)
@@ -304,8 +304,8 @@ def cmd_verify(args) -> int:
     from ..core.h5io import SchemaError, check_writable, read_pulse
     from ..core.params import ParameterError
     from ..plotting.stability import plot_verify_result
-    from ..stability.verify import summary, verify_pulse, write_result
-    from ..stability.seeding import DomainSpec
+    from ..timedomain.verify import VerifySettings, summary, verify_pulse, write_result
+    from ..timedomain.seeding import DomainSpec
     from ..dynamics.stepper import TimeStepRule
 
     try:
@@ -322,7 +322,7 @@ def cmd_verify(args) -> int:
     check_writable(os.path.splitext(out)[0] + ".png", "--out (its PNG)")
     finite(args.distance, "--distance", 0.0, MAX_DISTANCE, unit="pulse lengths")
     finite(args.xi_stab, "--xi-stab", 0.0)
-    from ..stability.seeding import default_dx
+    from ..timedomain.seeding import default_dx
     dx = default_dx(params) if args.dx is None else args.dx
     if args.points is not None:
         if not 16 <= args.points <= MAX_GRID_POINTS:
@@ -336,11 +336,11 @@ def cmd_verify(args) -> int:
     try:
         spec = DomainSpec(dx=dx, ahead=args.ahead, behind=args.behind)
         rule = TimeStepRule(kind="adaptive", xi_stab=args.xi_stab)
-        res = verify_pulse(pulse, params, args.distance, spec, rule=rule,
-                           far_field=args.far_field, n_samples=args.samples,
-                           progress=not args.no_progress, eigen=eigen,
-                           perturbation=(args.perturb, args.eps) if seeded else None,
-                           device=args.device)
+        run = VerifySettings(rule=rule, far_field=args.far_field, n_samples=args.samples,
+                             perturbation=(args.perturb, args.eps) if seeded else None,
+                             device=args.device)
+        res = verify_pulse(pulse, params, args.distance, spec, run,
+                           progress=not args.no_progress, eigen=eigen)
     except ParameterError as exc:
         raise UsageError(str(exc))
     write_result(out, res, params, source=os.path.abspath(args.steady), label=label,
@@ -355,7 +355,7 @@ def cmd_seed(args) -> int:
     """``slippulse dynamic seed``: seed, write the t = 0 state, print the stress mismatch."""
     from ..core.h5io import SchemaError, read_pulse
     from ..core.params import ParameterError
-    from ..stability.seeding import DomainSpec, seed_pulse, write_seed
+    from ..timedomain.seeding import DomainSpec, seed_pulse, write_seed
 
     try:
         pulse, params = read_pulse(args.steady, args.label)
@@ -367,7 +367,7 @@ def cmd_seed(args) -> int:
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
     check_writable(out, "--out")
-    from ..stability.seeding import default_dx
+    from ..timedomain.seeding import default_dx
     dx = default_dx(params) if args.dx is None else args.dx
     _check_grid(dx, args.ahead, args.behind, pulse.L)
     seeded = args.perturb in ("mode", "mode_front")
@@ -377,7 +377,7 @@ def cmd_seed(args) -> int:
                                                     behind=args.behind),
                           far_field=args.far_field)
         if eigen is not None:
-            from ..stability.eigenmode import perturb_along_mode
+            from ..timedomain.eigenmode import perturb_along_mode
             perturb_along_mode(seed, eigen, args.eps,
                                frame="front" if args.perturb == "mode_front" else "lab")
     except ParameterError as exc:

@@ -1,8 +1,9 @@
 """``slippulse dynamic scan SCAN.toml [--workers N | --scheduler ADDRESS] [--dry-run] ...``.
 
-Runs the independent simulations of a scan (format and design: :mod:`slippulse.stability.scan`) in local
-worker processes or on an existing Dask cluster, reusing the cases already finished, with a tqdm
-bar over the cases and a one-line summary at the end. Exit codes: 0 all cases fine, 1 some case
+Runs the independent simulations of a scan (format and design: :mod:`slippulse.timedomain.scan`) on
+the shared executor (:mod:`slippulse.core.executor`: this process, a local Dask cluster, or a Dask
+scheduler), reusing the cases already finished, with a progress bar over the cases and a one-line
+summary at the end. Exit codes: 0 all cases fine, 1 some case
 (or the runner's figures) failed, 2 bad input.
 """
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import os
 import sys
 
+from ..core.executor import add_executor_options, settings_from_args
 from ..core.params import ParameterError
 from .app import UsageError
 from .paramargs import add_params_args, check_files
@@ -27,12 +29,7 @@ def register(sub) -> None:
                     "[grid] (lists whose cartesian product gives cases) and [[case]] tables "
                     "(extra cases); values are scalars. Example: dynamic/scans/example.toml.")
     p.add_argument("scan", metavar="SCAN.toml", help="scan description (TOML)")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="local worker processes (default 1: runs are CPU-bound and may be "
-                        "multi-threaded; keep N x threads per run within the cores)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="submit the cases to an existing Dask cluster, e.g. tcp://host:8786 "
-                        "(needs the 'dask' extra; --workers is then ignored)")
+    add_executor_options(p, "cases")
     p.add_argument("--overwrite", action="store_true",
                    help="rerun cases whose output file holds another case (default: refuse)")
     p.add_argument("--dry-run", action="store_true",
@@ -54,8 +51,8 @@ def _show(path: str) -> str:
 def _figures_hook(scan):
     """The perturbation runner's figures (pair table + plots) live in the plotting layer; other
     runners bring their own ``scan_figures`` (None here: run_scan looks it up)."""
-    from ..stability import perturbation
-    from ..stability.scan import load_runner
+    from ..timedomain import perturbation
+    from ..timedomain.scan import load_runner
 
     if load_runner(scan.runner, scan.runner_path)[0] is perturbation.run_case:
         from ..plotting.stability import scan_figures
@@ -67,8 +64,8 @@ def _check_cases(scan) -> list[dict] | None:
     """Perturbation scans: every case's keys and values (``perturbation.check_case``), a bad one
     named (exit 2); the resolved cases, or None for another runner. Its files need not exist yet
     (a dry run lists the cases; a real run checks them, :func:`_check_steady_pulses`)."""
-    from ..stability import perturbation
-    from ..stability.scan import load_runner
+    from ..timedomain import perturbation
+    from ..timedomain.scan import load_runner
 
     if load_runner(scan.runner, scan.runner_path)[0] is not perturbation.run_case:
         return None
@@ -95,7 +92,7 @@ def _check_steady_pulses(scan) -> None:
 
 
 def cmd_scan(args) -> int:
-    from ..stability.scan import load_scan, run_scan, scan_states
+    from ..timedomain.scan import load_scan, run_scan, scan_states
 
     scan = load_scan(args.scan)
     # the cases' pulses keep the parameters they were solved with: given ones must agree
@@ -110,25 +107,16 @@ def cmd_scan(args) -> int:
             print(f"  {c.id:<{width}}  {_STATE[s]:<6}  {_show(scan.out_file(c))}")
         print(f"{states.count('done')} done, {len(states) - states.count('done')} to run")
         return 0
-    if args.workers < 1:
-        raise UsageError(f"--workers={args.workers} must be >= 1")
+    executor = settings_from_args(args)
     _check_steady_pulses(scan)
-    executor = "local"
-    if args.scheduler:
-        try:
-            import distributed  # noqa: F401
-        except ImportError:
-            raise UsageError("--scheduler needs dask.distributed: pip install "
-                             "'slippulse[dask]'") from None
-        executor = args.scheduler
     import signal
 
-    def _terminate(signum, frame):          # a kill stops the workers too (scan._run_local)
+    def _terminate(signum, frame):          # a kill stops the workers too (TaskPool's exit)
         raise KeyboardInterrupt
 
     old = signal.signal(signal.SIGTERM, _terminate)
     try:
-        res = run_scan(scan, executor=executor, workers=args.workers, overwrite=args.overwrite,
+        res = run_scan(scan, executor=executor, overwrite=args.overwrite,
                        progress=not args.no_progress, figures=_figures_hook(scan))
     finally:
         signal.signal(signal.SIGTERM, old)

@@ -17,6 +17,7 @@ from .analyse import CD_CS_DEFAULTS
 from .paramargs import add_params_args, check_files, params_for_output
 from ..steady.solver import MAX_POINTS, check_points, solve_pulse
 from ..steady.continuation.arclength import DeepSettings
+from ..core.executor import add_executor_options
 
 
 def summary_line(pulse, params) -> str:
@@ -371,13 +372,13 @@ def _integer(name, value, lo, hi, what) -> None:
 
 
 def cmd_stability(args) -> int:
-    from ..stability.refine import MIN_REFINE_POINTS
-    from ..stability.spectrum_family import (COUNT_EVALS, DEFAULT_LEVELS, DEFAULT_REL_TARGET,
-                                             DEFAULT_TARGET, MAX_SPECTRUM_POINTS,
-                                             MIN_SPECTRUM_POINTS, check_family_file,
-                                             run_spectrum)
+    from ..spectrum.refine import MIN_REFINE_POINTS
+    from ..core.executor import progress_bar, settings_from_args
+    from ..spectrum.family import (COUNT_EVALS, DEFAULT_LEVELS, DEFAULT_REL_TARGET,
+                                   DEFAULT_TARGET, MAX_SPECTRUM_POINTS, MIN_SPECTRUM_POINTS,
+                                   SpectrumSettings, check_family_file, run_spectrum)
     from ..core.memory import keep_freed_memory
-    keep_freed_memory()          # N×N arrays reuse mapped pages (fewer page faults; stop 40)
+    keep_freed_memory()          # N×N arrays reuse mapped pages (fewer page faults)
     labels = args.labels or None
     if args.count_evals is None:
         args.count_evals = COUNT_EVALS
@@ -411,15 +412,9 @@ def cmd_stability(args) -> int:
         if not (all(math.isfinite(b) for b in box) and 0.0 < box[0] < box[1] and box[2] > 0.0):
             raise ParameterError(f"count={list(box)!r} is invalid: need X0 X1 Y1 with "
                                  "0 < X0 < X1 and Y1 > 0 (units of c_p/L)")
-    _integer("count_workers", args.count_workers, 1, 256, "worker processes of the count")
-    _integer("count_threads", args.count_threads, 1, 256, "threads of each count worker")
     if args.guess is not None and not (math.isfinite(args.guess) and 0 < args.guess <= 100):
         raise ParameterError(f"guess={args.guess!r} is invalid: must be an s L/c_p in (0, 100]")
-    _integer("workers", args.workers, 1, 256, "processes computing pulses at once")
-    _integer("threads", args.threads, 1, 256, "threads of each worker")
-    if args.workers > 1 and args.count_workers > 1:
-        raise ParameterError("workers and count_workers are both > 1: use one of them "
-                             "(a count's pool is not started inside a worker)")
+    executor = settings_from_args(args)
     _integer("count_evals", args.count_evals, 24, 20000, "det M evaluations of the count")
     if args.figure:
         check_figure(args.figure, "--figure")             # format and writability, before the work
@@ -431,8 +426,7 @@ def cmd_stability(args) -> int:
         left = require_converged(args.file, allow=True)
         if left:
             print(f"left out (marked converged=False): {', '.join(left)}", file=sys.stderr)
-    bar = tqdm(total=len(chosen), desc="spectrum", unit="pulse", disable=args.quiet,
-               file=sys.stderr)
+    bar = progress_bar(len(chosen), "spectrum", "pulse", disable=args.quiet)
 
     def progress(label, res, stored):
         if res is not None:
@@ -445,15 +439,15 @@ def cmd_stability(args) -> int:
     def level_progress(msg):
         bar.set_postfix_str(msg[:50])
 
-    rep = run_spectrum(args.file, labels, overwrite=args.overwrite, extra=not args.no_extra,
-                       progress=progress, levels=args.levels, count_box=box,
-                       count_evals=args.count_evals, count_workers=args.count_workers,
-                       count_threads=args.count_threads,
-                       guess=args.guess, workers=args.workers, threads=args.threads,
-                       level_progress=level_progress, min_points=args.min_points,
-                       target=args.target, pin_translation=args.pin_translation,
-                       level0_points=args.points, rel_target=args.rel_target,
-                       max_points=args.max_points)
+    settings = SpectrumSettings(levels=args.levels, target=args.target,
+                                rel_target=args.rel_target, min_points=args.min_points,
+                                max_points=args.max_points, level0_points=args.points,
+                                pin_translation=args.pin_translation, extra=not args.no_extra,
+                                count_box=box, count_evals=args.count_evals)
+    if not args.quiet:
+        tqdm.write(f"spectrum settings: {settings}; executor: {executor}", file=sys.stderr)
+    rep = run_spectrum(args.file, settings, labels, overwrite=args.overwrite, guess=args.guess,
+                       executor=executor, progress=progress, level_progress=level_progress)
     bar.close()
     done = [r for r in rep.results if r.status == "converged"]
     print(family_summary(args.file, done, rep))
@@ -466,8 +460,8 @@ def cmd_stability(args) -> int:
 
 def _print_exponents(what, x, y, err, where):
     """One line of local exponents, each a weighted fit over a window of 10 % in x
-    (:func:`slippulse.stability.law.windowed_exponents`), with its error bar."""
-    from ..stability.law import EXPONENT_WINDOW, windowed_exponents
+    (:func:`slippulse.spectrum.law.windowed_exponents`), with its error bar."""
+    from ..spectrum.law import EXPONENT_WINDOW, windowed_exponents
     xm, k, ke, n = windowed_exponents(x, y, err)
     if xm.size == 0:
         print(f"local exponents {what}: too few pulses (3 per window)")
@@ -480,9 +474,9 @@ def _print_exponents(what, x, y, err, where):
 def cmd_rates(args) -> int:
     import numpy as np
 
-    from ..stability.law import (family_curve, family_rates, family_slope, fit_power_law,
+    from ..spectrum.law import (family_curve, family_rates, family_slope, fit_power_law,
                                  fit_shifted_power_law, fold_ratio, folds)
-    from ..stability.spectrum_family import check_family_file
+    from ..spectrum.family import check_family_file
     if not (math.isfinite(args.below) and 1.0 < args.below <= 2.0):
         raise ParameterError(f"below={args.below!r} is invalid: must be in (1, 2] "
                              "(tau_d/tau_min)")
@@ -769,13 +763,6 @@ def register(sub) -> None:
                    help="budget of det M evaluations per count (default 400; a walk "
                         "that needs more is reported failed, with no count; near the "
                         "imaginary axis one evaluation takes 5-25 s at N = 1000-2000)")
-    p.add_argument("--count-workers", type=int, default=1, metavar="K",
-                   help="evaluate each round of the count's walk on K worker processes at once "
-                        "(default 1; each worker holds its own copy of the operator, about "
-                        "10 N x N complex matrices, 2 GB at N = 3500)")
-    p.add_argument("--count-threads", type=int, default=1, metavar="T",
-                   help="BLAS, OpenMP and numba threads of each count worker (default 1; "
-                        "used with --count-workers K > 1)")
     p.add_argument("--guess", type=float, default=None, metavar="S",
                    help="start the first pulse's eigenvalue search at s L/c_p = S instead of "
                         "from the spectrum stored above it (deep pulses, whose rates are below "
@@ -783,15 +770,8 @@ def register(sub) -> None:
                         "`slippulse steady rates`); the pulses after it track from it. Without "
                         "it such a pulse is found by the sign of det M on [1e-7, 1e-3] c_p/L "
                         "after the default search (about 3 min more at N = 3542)")
-    p.add_argument("--workers", type=int, default=1, metavar="K",
-                   help="compute the pulses on K processes at once (default 1): the pulses "
-                        "are cut into ceil(K/2) contiguous runs, each served by two processes, "
-                        "one tracking down from its top, one tracking up from its bottom, "
-                        "until they meet (so their work balances); those not starting at the "
-                        "top of the file start from the default search. Each holds about "
-                        "10 N x N matrices (2-4 GB at N = 5009)")
-    p.add_argument("--threads", type=int, default=1, metavar="T",
-                   help="BLAS, OpenMP and numba threads of each of the --workers (default 1)")
+    add_executor_options(p, "pulses (with one pulse to compute and --count, the count's "
+                            "determinants)")
     p.add_argument("--figure", default=None, metavar="PNG",
                    help="also draw s(tau_d) and the leading modes into this file")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
@@ -820,6 +800,9 @@ def register(sub) -> None:
     p.add_argument("--figure", default=None, metavar="PNG", help="draw the rates and the fits")
     add_params_args(p)
     p.set_defaults(func=cmd_rates)
+
+    from .existence_map import register as register_existence_map
+    register_existence_map(ss)
 
     p = ss.add_parser("analyse", help="analyse a pulse family file",
                       description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "

@@ -18,7 +18,7 @@ them; files of a newer version are refused with a message naming it. Groups and 
 schema does not name (e.g. a ``spectrum`` subgroup of a pulse group) are left alone.
 
 The helpers :func:`coordinate`, :func:`dimension` and :func:`describe` give the other writers
-(dynamics.runfile, stability.verify, stability.scan, steady analysis) the same conventions.
+(dynamics.runfile, timedomain.verify, timedomain.scan, steady analysis) the same conventions.
 
 Every write goes to a temporary file in the same directory that replaces the target with
 ``os.replace`` only once complete, so an interrupted write never leaves a corrupt file.

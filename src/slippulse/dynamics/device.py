@@ -1,7 +1,7 @@
 """The SBI step on a GPU: the same predictor–corrector, friction solve and SOE history as
 :class:`~slippulse.dynamics.stepper.PredictorCorrector`, with the fields kept in device memory.
 
-A run is seeded on the host as always (``stability.seeding``, ``eigenmode``) and then handed over:
+A run is seeded on the host as always (``timedomain.seeding``, ``eigenmode``) and then handed over:
 ``DeviceStepper.from_host(stepper, "cupy")``. From then on each step runs on the GPU (CuPy: cuFFT
 for the transforms, CUDA kernels for the friction solve and the two SOE sums, fused elementwise
 kernels for the spectral right-hand sides and the state updates). Nothing else changes: the driver

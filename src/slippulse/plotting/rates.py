@@ -23,10 +23,10 @@ def _loglog(a, xv, yv, ev, m, fit, var, color, label, xlabel, ylabel):
 
 def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
     """Three panels: s L/c_p against τ_d/τ_min − τ̃* and against L (log–log, error bars, fits),
-    and s L/c_p against τ_d/τ_min (linear, the sign). `rates`: :func:`stability.law.family_rates`;
+    and s L/c_p against τ_d/τ_min (linear, the sign). `rates`: :func:`spectrum.law.family_rates`;
     `fits`: dict name → PowerLaw (keys 'shift', 'one', 'L', 'R') or None. ``tau_star`` None
     (too few rates to fit it): panel (a) is against τ_d/τ_min − 1 with the fit 'one'. ``fold`` = (R, R_err) of
-    :func:`stability.law.fold_ratio` adds a fourth panel: R against L (docs/stability.md §9.5)."""
+    :func:`spectrum.law.fold_ratio` adds a fourth panel: R against L (docs/stability.md §9.5)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

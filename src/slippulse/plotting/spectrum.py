@@ -7,7 +7,7 @@ import numpy as np
 
 def family_spectra(path):
     """Stored spectra of a file, by decreasing τ_d: list of dicts (see spectrum.read_spectrum)."""
-    from ..stability.spectrum import read_spectrum
+    from ..spectrum.pulse import read_spectrum
     with h5py.File(path, "r") as h5:
         labels = [k for k in h5["pulses"] if "spectrum" in h5["pulses"][k]]
     out = []

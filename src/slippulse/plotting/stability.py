@@ -8,16 +8,16 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..steady.measures import pulse_length
-from ..stability.perturbation import (pair_table, read_series, smoothed_c_p, steady_curve,
+from ..timedomain.perturbation import (pair_table, read_series, smoothed_c_p, steady_curve,
                                       write_pair_table)
-from ..stability.verify import VerifyResult, drift_verdict, mode_growth
+from ..timedomain.verify import VerifyResult, drift_verdict, mode_growth
 from .metadata import params_metadata
 from .steady import matplotlib_cmap
 
 
 def scan_figures(rows: list[dict], out_dir: str) -> list[str]:
     """Figures hook of the perturbation runner's scans: the pair table (growth_pairs.csv,
-    :func:`slippulse.stability.perturbation.write_pair_table`) and :func:`stability_figures`."""
+    :func:`slippulse.timedomain.perturbation.write_pair_table`) and :func:`stability_figures`."""
     return write_pair_table(rows, out_dir) + stability_figures(rows, pair_table(rows), out_dir)
 
 

@@ -24,7 +24,6 @@ from __future__ import annotations
 import dataclasses as dc
 import math
 import time
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -83,9 +82,112 @@ def classify_shape(base: Parameters, b: float, alpha: float, tau_d_ratio: float)
     return FOUND, ratio, "", p
 
 
+@dataclass(frozen=True)
+class PointSolve:
+    """The outcome of one solve of the map, as a task returns it: found or not, the reason, the
+    measures of the pulse (β, L, L/L0, L̃) and its state as a start for a neighbour."""
+
+    ok: bool
+    why: str
+    measures: tuple = ()
+    start: tuple | None = None          # (ξ, x without β, β): :func:`as_guess`
+
+    def to_json(self):
+        s = None if self.start is None else [np.asarray(a).tolist() if np.ndim(a) else float(a)
+                                             for a in self.start]
+        return {"ok": self.ok, "why": self.why, "measures": list(self.measures), "start": s}
+
+    @classmethod
+    def from_json(cls, d):
+        s = None if d["start"] is None else (np.asarray(d["start"][0]), np.asarray(d["start"][1]),
+                                             float(d["start"][2]))
+        return cls(bool(d["ok"]), str(d["why"]), tuple(d["measures"]), s)
+
+
+def _outcome(p, sol, ok, why):
+    if not ok:
+        return PointSolve(False, why)
+    pulse = sol.to_pulse()
+    return PointSolve(True, why, (pulse.beta, pulse.L, pulse.L / p.L0, pulse.L_tilde),
+                      _as_guess(sol))
+
+
+def solve_from_guess(p, tau_d_ratio, n_points):
+    """One point from the built-in guess (a task of the map)."""
+    return _outcome(p, *_attempt(p, tau_d_ratio, n_points))
+
+
+def solve_from_neighbour(p, mid, tau_d_ratio, n_points, start):
+    """One point from a solved neighbour's state `start`; where that fails, through `mid` (the
+    geometric mean of the two points' (b, α), or None) first (a task of the map)."""
+    sol, ok, why = _attempt(p, tau_d_ratio, n_points, guess=start)
+    n = 1
+    if not ok and mid is not None:
+        s_mid, ok_mid, _ = _attempt(mid, tau_d_ratio, n_points, guess=start)
+        n += 1
+        if ok_mid:
+            sol, ok, why2 = _attempt(p, tau_d_ratio, n_points, guess=_as_guess(s_mid))
+            n += 1
+            why = why2 if not ok else ""
+    return _outcome(p, sol, ok, why), n
+
+
+class _Checkpoint:
+    """The solves done so far, by task key, in a JSON file beside the map (rewritten atomically
+    after each): a rerun of the same map reads them back instead of solving again."""
+
+    def __init__(self, path, key):
+        import json
+        import os
+        self.path, self.key, self.done = path, key, {}
+        if path and os.path.exists(path):
+            try:
+                with open(path, encoding="utf-8") as fh:
+                    d = json.load(fh)
+                if d.get("key") == key:
+                    self.done = d["solves"]
+            except (OSError, ValueError, KeyError):
+                self.done = {}
+
+    def get(self, k):
+        return self.done.get(k)
+
+    def put(self, k, value):
+        import json
+
+        from ..core.atomic import replacing_open
+        self.done[k] = value
+        if self.path:
+            with replacing_open(self.path, "w") as fh:
+                json.dump({"key": self.key, "solves": self.done}, fh)
+
+
+def _run(pool, cp, tasks):
+    """{key: result} of `tasks` ({key: (fn, args)}), read from the checkpoint `cp` or solved on
+    `pool` (each written to `cp` as it arrives)."""
+    out = {}
+    handles = {}
+    for k, (fn, args) in tasks.items():
+        got = cp.get(k)
+        if got is not None:
+            out[k] = got
+        else:
+            handles[pool.submit(fn, *args)] = k
+    for h, value, err in pool.completed():
+        k = handles.pop(h)
+        if err is not None:
+            raise err
+        value = value.to_json() if isinstance(value, PointSolve) else \
+            [value[0].to_json(), value[1]]
+        cp.put(k, value)
+        out[k] = value
+    return out
+
+
 def existence_map(b_values, alpha_values, tau_d_ratio: float = 1.2, base: Parameters = DEFAULT,
                   n_points: int = 500, start: tuple | None = None, guess: bool = True,
-                  continuation: bool = True, progress=None) -> ExistenceMap:
+                  continuation: bool = True, progress=None, executor=None,
+                  checkpoint: str | None = None) -> ExistenceMap:
     """Classify each (b, α) of the grid (see the module docstring).
 
     Parameters
@@ -100,13 +202,59 @@ def existence_map(b_values, alpha_values, tau_d_ratio: float = 1.2, base: Parame
         Grid points of every solve (≥ 500 at 1.2 τ_min for Table I; 400 does not converge).
     start : (b, α), optional
         Where continuation starts (default: ``(base.b, base.alpha)``); the nearest grid point (in
-        log) is solved from the built-in guess and continuation spreads from it.
+        log) is solved from the built-in guess and continuation spreads from it in waves: each
+        wave solves, at once, every point next to one solved in the wave before (from that
+        neighbour; a point is tried from at most two neighbours).
     guess, continuation : bool
         Which of the two solves to run.
     progress : callable(str), optional
         Told about each solve.
+    executor : :class:`slippulse.core.executor.ExecutorSettings`, optional
+        Where the independent solves (all the guess solves; the solves of one wave) run
+        (default: this process). The map is the same whichever runs them.
+    checkpoint : str, optional
+        A JSON file that keeps each solve as it arrives; a rerun of the same map (grid,
+        parameters, N) goes on from it.
     """
+    from ..core.executor import TaskPool
     t0 = time.perf_counter()
+    m, prm = _classified(b_values, alpha_values, tau_d_ratio, base, n_points)
+    b, a = m.b, m.alpha
+    cp = _Checkpoint(checkpoint, f"{b.tolist()} {a.tolist()} {tau_d_ratio!r} {n_points} "
+                                 f"{sorted(base.as_dict().items())}")
+
+    def record(k, res):
+        m.beta[k], m.L[k], m.L_over_L0[k], m.L_tilde[k] = res["measures"]
+
+    def say(msg):
+        m.log.append(msg)
+        if progress:
+            progress(msg)
+
+    guess_beta = {}
+    with TaskPool(executor) as pool:
+        if guess:
+            done = _run(pool, cp, {f"guess {i} {j}": (solve_from_guess, (p, tau_d_ratio,
+                                                                           n_points))
+                                   for (i, j), p in prm.items()})
+            for (i, j) in prm:
+                res = done[f"guess {i} {j}"]
+                m.solves += 1
+                m.guess_status[i, j] = FOUND if res["ok"] else FAILED
+                m.guess_reason[i, j] = res["why"]
+                if res["ok"]:
+                    record((i, j), res)
+                    guess_beta[i, j] = res["measures"][0]
+                say(f"guess b={b[i]:g} alpha={a[j]:g}: {'found' if res['ok'] else res['why']}")
+        if continuation and prm:
+            _continuation(m, prm, pool, cp, start, guess_beta, record, say)
+    m.wall_time = time.perf_counter() - t0
+    return m
+
+
+def _classified(b_values, alpha_values, tau_d_ratio, base, n_points):
+    """An :class:`ExistenceMap` with the shape classes filled in, and {(i, j): params} of the
+    points where a pulse can exist."""
     b = np.asarray(b_values, float)
     a = np.asarray(alpha_values, float)
     shape = (b.size, a.size)
@@ -127,81 +275,62 @@ def existence_map(b_values, alpha_values, tau_d_ratio: float = 1.2, base: Parame
                 m.guess_reason[i, j] = m.cont_reason[i, j] = why
             else:
                 prm[i, j] = p
+    return m, prm
 
-    def record(i, j, sol):
-        pulse = sol.to_pulse()
-        p = prm[i, j]
-        m.beta[i, j], m.L[i, j] = pulse.beta, pulse.L
-        m.L_over_L0[i, j], m.L_tilde[i, j] = pulse.L / p.L0, pulse.L_tilde
 
-    def say(msg):
-        m.log.append(msg)
-        if progress:
-            progress(msg)
-
-    guess_beta = {}
-    if guess:
-        for (i, j), p in prm.items():
-            sol, ok, why = _attempt(p, tau_d_ratio, n_points)
-            m.solves += 1
-            m.guess_status[i, j] = FOUND if ok else FAILED
-            m.guess_reason[i, j] = why
-            if ok:
-                record(i, j, sol)
-                guess_beta[i, j] = sol.beta
-            say(f"guess b={b[i]:g} alpha={a[j]:g}: {'found' if ok else why}")
-    if continuation and prm:
-        sb, sa = (base.b, base.alpha) if start is None else start
-        dist = {k: abs(math.log(b[k[0]] / sb)) + abs(math.log(a[k[1]] / sa)) for k in prm}
-        first = min(dist, key=dist.get)
-        sol, ok, why = _attempt(prm[first], tau_d_ratio, n_points)
-        m.solves += 1
-        m.cont_status[first] = FOUND if ok else FAILED
-        m.cont_reason[first] = "start (built-in guess)" if ok else f"start: {why}"
-        solved = {first: sol} if ok else {}
-        tries = {first: 2}
-        queue = deque([first] if ok else [])
-        while queue:
-            i, j = queue.popleft()
+def _continuation(m, prm, pool, cp, start, guess_beta, record, say):
+    """Continuation in (b, α) from the point nearest `start`, in waves (see existence_map)."""
+    b, a, base = m.b, m.alpha, m.base
+    tau, n_points = m.tau_d_ratio, m.n_points
+    sb, sa = (base.b, base.alpha) if start is None else start
+    dist = {k: abs(math.log(b[k[0]] / sb)) + abs(math.log(a[k[1]] / sa)) for k in prm}
+    first = min(dist, key=dist.get)
+    res = _run(pool, cp, {"start": (solve_from_guess, (prm[first], tau, n_points))})["start"]
+    m.solves += 1
+    m.cont_status[first] = FOUND if res["ok"] else FAILED
+    m.cont_reason[first] = "start (built-in guess)" if res["ok"] else f"start: {res['why']}"
+    solved = {first: res} if res["ok"] else {}
+    tries = {first: 2}
+    wave = [first] if res["ok"] else []
+    while wave:
+        tasks, sources = {}, {}
+        for (i, j) in wave:
             for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
                 k = (i + di, j + dj)
-                if k not in prm or k in solved or tries.get(k, 0) >= 2:
+                if k not in prm or k in solved or k in sources or tries.get(k, 0) >= 2:
                     continue        # at most two neighbours are tried as the source of a point
                 tries[k] = tries.get(k, 0) + 1
-                src = solved[i, j]
-                sol, ok, why = _attempt(prm[k], tau_d_ratio, n_points, guess=_as_guess(src))
-                m.solves += 1
-                if not ok:      # one intermediate point, geometric mean of the two (b, α)
-                    mid = point_params(base, math.sqrt(b[i] * b[k[0]]), math.sqrt(a[j] * a[k[1]]))
-                    try:
-                        mid.tau_min
-                        s_mid, ok_mid, _ = _attempt(mid, tau_d_ratio, n_points,
-                                                    guess=_as_guess(src))
-                        m.solves += 1
-                    except ParameterError:
-                        ok_mid = False
-                    if ok_mid:
-                        sol, ok, why2 = _attempt(prm[k], tau_d_ratio, n_points,
-                                                 guess=_as_guess(s_mid))
-                        m.solves += 1
-                        why = why2 if not ok else ""
-                m.cont_reason[k] = (f"from b={b[i]:g} alpha={a[j]:g}" if ok else why)
-                m.cont_status[k] = FOUND if ok else FAILED
-                say(f"cont  b={b[k[0]]:g} alpha={a[k[1]]:g} from ({b[i]:g}, {a[j]:g}): "
-                    f"{'found' if ok else why}")
-                if ok:
-                    solved[k] = sol
-                    queue.append(k)
-                    if k in guess_beta:
-                        m.agree[k] = abs(sol.beta / guess_beta[k] - 1.0)
-                    else:
-                        record(*k, sol)
-        if first in solved and first in guess_beta:
-            m.agree[first] = abs(solved[first].beta / guess_beta[first] - 1.0)
-        elif first in solved:
-            record(*first, solved[first])
-    m.wall_time = time.perf_counter() - t0
-    return m
+                mid = point_params(base, math.sqrt(b[i] * b[k[0]]), math.sqrt(a[j] * a[k[1]]))
+                try:
+                    mid.tau_min
+                except ParameterError:
+                    mid = None
+                src = solved[i, j]["start"]
+                start_k = (np.asarray(src[0]), np.asarray(src[1]), float(src[2]))
+                key = f"cont {k[0]} {k[1]} from {i} {j}"
+                tasks[key] = (solve_from_neighbour, (prm[k], mid, tau, n_points, start_k))
+                sources[k] = ((i, j), key)
+        done = _run(pool, cp, tasks)
+        wave = []
+        for k, ((i, j), key) in sources.items():
+            res, n = done[key]
+            m.solves += n
+            ok = res["ok"]
+            m.cont_reason[k] = f"from b={b[i]:g} alpha={a[j]:g}" if ok else res["why"]
+            m.cont_status[k] = FOUND if ok else FAILED
+            say(f"cont  b={b[k[0]]:g} alpha={a[k[1]]:g} from ({b[i]:g}, {a[j]:g}): "
+                f"{'found' if ok else res['why']}")
+            if ok:
+                solved[k] = res
+                wave.append(k)
+                if k in guess_beta:
+                    m.agree[k] = abs(res["measures"][0] / guess_beta[k] - 1.0)
+                else:
+                    record(k, res)
+    if first in solved and first in guess_beta:
+        m.agree[first] = abs(solved[first]["measures"][0] / guess_beta[first] - 1.0)
+    elif first in solved:
+        record(first, solved[first])
 
 
 def summary(m: ExistenceMap) -> str:

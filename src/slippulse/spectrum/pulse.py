@@ -7,7 +7,7 @@ M(σ_a) + (σ − σ_a) M′(σ_a) and refined by Newton on the bordered system 
 iteration with the exact M′).
 
 The operators live in :mod:`.operators`, the eigen-solvers in :mod:`.eigensolve`, the storage in
-:mod:`.spectrum_store`; they are re-exported here.
+:mod:`.store`; they are re-exported here.
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from ..core.h5io import UNSTORED_STATE_ORDER, state_order_of
 from .eigensolve import (PURIFY_SOLVES, Eigen, det_sign, linearised_candidates, neutral_modes,
                          newton_eigen, real_eigenvalues)
 from .operators import ElasticOperator, StabilityOperator, slope_matrix, symbol
-from .spectrum_store import MODE_FIELDS, SPECTRUM_GROUP, read_spectrum, write_spectrum
+from .store import MODE_FIELDS, SPECTRUM_GROUP, read_spectrum, write_spectrum
 
 __all__ = ["DEFAULT_SHIFTS", "MIN_RE", "MODE_FIELDS", "NEWTON_TOL", "SPECTRUM_GROUP", "TRACK_FLOOR", "Eigen",
            "ElasticOperator", "PulseSpectrum", "StabilityOperator", "linearised_candidates", "neutral_modes",
@@ -59,10 +59,11 @@ class PulseSpectrum:
     newton_iterations: int = 0
     failures: list = field(default_factory=list)
     stage_times: dict = field(default_factory=dict)
-    refined: object = None        # RefinedRate of the leading eigenvalue (stability.refine)
-    count: object = None          # ContourCount (stability.count), if asked for
+    refined: object = None        # RefinedRate of the leading eigenvalue (spectrum.refine)
+    count: object = None          # ContourCount (spectrum.count), if asked for
     operator: object = field(default=None, repr=False)   # the StabilityOperator (not stored)
     xi: object = None             # the grid of the modes (the pulse's, or a nested refinement)
+    level0_attempt: str = ""      # how level 0 was built (spectrum.family.LEVEL0_ATTEMPTS)
 
     @property
     def n_unstable(self):
@@ -92,7 +93,7 @@ def _translation_check(op, sigs, vecs):
 
 def order4_pulse(pulse, params):
     """The pulse itself if it was solved with the order-4 state integrator; otherwise (files
-    before issue 11, ``state_order`` 2) re-solved at order 4 on its own grid from its own ln v
+    written with ``state_order`` 2) re-solved at order 4 on its own grid from its own ln v
     and β. Raises UsageError if that re-solve does not converge."""
     try:
         order = state_order_of(pulse)
@@ -176,102 +177,137 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
         two more assemblies at σ = 0, an Arnoldi and a dense product). Pinned, σ_t = 0 by
         construction and is stored as nan (not computed); the uniform-slip error is computed.
         False stores nan for both: the refinement levels of a pinned ladder
-        (:func:`slippulse.stability.refine.refine_leading`).
+        (:func:`slippulse.spectrum.refine.refine_leading`).
     """
     t0 = time.perf_counter()
     op = StabilityOperator(order4_pulse(pulse, params), params, pin_translation)
-    unit = op.rate_unit
-    found, failures, iters = [], [], 0
+    search = EigenSearch(op, tol)
+    scanned = search.leading(guesses, guess_modes, pin_translation)
+    t1 = time.perf_counter()
+    if extra:
+        search.below_leading()
+    found = search.with_conjugates()
+    t2 = time.perf_counter()
+    neutral_pair, terr = neutral_pair_of(op, pin_translation) if neutral else \
+        (np.full(2, np.nan, complex), float("nan"))
+    modes = [op.fields(f.sigma, f.V) for f in found]
+    status, msg = _outcome(found, search.failures, scanned)
+    t3 = time.perf_counter()
+    return PulseSpectrum(label or pulse.label, np.array([f.sigma for f in found], complex), modes,
+                         neutral_pair, terr, op.rate_unit, op.n, status, msg, t3 - t0,
+                         search.iterations, search.failures,
+                         {"leading": t1 - t0, "extra": t2 - t1, "neutral": t3 - t2},
+                         operator=op, xi=op.xi)
 
-    def add(cand_sig, cand_vec, max_iter=12, floor=MIN_RE, purify=0):
-        nonlocal iters
+
+class EigenSearch:
+    """The eigenvalues found so far on one operator, and the stages that look for more: Newton
+    from tracked starts, Arnoldi at tracked and default shifts, the scan below MIN_RE, the
+    search below the leading one. Each candidate is refined by Newton and kept if it converges
+    above its floor and is new."""
+
+    def __init__(self, op, tol):
+        self.op, self.tol, self.unit = op, tol, op.rate_unit
+        self.found, self.failures, self.iterations = [], [], 0
+
+    def add(self, cand_sig, cand_vec, max_iter=12, floor=MIN_RE, purify=0):
+        """Newton from (σ, V); True if it found a new eigenvalue above `floor` c/L."""
+        unit = self.unit
         if not cand_sig.real > floor * unit:
             return
-        if any(abs(cand_sig - f.sigma) < 1e-3 * max(abs(f.sigma), unit) for f in found):
+        if any(abs(cand_sig - f.sigma) < 1e-3 * max(abs(f.sigma), unit) for f in self.found):
             return
-        eig = newton_eigen(op, cand_sig, cand_vec, tol=tol, min_re=floor * unit,
+        eig = newton_eigen(self.op, cand_sig, cand_vec, tol=self.tol, min_re=floor * unit,
                            max_iter=max_iter, purify=purify)
-        iters += eig.iterations
+        self.iterations += eig.iterations
         if not eig.converged:
-            failures.append(f"from {cand_sig / unit:.4g} c/L: {eig.message}")
+            self.failures.append(f"from {cand_sig / unit:.4g} c/L: {eig.message}")
             return
         if eig.sigma.real > floor * unit and not any(
-                abs(eig.sigma - f.sigma) < 1e-6 * max(abs(f.sigma), unit) for f in found):
-            found.append(eig)
+                abs(eig.sigma - f.sigma) < 1e-6 * max(abs(f.sigma), unit) for f in self.found):
+            self.found.append(eig)
             return True
         return False
 
-    tracked = [complex(g) for g in guesses]
-    if guess_modes is not None:
-        # a tracked eigenvalue is followed below MIN_RE c/L (deep pulses: s L/c_p ≪ 1e-3), down
-        # to a tenth of its guess, which keeps Newton off the translation mode at σ = 0
-        for g, v in zip(tracked, guess_modes):
-            floor = min(MIN_RE, TRACK_FLOOR * g.real / unit)
-            if v is not None and floor > 0:      # a mode from elsewhere: purified first
-                add(g, np.asarray(v, complex), floor=floor, purify=PURIFY_SOLVES)
-    # Arnoldi at the tracked shifts (their candidates followed down to the tracked floor, the
-    # two nearest: near τ_min the translation mode is the other one), then (if they gave
-    # nothing) at the default shifts
-    n_tracked = len(tracked)
-    for i, sa in enumerate(tracked + [complex(q * unit) for q in DEFAULT_SHIFTS]):
-        if found:
-            break
-        floor = min(MIN_RE, TRACK_FLOOR * sa.real / unit) if i < n_tracked else MIN_RE
-        if not (floor > 0 and sa.real > floor * unit):
-            continue
-        sig, vec = linearised_candidates(op, sa, k=2 if i < n_tracked else 1)
-        for j in range(len(sig)):
-            add(complex(sig[j]), vec[:, j], floor=floor)
-    scanned = not found and pin_translation
-    if scanned:
-        scan_below(op, add)
-    t1 = time.perf_counter()
-    lead = max((f.sigma.real for f in found), default=0.0)
-    if found and extra and lead > MIN_RE * unit:
-        # (where the leading rate is below MIN_RE c/L, as on the deep pulses, an eigenvalue
-        # below it is below the floor that add() keeps: the search could find nothing, and is
-        # not made; it cost an assembly, a factorisation and an Arnoldi, 3 s at N = 3542)
-        sig, vec = linearised_candidates(op, 0.4 * lead, k=2)
-        for j in range(len(sig)):
-            add(complex(sig[j]), vec[:, j], max_iter=8)
-    # complex eigenvalues come in conjugate pairs (M(σ̄) = conj M(σ)): add the partner
-    for f in list(found):
-        if abs(f.sigma.imag) > 1e-8 * abs(f.sigma) and not any(
-                abs(g.sigma - f.sigma.conjugate()) < 1e-6 * abs(f.sigma) for g in found):
-            found.append(Eigen(f.sigma.conjugate(), f.V.conj(), True, 0, f.residual,
-                               "conjugate"))
-    found.sort(key=lambda f: -f.sigma.real)
-    t2 = time.perf_counter()
-    if neutral:
-        if pin_translation:
-            # σ_t = 0 by construction (the pin makes v₀′ an exact null vector of M(0)): the
-            # Arnoldi at σ = 0 that finds it unpinned would only return rounding (≤ 1e-13
-            # c/L), at the cost of an assembly with M′ and a factorisation (6 s of a deep
-            # pulse's 50 s at N = 3542); nan says "not computed", as on the levels above
-            sig_t, terr = complex("nan"), float("nan")
-        else:
-            nsig, nvec = neutral_modes(op)
-            sig_t, terr, _ = _translation_check(op, nsig, nvec)
-        # uniform slip (δ₁ = 1, V₁ = 0) is outside the V₁ form; in the δ₁ form it is exact at
-        # σ = 0:
-        Md = op.matrices_delta(0.0)
-        one = np.ones(op.n)
-        uniform = float(np.max(np.abs(Md @ one) / (np.abs(Md) @ one)))   # backward error
-        neutral_pair = np.array([uniform, sig_t])
+    def leading(self, guesses, guess_modes, pin_translation):
+        """The leading eigenvalue: from the tracked (guess, mode) pairs by Newton; then Arnoldi
+        at the tracked shifts (their candidates followed down to a tenth of the guess, the two
+        nearest: near τ_min the translation mode is the other one), then at the default shifts;
+        pinned and still nothing, the real axis below MIN_RE by the sign of det M. Returns
+        whether that scan was made."""
+        unit = self.unit
+        tracked = [complex(g) for g in guesses]
+        if guess_modes is not None:
+            # a tracked eigenvalue is followed below MIN_RE c/L (deep pulses: s L/c_p ≪ 1e-3),
+            # down to a tenth of its guess, which keeps Newton off the translation mode at 0
+            for g, v in zip(tracked, guess_modes):
+                floor = min(MIN_RE, TRACK_FLOOR * g.real / unit)
+                if v is not None and floor > 0:      # a mode from elsewhere: purified first
+                    self.add(g, np.asarray(v, complex), floor=floor, purify=PURIFY_SOLVES)
+        n_tracked = len(tracked)
+        for i, sa in enumerate(tracked + [complex(q * unit) for q in DEFAULT_SHIFTS]):
+            if self.found:
+                break
+            floor = min(MIN_RE, TRACK_FLOOR * sa.real / unit) if i < n_tracked else MIN_RE
+            if not (floor > 0 and sa.real > floor * unit):
+                continue
+            sig, vec = linearised_candidates(self.op, sa, k=2 if i < n_tracked else 1)
+            for j in range(len(sig)):
+                self.add(complex(sig[j]), vec[:, j], floor=floor)
+        scanned = not self.found and pin_translation
+        if scanned:
+            scan_below(self.op, self.add)
+        return scanned
+
+    def below_leading(self):
+        """A search below the leading eigenvalue (shift at 0.4 Re σ₁, two candidates). Not
+        where the leading rate is below MIN_RE c/L, as on the deep pulses: an eigenvalue below
+        it would be below the floor that add() keeps, and the search costs an assembly, a
+        factorisation and an Arnoldi (3 s at N = 3542)."""
+        lead = max((f.sigma.real for f in self.found), default=0.0)
+        if self.found and lead > MIN_RE * self.unit:
+            sig, vec = linearised_candidates(self.op, 0.4 * lead, k=2)
+            for j in range(len(sig)):
+                self.add(complex(sig[j]), vec[:, j], max_iter=8)
+
+    def with_conjugates(self):
+        """The eigenvalues found, each complex one with its partner (M(σ̄) = conj M(σ)), by
+        decreasing Re σ."""
+        found = self.found
+        for f in list(found):
+            if abs(f.sigma.imag) > 1e-8 * abs(f.sigma) and not any(
+                    abs(g.sigma - f.sigma.conjugate()) < 1e-6 * abs(f.sigma) for g in found):
+                found.append(Eigen(f.sigma.conjugate(), f.V.conj(), True, 0, f.residual,
+                                   "conjugate"))
+        found.sort(key=lambda f: -f.sigma.real)
+        return found
+
+
+def neutral_pair_of(op, pin_translation):
+    """([uniform-slip backward error, σ_t], translation mode error) of the neutral pair.
+    Pinned, σ_t = 0 by construction (the pin makes v₀′ an exact null vector of M(0)): the
+    Arnoldi at σ = 0 that finds it unpinned would only return rounding (≤ 1e-13 c/L), at the
+    cost of an assembly with M′ and a factorisation (6 s of a deep pulse's 50 s at N = 3542);
+    nan says "not computed"."""
+    if pin_translation:
+        sig_t, terr = complex("nan"), float("nan")
     else:
-        neutral_pair, terr = np.full(2, np.nan, complex), float("nan")
-    modes = [op.fields(f.sigma, f.V) for f in found]
+        nsig, nvec = neutral_modes(op)
+        sig_t, terr, _ = _translation_check(op, nsig, nvec)
+    # uniform slip (δ₁ = 1, V₁ = 0) is outside the V₁ form; in the δ₁ form it is exact at σ = 0
+    Md = op.matrices_delta(0.0)
+    one = np.ones(op.n)
+    uniform = float(np.max(np.abs(Md @ one) / (np.abs(Md) @ one)))   # backward error
+    return np.array([uniform, sig_t]), terr
+
+
+def _outcome(found, failures, scanned):
+    """(status, message) of a pulse's search."""
     if found:
-        status, msg = "converged", f"{len(found)} eigenvalue(s) with Re sigma > {MIN_RE:g} c/L"
-    elif failures:
-        status, msg = "failed", "; ".join(failures[:3])
-    elif scanned:
-        status, msg = "converged", (f"no eigenvalue with Re sigma > {MIN_RE:g} c/L found, and "
-                                    f"no sign change of det M on [{SCAN_LO:g}, {MIN_RE:g}] c/L")
-    else:
-        status, msg = "converged", f"no eigenvalue with Re sigma > {MIN_RE:g} c/L found"
-    t3 = time.perf_counter()
-    return PulseSpectrum(label or pulse.label, np.array([f.sigma for f in found], complex), modes,
-                         neutral_pair, terr, unit, op.n, status, msg, t3 - t0, iters, failures,
-                         {"leading": t1 - t0, "extra": t2 - t1, "neutral": t3 - t2},
-                         operator=op, xi=op.xi)
+        return "converged", f"{len(found)} eigenvalue(s) with Re sigma > {MIN_RE:g} c/L"
+    if failures:
+        return "failed", "; ".join(failures[:3])
+    if scanned:
+        return "converged", (f"no eigenvalue with Re sigma > {MIN_RE:g} c/L found, and no sign "
+                             f"change of det M on [{SCAN_LO:g}, {MIN_RE:g}] c/L")
+    return "converged", f"no eigenvalue with Re sigma > {MIN_RE:g} c/L found"

@@ -13,7 +13,7 @@ SCAN.toml
     [scan]
     name = "growth_td1.05"                   # required
     out_dir = "runs/scans/growth_td1.05"     # required; relative to the current directory
-    runner = "slippulse.stability.perturbation:run_case"  # optional ("module:function", this default)
+    runner = "slippulse.timedomain.perturbation:run_case"  # optional ("module:function", this default)
     runner_path = ["tools"]                  # optional: directories prepended to sys.path (in the
                                              # main process and in every worker) to import runner
     [defaults]                               # keys shared by every case (any scalar)
@@ -101,7 +101,7 @@ from dataclasses import dataclass, field
 from ..core.atomic import replacing_open
 from ..core.errors import UsageError
 
-DEFAULT_RUNNER = "slippulse.stability.perturbation:run_case"
+DEFAULT_RUNNER = "slippulse.timedomain.perturbation:run_case"
 TOP_LEVEL = ("scan", "defaults", "grid", "case")
 SCAN_KEYS = {"name": "str, required", "out_dir": "str, required",
              "runner": f"'module:function', default {DEFAULT_RUNNER!r}",
@@ -423,86 +423,17 @@ def scan_states(scan: Scan) -> list[str]:
     return [case_state(scan.out_file(c), c) for c in scan.cases]
 
 
-# --------------------------------------------------------------------------- executors
+# --------------------------------------------------------------------------- executor
 
 
-class _sigint_ignored:
-    """Block SIGINT while the pool spawns its workers (main thread only). The signal mask is
-    inherited over fork and exec, so a Ctrl-C while a worker still imports stays pending there
-    until its initializer ignores it (no KeyboardInterrupt printed by the worker); in the parent
-    it is delivered when the block ends (KeyboardInterrupt, which stops the workers)."""
-
-    def __enter__(self):
-        import signal
-        import threading
-        self.on = (hasattr(signal, "pthread_sigmask")
-                   and threading.current_thread() is threading.main_thread())
-        if self.on:
-            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-
-    def __exit__(self, *exc):
-        import signal
-        if self.on:
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-
-
-def _worker_ignores_sigint() -> None:
-    """Worker initializer: Ctrl-C (SIGINT to the whole process group) is the parent's to handle;
-    it stops the workers itself, so they print no KeyboardInterrupt of their own."""
-    import signal
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if hasattr(signal, "pthread_sigmask"):      # blocked by the parent while spawning
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-
-
-def _run_local(todo, scan: Scan, workers: int):
-    """Yield ``(index, outcome)`` as cases finish in a pool of spawned processes."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    pool = ProcessPoolExecutor(max_workers=max(1, min(workers, len(todo))),
-                               mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_worker_ignores_sigint)
-    try:
-        with _sigint_ignored():          # the workers start with Ctrl-C blocked (kept over exec)
-            futs = {pool.submit(run_one, scan.runner, c.params, scan.out_file(c),
-                                scan.runner_path): i for i, c in todo}
-        for fut in as_completed(futs):
-            try:
-                outcome = fut.result()
-            except Exception as exc:                           # noqa: BLE001 - e.g. worker died
-                outcome = ("error", _one_line(exc))
-            yield futs[fut], outcome
-    except BaseException:
-        # interrupted (Ctrl-C, SIGTERM via the CLI, the consumer stopped): stop the workers now —
-        # a worker left alone would finish its case and the cases already queued to it. Their
-        # files are written atomically (temp + rename), so a killed case leaves no output.
-        procs = list((getattr(pool, "_processes", None) or {}).values())
-        for proc in procs:
-            proc.terminate()
-        for proc in procs:                      # reaped, so no semaphore is left to the tracker
-            proc.join(timeout=5)
-        pool.shutdown(wait=True, cancel_futures=True)
-        raise
-    pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _run_dask(todo, scan: Scan, client):
-    """Yield ``(index, outcome)`` as cases finish on a Dask cluster (one task per case)."""
-    from distributed import as_completed
-
-    futs = [client.submit(run_one, scan.runner, c.params, scan.out_file(c), scan.runner_path,
-                          pure=False) for _, c in todo]
-    index = {f.key: i for f, (i, _) in zip(futs, todo)}
-    try:
-        for fut in as_completed(futs):
-            try:
-                outcome = fut.result()
-            except Exception as exc:                           # noqa: BLE001 - e.g. KilledWorker
-                outcome = ("error", _one_line(exc))
-            yield index[fut.key], outcome
-    finally:
-        client.cancel([f for f in futs if not f.done()])
+def _run_cases(todo, scan: Scan, pool):
+    """Yield ``(index, outcome)`` as cases finish on `pool` (one task per case)."""
+    handles = {pool.submit(run_one, scan.runner, c.params, scan.out_file(c), scan.runner_path): i
+               for i, c in todo}
+    for h, outcome, err in pool.completed():
+        if err is not None:                          # e.g. KilledWorker: the case, not the scan
+            outcome = ("error", _one_line(err))
+        yield handles.pop(h), outcome
 
 
 # --------------------------------------------------------------------------- summary
@@ -623,20 +554,18 @@ def read_summary_h5(path: str) -> list[dict]:
 # --------------------------------------------------------------------------- driver
 
 
-def run_scan(scan: Scan, executor="local", workers: int = 1, overwrite: bool = False,
-             progress: bool = True, figures=None) -> ScanResult:
+def run_scan(scan: Scan, executor=None, overwrite: bool = False, progress: bool = True,
+             figures=None) -> ScanResult:
     """Run the cases of ``scan`` that are not finished yet, then write the summary and figures.
 
     Parameters
     ----------
     scan : Scan
         From :func:`load_scan` or :func:`parse_scan`.
-    executor : "local", str or distributed.Client
-        ``"local"``: a pool of ``workers`` spawned processes. A :class:`distributed.Client`: its
-        cluster (the client is left open). Any other string: the address of a Dask scheduler,
-        connected to for this call (and closed after).
-    workers : int
-        Processes of the local pool (default 1; ignored for Dask).
+    executor : ExecutorSettings, distributed.Client or None
+        Where the cases run (:class:`slippulse.core.executor.ExecutorSettings`: this process, a
+        local Dask cluster or a scheduler's; None: this process). A :class:`distributed.Client`:
+        its cluster (the client is left open).
     overwrite : bool
         Rerun cases whose output file holds another case (default: error naming the file).
     progress : bool
@@ -654,12 +583,12 @@ def run_scan(scan: Scan, executor="local", workers: int = 1, overwrite: bool = F
     Raises
     ------
     UsageError
-        Bad runner, a file that holds another case (without ``overwrite``), ``workers < 1``.
+        Bad runner, a file that holds another case (without ``overwrite``).
     """
-    from tqdm import tqdm
+    from ..core.executor import ExecutorSettings, TaskPool, progress_bar
 
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise UsageError(f"workers={workers!r} must be an integer >= 1")
+    client = None if executor is None or isinstance(executor, ExecutorSettings) else executor
+    settings = executor if isinstance(executor, ExecutorSettings) else ExecutorSettings()
     t0 = time.perf_counter()
     _, module = load_runner(scan.runner, scan.runner_path)
     read_row = getattr(module, "read_row", None)
@@ -686,36 +615,23 @@ def run_scan(scan: Scan, executor="local", workers: int = 1, overwrite: bool = F
             n_reused += 1
     todo = [(i, c) for i, (c, s) in enumerate(zip(scan.cases, states)) if s != "done"]
 
-    bar = tqdm(total=len(scan.cases), initial=n_reused, unit="case", disable=not progress,
-               desc=f"scan {scan.name}", mininterval=0.5 if sys.stderr.isatty() else 10.0)
-    client, own_client, results = None, False, None
+    bar = progress_bar(len(scan.cases), f"scan {scan.name}", "case", initial=n_reused,
+                       disable=not progress)
     try:
         if todo:
-            if isinstance(executor, str) and executor == "local":
-                results = _run_local(todo, scan, workers)
-            else:
-                if isinstance(executor, str):
-                    from distributed import Client
-                    client, own_client = Client(executor), True
-                else:
-                    client = executor
-                results = _run_dask(todo, scan, client)
-            for i, (kind, value) in results:
-                case = scan.cases[i]
-                if kind == "ok":
-                    rows[i] = summary_row(case, "ok", value)
-                else:
-                    rows[i] = summary_row(case, f"error: {value}", None)
-                    n_errors += 1
-                bar.update(1)
-                if n_errors:
-                    bar.set_postfix_str(f"{n_errors} errors", refresh=False)
+            with TaskPool(settings, client=client) as pool:
+                for i, (kind, value) in _run_cases(todo, scan, pool):
+                    case = scan.cases[i]
+                    if kind == "ok":
+                        rows[i] = summary_row(case, "ok", value)
+                    else:
+                        rows[i] = summary_row(case, f"error: {value}", None)
+                        n_errors += 1
+                    bar.update(1)
+                    if n_errors:
+                        bar.set_postfix_str(f"{n_errors} errors", refresh=False)
     finally:
-        if results is not None:
-            results.close()                    # cancels what is still pending (Ctrl-C)
         bar.close()
-        if own_client:
-            client.close()
 
     final = [r for r in rows if r is not None]
     csv_path = os.path.join(scan.out_dir, "summary.csv")

@@ -1,4 +1,4 @@
-"""Power laws of the leading growth rate along a family (issue 17, item 3; docs/stability.md §9.0).
+"""Power laws of the leading growth rate along a family (docs/stability.md §9.0).
 
 Near τ_min the growth rates of record (``s ± s_err`` of each pulse's spectrum group) are fitted
 by y = A x^n against x = τ_d/τ_min − 1, τ_d/τ_min − τ̃* or L, for y = s L/c_p or s, by weighted

@@ -1,6 +1,6 @@
 """A count of the unstable eigenvalues of a pulse by the argument principle (docs/spectrum.md §6).
 
-M(σ) (:class:`slippulse.stability.spectrum.StabilityOperator`) is analytic in Re σ > 0, so det M(σ)
+M(σ) (:class:`slippulse.spectrum.pulse.StabilityOperator`) is analytic in Re σ > 0, so det M(σ)
 has no poles there and the number of its zeros inside a closed contour C in that half-plane is the
 winding number of det M along C:
 
@@ -23,7 +23,7 @@ the segment is about 4/h at least (h/d when it is near an end): the segment is h
 of the order of d, where the trapezoid follows the zero's turn. The zeros far from the segment
 add to g a large (N of them) but smooth part, which the trapezoid integrates: at the deep pulses
 (N = 2828, L = 1.8 km) |g| ≈ 60–650 (c_p/L)⁻¹ along the whole contour, so the phase turns by
-≈ 60 rad per unit of σ L/c_p, smoothly. The rule before stop 31 also required the wrapped change
+≈ 60 rad per unit of σ L/c_p, smoothly. The older rule also required the wrapped change
 itself to be below ``max_step`` (``phase_rule='wrapped'``): one point per 0.01 c_p/L of contour
 there, ≈ 2400 evaluations for a box of ±4 c_p/L, against ≈ 300 for the rule above. Every pair the
 old rule accepts, the new one accepts with the same change (|Im T| < 2 max_step < π picks the
@@ -45,8 +45,7 @@ g(σ̄) = conj g(σ), and the box is symmetric about the real axis, so one deter
 serves both halves (``conjugate_symmetric`` on the operator), half the cost.
 
 A walk at the deep pulses costs tens of minutes to hours (one evaluation assembles an N × N kernel
-matrix and factors it: ≈ 10 s at N = 2828 since the tail segments go by Filon–Gauss, stop 33;
-10–40 s before; the dense LU and its N right-hand sides grow as N³ beyond). With a ``checkpoint`` file the evaluations survive an interruption or an exhausted
+matrix and factors it: ≈ 10 s at N = 2828 with the tail segments by Filon–Gauss; the dense LU and its N right-hand sides grow as N³ beyond). With a ``checkpoint`` file the evaluations survive an interruption or an exhausted
 budget: each (σ, arg det M, ln|det M|, g) is kept, the file is rewritten atomically as the walk goes, and a
 rerun on the same operator (:func:`operator_key`) reads them back instead of evaluating again.
 The walk is deterministic, so the resumed walk visits the same points and ends as an
@@ -56,9 +55,7 @@ from __future__ import annotations
 
 import math
 import os
-import pickle
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -116,8 +113,7 @@ def operator_key(op) -> str:
 
     β, L and τ_d to 12 significant digits (a pulse re-solved with another thread count differs
     in the last bits; two pulses of a family differ far above 1e-12), the translation pin, the
-    kernel's quadrature rule (``kernel``: far segments by Filon–Gauss, or split on both sides as
-    before stop 33), and the friction and elastic parameters. An operator without a pulse (a
+    kernel's quadrature rule (``kernel``: far segments by Filon–Gauss, or split on both sides), and the friction and elastic parameters. An operator without a pulse (a
     test matrix) gives its class name and any ``key`` attribute.
     """
     pulse = getattr(op, "pulse", None)
@@ -134,7 +130,7 @@ def operator_key(op) -> str:
             + f"{ptext}")
 
 
-def _read_checkpoint(path, key):
+def read_checkpoint(path, key):
     """({σ: (arg, g or None, ln|det|)}, note) from a checkpoint file; an absent file gives ({}, ''),
     one written for another operator or unreadable gives ({}, why) and is overwritten later."""
     if not path or not os.path.exists(path):
@@ -151,7 +147,7 @@ def _read_checkpoint(path, key):
              for zk, ak, gk, lk in zip(z, a, g, la)}, "")
 
 
-def _write_checkpoint(path, key, cache):
+def write_checkpoint(path, key, cache):
     """Every evaluation in `cache`, written atomically (:func:`slippulse.core.atomic.replacing`:
     an interrupted write leaves the previous checkpoint)."""
     z = np.array(list(cache), complex)
@@ -162,65 +158,15 @@ def _write_checkpoint(path, key, cache):
         np.savez(fh, key=np.array(key), z=z, arg=a, g=g, logabs=la)
 
 
-_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
-_WORKER_OP = None
-
-
-@contextmanager
-def _thread_env(threads):
-    """The thread variables of BLAS, OpenMP and numba set to `threads` while the block runs (a
-    spawned worker reads them when it imports numpy and numba)."""
-    old = {k: os.environ.get(k) for k in _THREAD_VARS}
-    os.environ.update({k: str(int(threads)) for k in _THREAD_VARS})
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
-def _worker_init(op_bytes):
-    global _WORKER_OP
-    _WORKER_OP = pickle.loads(op_bytes)
-
-
-def _worker_value(task):
-    """(arg det M, g in units of (c_p/L)⁻¹, ln|det M|) at z (units of c_p/L) on the worker's
-    operator."""
-    z = task
-    op = _WORKER_OP
+def det_values(op, z):
+    """(arg det M, g in units of (c_p/L)⁻¹ or None, ln|det M|) at z (units of c_p/L): one task
+    of a walk on the executor (the operator is placed on each worker once)."""
     M, dM = op.matrices(z * op.rate_unit, deriv=True)
     if dM is None:
         la, a = arg_det(M)
-        return z, (a, None, la)
+        return a, None, la
     a, g, la = log_det_derivative(M, dM, with_abs=True)
-    return z, (a, g * op.rate_unit, la)
-
-
-class _EvalPool:
-    """`workers` processes, each with its own copy of the operator and `threads` threads, that
-    evaluate det M at many σ at once (the midpoints of one round of the walk are independent).
-
-    The workers are spawned, not forked: numba's OpenMP threading layer is not fork-safe once the
-    parent has used it. Each receives the pickled operator once (≈ 0.1 GB per N×N real matrix at
-    N = 3500)."""
-
-    def __init__(self, op, workers, threads=1):
-        import multiprocessing
-        ctx = multiprocessing.get_context("spawn")
-        with _thread_env(threads):
-            self.pool = ctx.Pool(int(workers), initializer=_worker_init,
-                                 initargs=(pickle.dumps(op, protocol=pickle.HIGHEST_PROTOCOL),))
-
-    def imap(self, zs):
-        return self.pool.imap_unordered(_worker_value, list(zs), chunksize=1)
-
-    def close(self):
-        self.pool.terminate()
-        self.pool.join()
+    return a, g * op.rate_unit, la
 
 
 def _rectangle(x0, x1, y1, per_side, symmetric=False):
@@ -242,9 +188,149 @@ def _rectangle(x0, x1, y1, per_side, symmetric=False):
     return pts
 
 
+class ContourWalk:
+    """The walk of :func:`count_unstable` along the box: the determinants it holds (read back
+    from the checkpoint, or evaluated here or on the executor's workers) and the refinement of
+    the contour until every pair of neighbours passes the criteria (module notes)."""
+
+    def __init__(self, op, box, max_step, per_side, max_evals, derivative, phase_rule,
+                 checkpoint, checkpoint_every, progress):
+        self.op, self.max_step, self.per_side, self.max_evals = op, max_step, per_side, max_evals
+        self.x0, self.x1, self.y1 = box
+        self.phase_rule, self.progress = phase_rule, progress
+        self.checkpoint, self.checkpoint_every = checkpoint, checkpoint_every
+        self.key = operator_key(op) if checkpoint else ""
+        self.cache, self.note = read_checkpoint(checkpoint, self.key)
+        self.checked = bool(derivative)
+        # M(σ̄) = conj M(σ) for an operator with real coefficients: one determinant for σ and σ̄
+        self.mirror = bool(getattr(op, "conjugate_symmetric", False))
+        self.used = set()           # the determinants of this walk (Im σ ≥ 0 only if mirror)
+        self.fetched = set()        # points evaluated this run by the workers
+        self.resumed = 0
+        self.unsaved, self.saved_at = 0, time.perf_counter()
+        self.shown = 0              # the largest count passed to progress
+
+    # ---- the determinants
+    def report(self, n):
+        if self.progress and n > self.shown:
+            self.shown = n
+            self.progress(n)
+
+    def canon(self, z):
+        return z.conjugate() if self.mirror and z.imag < 0.0 else z
+
+    def known(self, z):
+        """Whether the cache holds z with all the walk needs (g too, when checked)."""
+        hit = self.cache.get(z)
+        return hit is not None and (hit[1] is not None or not self.checked)
+
+    def save(self, force=False):
+        if self.checkpoint and self.unsaved and (
+                force or time.perf_counter() - self.saved_at >= self.checkpoint_every):
+            write_checkpoint(self.checkpoint, self.key, self.cache)
+            self.unsaved, self.saved_at = 0, time.perf_counter()
+
+    def value(self, z):
+        """(arg det M, d ln det M/dz or None, ln|det M|) at z (units of c_p/L), evaluated here
+        or read back."""
+        if self.known(z):
+            self.resumed += z not in self.used and z not in self.fetched
+        else:
+            M, dM = self.op.matrices(z * self.op.rate_unit, deriv=self.checked)
+            if self.checked and dM is None:
+                self.checked = False
+            if self.checked:
+                a, g, la = log_det_derivative(M, dM, with_abs=True)
+                self.cache[z] = (a, g * self.op.rate_unit, la)
+            else:
+                la, a = arg_det(M)
+                self.cache[z] = (a, None, la)
+            self.unsaved += 1
+            self.save()
+        if z not in self.used:
+            self.used.add(z)
+            self.report(len(self.used))
+        return self.cache[z]
+
+    def prefetch(self, zs, pool, op_handle):
+        """Evaluate the points of `zs` missing from the cache at once, on the pool's workers."""
+        if pool is None or not self.checked:
+            return
+        todo = [z for z in dict.fromkeys(self.canon(z) for z in zs)
+                if z not in self.used and not self.known(z)]
+        if len(todo) < 2:
+            return
+        handles = {pool.submit(det_values, op_handle, z): z for z in todo}
+        for k, (h, val, err) in enumerate(pool.completed(), 1):
+            if err is not None:
+                raise err
+            z = handles[h]
+            self.cache[z] = val
+            self.fetched.add(z)
+            self.unsaved += 1
+            self.report(len(self.used) + k)
+            self.save()
+
+    def arg_at(self, z):
+        zc = self.canon(z)
+        a, g, la = self.value(zc)
+        if zc == z:
+            return a, g, la
+        return -a, (None if g is None else g.conjugate()), la
+
+    # ---- the walk
+    def gaps(self, pts, vals):
+        """(change of arg det, criterion) per pair of neighbours: the change is the wrapped
+        difference on the branch nearest Im T (trapezoid of g) under the 'trapezoid' rule, and
+        the criterion max(|g_b − g_a| |Δσ|, |change − Im T|, |Δ ln|det| − Re T|) (0 unchecked)."""
+        w = np.array([_wrap(b[0] - a[0]) for a, b in zip(vals, vals[1:])])
+        if not self.checked:
+            return w, np.zeros(w.size)
+        d = w.copy()
+        r = np.empty(w.size)
+        for k, (a, b, za, zb) in enumerate(zip(vals, vals[1:], pts, pts[1:])):
+            trap = 0.5 * (a[1] + b[1]) * (zb - za)
+            if self.phase_rule == "trapezoid":
+                d[k] = w[k] + 2.0 * math.pi * round((trap.imag - w[k]) / (2.0 * math.pi))
+            r[k] = max(abs(b[1] - a[1]) * abs(zb - za), abs(d[k] - trap.imag),
+                       abs((b[2] - a[2]) - trap.real))
+        return d, r
+
+    def failure(self, steps, gap, bound):
+        return ((f"the trapezoid of d ln det M/dsigma still misses the change between "
+                 f"neighbours by up to {gap.max():.2f} (criterion {self.max_step})"
+                 if self.checked and not bound else
+                 f"arg det M still changes by {steps.max():.2f} rad between neighbours"
+                 + (f" (derivative criterion {gap.max():.2f})" if self.checked else ""))
+                + f" after {len(self.used)} evaluations (budget {self.max_evals})")
+
+    def walk(self, pool=None, op_handle=None):
+        """(points, values, changes, criteria, status, message) of the refined contour."""
+        pts = _rectangle(self.x0, self.x1, self.y1, self.per_side, symmetric=self.mirror)
+        self.arg_at(pts[0])                  # settles `checked` before any batch
+        self.prefetch(pts, pool, op_handle)
+        vals = [self.arg_at(z) for z in pts]
+        while True:            # leaves with the changes and criteria of the final points
+            dargs, gap = self.gaps(pts, vals)
+            steps = np.abs(dargs)
+            bound = not self.checked or self.phase_rule == "wrapped"
+            bad = [k for k in range(len(steps))
+                   if (bound and steps[k] > self.max_step) or gap[k] > self.max_step]
+            if not bad:
+                return pts, vals, dargs, gap, "converged", ""
+            need = {self.canon(0.5 * (pts[k] + pts[k + 1])) for k in bad} - self.used
+            if len(self.used) + len(need) > self.max_evals:
+                return pts, vals, dargs, gap, "failed", self.failure(steps, gap, bound)
+            self.prefetch(need, pool, op_handle)
+            for k in reversed(bad):
+                zm = 0.5 * (pts[k] + pts[k + 1])
+                pts.insert(k + 1, zm)
+                vals.insert(k + 1, self.arg_at(zm))
+
+
 def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, integer_tol=0.05,
                    progress=None, derivative=True, checkpoint=None, checkpoint_every=60.0,
-                   phase_rule="trapezoid", workers=1, threads_per_worker=1):
+                   phase_rule="trapezoid", executor=None):
     """Count the eigenvalues of M(σ) in the box x0 ≤ Re σ L/c ≤ x1, |Im σ L/c| ≤ y1.
 
     Parameters
@@ -262,159 +348,39 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
     derivative : use g = d ln det M/dσ (module notes; one more solve with N right-hand sides per
         evaluation). False: the wrapped change alone.
     phase_rule : 'trapezoid' (default): the branch of each change from the trapezoid of g, no
-        bound on the change itself; 'wrapped': the rule before stop 31, which also bounds the
-        wrapped change by `max_step` (for comparisons).
+        bound on the change itself; 'wrapped': also bounds the wrapped change by `max_step`
+        (the older, costlier rule, for comparisons).
     checkpoint : path of a file that keeps the evaluations (module notes), or None. Read at the
         start if it was written for this operator, rewritten at most every `checkpoint_every`
         seconds and at the end of the walk. Left in place: the caller removes it when done.
-        ``max_evals`` counts the walk's points, read back or new.
-    workers : with more than 1 (and the derivative), the points of each round of the walk (the
-        starting rectangle, then the midpoints of every pair that fails the criteria) are
-        evaluated at once by that many spawned worker processes with `threads_per_worker`
-        threads each; the walk visits the same points and ends as with 1 (the rounds are the
-        same), in about (evaluations / workers + rounds) evaluation times.
+    executor : :class:`slippulse.core.executor.ExecutorSettings` or None. Parallel (several
+        workers or a scheduler) and with the derivative, the points of each round of the walk
+        (the starting rectangle, then the midpoints of every pair that fails the criteria) are
+        evaluated at once on the workers, the operator sent to each once; the walk visits the
+        same points and ends as serially, in about (evaluations / workers + rounds)
+        evaluation times.
     """
+    from ..core.executor import ExecutorSettings, TaskPool
     t0 = time.perf_counter()
     if phase_rule not in ("trapezoid", "wrapped"):
         raise ValueError(f"phase_rule={phase_rule!r}: 'trapezoid' or 'wrapped'")
     x0, x1, y1 = (float(b) for b in box)
     if not (0.0 < x0 < x1 and y1 > 0.0):
         raise ValueError(f"box={box!r}: need 0 < x0 < x1 and y1 > 0 (units of c_p/L)")
-    unit = op.rate_unit
-    key = operator_key(op) if checkpoint else ""
-    cache, note = _read_checkpoint(checkpoint, key)
-    checked = bool(derivative)
-    # M(σ̄) = conj M(σ) for an operator with real coefficients: one determinant serves σ and σ̄
-    mirror = bool(getattr(op, "conjugate_symmetric", False))
-    used = set()                    # the determinants of this walk (points with Im σ ≥ 0 if mirror)
-    resumed = 0
-    unsaved = [0, time.perf_counter()]      # new evaluations since the last write, its time
-    if not (isinstance(workers, int) and workers >= 1):
-        raise ValueError(f"workers={workers!r}: a positive integer")
-    pool = None
-    fetched = set()                 # points evaluated this run by the workers
-    shown = [0]                     # the largest count passed to progress
+    executor = executor if executor is not None else ExecutorSettings()
+    w = ContourWalk(op, (x0, x1, y1), max_step, per_side, max_evals, derivative, phase_rule,
+                    checkpoint, checkpoint_every, progress)
+    if executor.parallel and derivative:
+        with TaskPool(executor) as pool:
+            walked = w.walk(pool, pool.scatter(op))
+    else:
+        walked = w.walk()
+    w.save(force=True)
+    return _result(w, *walked, integer_tol, time.perf_counter() - t0)
 
-    def report(n):
-        if progress and n > shown[0]:
-            shown[0] = n
-            progress(n)
 
-    def canon(z):
-        return z.conjugate() if mirror and z.imag < 0.0 else z
-
-    def known(z):
-        """Whether the cache holds z with all the walk needs (g too, when checked)."""
-        hit = cache.get(z)
-        return hit is not None and (hit[1] is not None or not checked)
-
-    def save(force=False):
-        if checkpoint and unsaved[0] and (
-                force or time.perf_counter() - unsaved[1] >= checkpoint_every):
-            _write_checkpoint(checkpoint, key, cache)
-            unsaved[:] = [0, time.perf_counter()]
-
-    def value(z):
-        """(arg det M, d ln det M/dz or None, ln|det M|) at z (units of c_p/L), evaluated or
-        read back."""
-        nonlocal checked, resumed
-        if known(z):
-            resumed += z not in used and z not in fetched
-        else:
-            M, dM = op.matrices(z * unit, deriv=checked)
-            if checked and dM is None:
-                checked = False
-            if checked:
-                a, g, la = log_det_derivative(M, dM, with_abs=True)
-                cache[z] = (a, g * unit, la)
-            else:
-                la, a = arg_det(M)
-                cache[z] = (a, None, la)
-            unsaved[0] += 1
-            save()
-        if z not in used:
-            used.add(z)
-            report(len(used))
-        return cache[z]
-
-    def prefetch(zs):
-        """Evaluate the points of `zs` missing from the cache at once, on the workers."""
-        nonlocal pool
-        if workers <= 1 or not checked:
-            return
-        todo = [z for z in dict.fromkeys(canon(z) for z in zs) if z not in used and not known(z)]
-        if len(todo) < 2:
-            return
-        if pool is None:
-            pool = _EvalPool(op, workers, threads_per_worker)
-        for k, (z, val) in enumerate(pool.imap(todo), 1):
-            cache[z] = val
-            fetched.add(z)
-            unsaved[0] += 1
-            report(len(used) + k)
-            save()
-
-    def arg_at(z):
-        zc = canon(z)
-        a, g, la = value(zc)
-        if zc == z:
-            return a, g, la
-        return -a, (None if g is None else g.conjugate()), la
-
-    def gaps(pts, vals):
-        """(change of arg det, criterion) per pair of neighbours: the change is the wrapped
-        difference on the branch nearest Im T (trapezoid of g) under the 'trapezoid' rule, and
-        the criterion max(|g_b − g_a| |Δσ|, |change − Im T|, |Δ ln|det| − Re T|) (0 unchecked)."""
-        w = np.array([_wrap(b[0] - a[0]) for a, b in zip(vals, vals[1:])])
-        if not checked:
-            return w, np.zeros(w.size)
-        d = w.copy()
-        r = np.empty(w.size)
-        for k, (a, b, za, zb) in enumerate(zip(vals, vals[1:], pts, pts[1:])):
-            trap = 0.5 * (a[1] + b[1]) * (zb - za)
-            if phase_rule == "trapezoid":
-                d[k] = w[k] + 2.0 * math.pi * round((trap.imag - w[k]) / (2.0 * math.pi))
-            r[k] = max(abs(b[1] - a[1]) * abs(zb - za), abs(d[k] - trap.imag),
-                       abs((b[2] - a[2]) - trap.real))
-        return d, r
-
-    def _walk():
-        pts = _rectangle(x0, x1, y1, per_side, symmetric=mirror)
-        arg_at(pts[0])                  # settles `checked` before any batch
-        prefetch(pts)
-        vals = [arg_at(z) for z in pts]
-        status, msg = "converged", ""
-        while True:            # leaves with dargs, gap of the final points (the walk or its budget)
-            dargs, gap = gaps(pts, vals)
-            steps = np.abs(dargs)
-            bound = not checked or phase_rule == "wrapped"   # the change itself below max_step
-            bad = [k for k in range(len(steps))
-                   if (bound and steps[k] > max_step) or gap[k] > max_step]
-            if not bad:
-                break
-            need = {canon(0.5 * (pts[k] + pts[k + 1])) for k in bad} - used
-            if len(used) + len(need) > max_evals:
-                status = "failed"
-                msg = ((f"the trapezoid of d ln det M/dsigma still misses the change between "
-                        f"neighbours by up to {gap.max():.2f} (criterion {max_step})"
-                        if checked and not bound else
-                        f"arg det M still changes by {steps.max():.2f} rad between neighbours"
-                        + (f" (derivative criterion {gap.max():.2f})" if checked else ""))
-                       + f" after {len(used)} evaluations (budget {max_evals})")
-                break
-            prefetch(need)
-            for k in reversed(bad):
-                zm = 0.5 * (pts[k] + pts[k + 1])
-                pts.insert(k + 1, zm)
-                vals.insert(k + 1, arg_at(zm))
-        return pts, vals, dargs, gap, status, msg
-
-    try:
-        pts, vals, dargs, gap, status, msg = _walk()
-    finally:
-        if pool is not None:
-            pool.close()
-    save(force=True)
+def _result(w, pts, vals, dargs, gap, status, msg, integer_tol, wall):
+    """The :class:`ContourCount` of a finished walk: the winding number, an integer or not."""
     unwrapped = np.concatenate([[vals[0][0]], vals[0][0] + np.cumsum(dargs)])
     winding = float(np.sum(dargs) / (2.0 * math.pi))
     count = None
@@ -424,10 +390,10 @@ def count_unstable(op, box=None, max_step=0.6, per_side=6, max_evals=400, intege
             msg = f"winding number {winding:.3f} is not an integer within {integer_tol}"
         else:
             count = int(round(winding))
-            msg = (f"{count} eigenvalue(s) in {x0:g} <= Re sigma L/c <= {x1:g}, "
-                   f"|Im sigma L/c| <= {y1:g}")
-    return ContourCount(count, winding, (x0, x1, y1), len(used),
+            msg = (f"{count} eigenvalue(s) in {w.x0:g} <= Re sigma L/c <= {w.x1:g}, "
+                   f"|Im sigma L/c| <= {w.y1:g}")
+    return ContourCount(count, winding, (w.x0, w.x1, w.y1), len(w.used),
                         float(np.max(np.abs(dargs))) if dargs.size else 0.0, status, msg,
-                        time.perf_counter() - t0, np.array(pts), unwrapped,
-                        float(gap.max()) if checked and gap.size else float("nan"),
-                        resumed, note)
+                        wall, np.array(pts), unwrapped,
+                        float(gap.max()) if w.checked and gap.size else float("nan"),
+                        w.resumed, w.note)

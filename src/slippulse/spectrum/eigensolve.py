@@ -75,7 +75,7 @@ def snap_real(sigma, scale):
     eigenvalue carries a subnormal imaginary part from pulse to pulse and level to level. Every
     complex operation of the kernel assembly with it then runs 20-25× slower (measured at
     1.03 τ_min, N = 1250: four Newton iterations in 165 s from 0.1829 + 1.1e-318j, in 8.2 s from
-    0.0886 + 5.9e-14j; stop 37). Below 1e-13 relative the imaginary part is rounding noise."""
+    0.0886 + 5.9e-14j). Below 1e-13 relative the imaginary part is rounding noise."""
     sigma = complex(sigma)
     if sigma.imag != 0.0 and abs(sigma.imag) <= REAL_SNAP * max(abs(sigma), scale):
         return complex(sigma.real, 0.0)
@@ -88,7 +88,7 @@ def snap_real(sigma, scale):
 #: |σ* − σ_k|/|σ₂ − σ_k| (σ₂ the next pencil eigenvalue), so one or two suffice where σ_k is
 #: within the step criterion of σ*; a solve costs O(N²) against the O(N²) assembly with its
 #: kernel tables and the O(N³) LU (measured on the deep pulses, N = 3542–5009: one assembly
-#: fewer per ladder level, BENCHMARKS.md "Stop 39").
+#: fewer per ladder level, BENCHMARKS.md).
 FROZEN_SOLVES = 4
 
 
@@ -117,7 +117,7 @@ def _frozen_solves(lu, M, dM, e, x, sigma, scale, step_tol, res_tol, hist, sig=N
 #: Inverse-iteration solves with the first factor, M(σ₀)⁻¹ M′(σ₀), that :func:`newton_eigen`
 #: (``purify``) spends on a start vector taken from elsewhere (the neighbouring pulse's mode moved
 #: over) before its first update of σ. Measured on the deep pulses at level 0 (N = 3542, L ≈
-#: 3.5 km, stop 40): from the neighbour's σ 2–5 % off and its mode, the first Newton step went
+#: 3.5 km): from the neighbour's σ 2–5 % off and its mode, the first Newton step went
 #: the wrong way (7.64 → 7.81 against 7.35, in 1e−5 c/L) and Newton needed 3–4 assemblies; the
 #: vector's error along the other eigenvalues near the imaginary axis is what misleads the step.
 #: Each solve is O(N²) against an assembly and an O(N³) LU.

@@ -1,6 +1,6 @@
-"""Propagate a seeded steady pulse and measure its drift from the steady solution (issue 4).
+"""Propagate a seeded steady pulse and measure its drift from the steady solution.
 
-``verify_pulse`` seeds the SBI stepper with a steady pulse (:mod:`slippulse.stability.seeding`), steps it over
+``verify_pulse`` seeds the SBI stepper with a steady pulse (:mod:`slippulse.timedomain.seeding`), steps it over
 a given number of pulse lengths with adaptive time steps, keeps it in a frame that follows it
 (``seeding.follow_pulse``) and measures, in the co-moving frame:
 
@@ -197,14 +197,34 @@ def _lost_how(st, pulse) -> str:
     return "grew" if float(st.V.max()) > pulse.v_max else "arrested"
 
 
+@dataclass(frozen=True)
+class VerifySettings:
+    """How a verification run is made (the options of :func:`verify_pulse`, stored in its
+    ``info``); see there for each."""
+
+    rule: TimeStepRule | None = None
+    far_field: str = "steady"
+    follow: bool = True
+    n_samples: int = 100
+    n_snapshots: int = 6
+    history_options: dict | None = None
+    threads: int = 1
+    track_every: int = 4
+    lost_factor: float = 20.0
+    history_start: str = "steady"
+    history: str = "soe"
+    wrap_dislocation: bool = False
+    perturbation: tuple | None = None
+    device: str = "cpu"
+
+    def __post_init__(self):
+        if self.far_field == "steady" and not self.follow:
+            raise ValueError("far_field='steady' is attached to the frame: it needs follow=True")
+
+
 def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec(),
-                 rule: TimeStepRule | None = None, far_field: str = "steady", follow: bool = True,
-                 n_samples: int = 100, n_snapshots: int = 6, progress: bool = True,
-                 history_options=None, threads: int = 1, track_every: int = 4,
-                 lost_factor: float = 20.0, history_start: str = "steady",
-                 perturbation: tuple[str, float] | None = None,
-                 stop_check=None, history: str = "soe",
-                 wrap_dislocation: bool = False, eigen=None, device: str = "cpu") -> VerifyResult:
+                 settings: VerifySettings | None = None, eigen=None, stop_check=None,
+                 progress: bool = True) -> VerifyResult:
     """Seed ``pulse`` and propagate it over ``distance`` steady pulse lengths.
 
     Parameters
@@ -215,6 +235,8 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
         Distance to travel, in pulse lengths L⁰ (run time t_end = distance·L⁰/c_p⁰).
     spec : DomainSpec
         Grid spacing and domain; with ``follow=False`` the travel distance is added ahead.
+    settings : VerifySettings
+        The run's options, below (default: ``VerifySettings()``).
     rule : TimeStepRule, optional
         Default adaptive, β_cfl = 0.5, ξ = 0.1, ξ_s = 0.5.
     far_field : {"steady", "none"}
@@ -265,8 +287,9 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
     -------
     VerifyResult
     """
-    if far_field == "steady" and not follow:
-        raise ValueError("far_field='steady' is attached to the frame: it needs follow=True")
+    s = settings if settings is not None else VerifySettings()
+    rule, far_field, follow, perturbation = s.rule, s.far_field, s.follow, s.perturbation
+    history_start, history, device = s.history_start, s.history, s.device
     if not distance > 0:
         raise ValueError(f"distance={distance!r} must be > 0 (pulse lengths)")
     if not follow:
@@ -275,9 +298,9 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
     # seed: the steady (or perturbed) pulse as if it had travelled forever
     seed = seed_pulse(pulse if perturbation is None else perturbed_pulse(pulse, *perturbation),
                       params, spec, rule=rule, far_field=far_field,
-                      history_options=history_options, threads=threads,
+                      history_options=s.history_options, threads=s.threads,
                       history_start=history_start, history=history,
-                      wrap_dislocation=wrap_dislocation)
+                      wrap_dislocation=s.wrap_dislocation)
     if perturbation is not None and perturbation[0] in MODE_FRAMES:
         from .eigenmode import perturb_along_mode
         if eigen is None:
@@ -289,8 +312,9 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
         from ..dynamics.device import DeviceStepper
         seed.stepper = DeviceStepper.from_host(seed.stepper, device)
     # run: step to t_end = distance·L⁰/c_p⁰, sampling n_samples times
-    rec = _Recorder(seed, pulse, params, distance, n_samples, n_snapshots)
-    status = _run(seed, pulse, params, rec, follow, track_every, lost_factor, stop_check, progress)
+    rec = _Recorder(seed, pulse, params, distance, s.n_samples, s.n_snapshots)
+    status = _run(seed, pulse, params, rec, follow, s.track_every, s.lost_factor, stop_check,
+                  progress)
     wall = time.perf_counter() - wall0
     # measure: the errors against the steady pulse, their series and the run's description
     series, errors, (t, X, slip) = _measure(rec, pulse)
@@ -304,7 +328,7 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
             "n": st.n, "length": st.length, "dx": st.dx, "ahead": spec.ahead,
             "behind": spec.behind, "far_field": far_field, "follow": bool(follow),
             "history_start": history_start, "history": history, "device": device,
-            "wrap_dislocation": bool(wrap_dislocation),
+            "wrap_dislocation": bool(s.wrap_dislocation),
             "perturbation": "none" if perturbation is None else str(perturbation[0]),
             "eps": 0.0 if perturbation is None else float(perturbation[1]),
             "slip0": float(slip[0]),

@@ -36,7 +36,7 @@ from scipy.interpolate import CubicSpline
 
 from ..core.errors import UsageError
 from ..steady import solver
-from .spectrum import NEWTON_TOL, order4_pulse, pulse_spectrum  # noqa: F401 (re-export)
+from .pulse import NEWTON_TOL, order4_pulse, pulse_spectrum  # noqa: F401 (re-export)
 
 #: The error estimate needs a pulse of at least this many points to map.
 MIN_REFINE_POINTS = 200
@@ -116,6 +116,16 @@ class RefinedRate:
     s_per_L: float = float("nan")    # s L/c_p, estimated from its own levels (L converges too)
     s_err_per_L: float = float("nan")
 
+    def add_level(self, n_points, res):
+        """Append the leading eigenvalue of a level's spectrum `res` (on `n_points` points)."""
+        lead = res.leading
+        self.n_points.append(int(n_points))
+        self.s_levels.append(lead.real)
+        self.imag_levels.append(lead.imag)
+        self.translation_levels.append(float(res.neutral[1].real))
+        self.rate_unit = res.rate_unit
+        self.unit_levels.append(res.rate_unit)
+
     @property
     def s_per_L_levels(self) -> list:
         """s_k L_k/c_k per level."""
@@ -185,11 +195,11 @@ def mapped_pulse(params, pulse, gmap, n, tol=1e-13, creep=0):
     its ln v interpolated there (creep > 0: give up once max|r| has not halved over `creep`
     iterations). Each full Newton step's LU is reused by chord iterations before a new Jacobian
     is formed (the start is close: measured on the deep pulses, 2 LUs instead of 4–5 at
-    N = 3542–5009, BENCHMARKS.md "Stop 39"), and the line search is Deuflhard's natural
+    N = 3542–5009, BENCHMARKS.md), and the line search is Deuflhard's natural
     monotonicity test (the healing front, a few cm off on the finer grid, no longer cuts the
-    steps: 15 → 3 LUs at L = 3.8 km, N = 5009, stop 40); where that fails, the re-solve is made
+    steps: 15 → 3 LUs at L = 3.8 km, N = 5009); where that fails, the re-solve is made
     again with the ‖r‖₂ line search (at 6.70 km, N = 3542, the natural test stopped at max|r| =
-    1.2e−5 after 31 iterations, where the ‖r‖₂ test converges; stop 40). The tolerance is the
+    1.2e−5 after 31 iterations, where the ‖r‖₂ test converges). The tolerance is the
     same. Returns a :class:`slippulse.steady.solver.SteadySolution`."""
     sol = solver.resolve_on_grid(params, pulse, gmap(n), tol=tol, state_order=4, creep=creep,
                                  reuse=True, line_search="natural")
@@ -255,32 +265,11 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=NEWTON_TOL, progres
             est = estimate(out.s_per_L_levels)
             if est[1] <= goal(target, rel_target, est[0]):
                 break
-        sol = mapped_pulse(params, p, gmap, n)
-        if not sol.stats.converged and source is not None:
-            sol = mapped_pulse(params, source, gmap, n)
-        if not sol.stats.converged:
-            out.status = "failed"
-            out.message = (f"steady Newton on level {lev} (N = {sol.problem.n}) did not "
-                           f"converge: {sol.stats.message}")
+        q, why = level_pulse(params, p, source, gmap, n)
+        if why:
+            out.status, out.message = "failed", f"steady Newton on level {lev} {why}"
             break
-        q = sol.to_pulse()
-        guess = lead * (q.c_p / q.L) / (p.c_p / p.L)
-        starts = [guess]
-        if neighbour and int(q.n_points) in neighbour:
-            starts.insert(0, complex(neighbour[int(q.n_points)]) * (q.c_p / q.L))
-        gmode = None
-        if mode is not None:               # the coarser level's mode, interpolated (cubic: its
-            # first Newton step lands 4.6e-7 c/L from the eigenvalue, against 4.9e-6 from a
-            # linear one, measured at 1.05 τ_min, N = 1000 → 1414; one iteration fewer)
-            gmode = [CubicSpline(p.xi, mode.real)(q.xi)
-                     + 1j * CubicSpline(p.xi, mode.imag)(q.xi)]
-        # pinned, σ_t = 0 by construction: the neutral pair is not computed above level 0
-        for start in starts:
-            res = pulse_spectrum(q, params, guesses=[start], extra=False, tol=tol,
-                                 guess_modes=gmode, pin_translation=pin_translation,
-                                 neutral=not pin_translation)
-            if res.status == "converged" and res.sigmas.size:
-                break
+        res = level_eigen(q, p, params, lead, mode, neighbour, tol, pin_translation)
         if res.status != "converged" or res.sigmas.size == 0:
             out.status = "failed"
             out.message = f"eigen-solve on level {lev} (N = {q.n_points}): {res.message}"
@@ -288,30 +277,64 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=NEWTON_TOL, progres
         lead = res.leading
         mode = res.modes[0]["V"]
         p = q
-        out.n_points.append(int(q.n_points))
-        out.s_levels.append(lead.real)
-        out.imag_levels.append(lead.imag)
-        out.translation_levels.append(float(res.neutral[1].real))
-        out.rate_unit = res.rate_unit
-        out.unit_levels.append(res.rate_unit)
+        out.add_level(q.n_points, res)
         if progress:
             progress(f"level {lev}: N={q.n_points} s L/c={lead.real / res.rate_unit:.6g}")
     if out.status == "converged":
-        out.s, out.s_err, out.order, out.rule = estimate(out.s_levels)
-        out.s_per_L, out.s_err_per_L = estimate(out.s_per_L_levels)[:2]
-        out.s_extrapolated = richardson(out.s_levels)[0]
-        if not out.pinned:              # pinned: σ_t = 0 by construction, nothing to check
-            out.translation_extrapolated, out.translation_err = \
-                richardson(out.translation_levels)[:2]
-        out.message = (f"{len(out.s_levels)} levels, N = "
-                       f"{'/'.join(str(n) for n in out.n_points)}, {out.rule}"
-                       + (f" (order {out.order:.2f})" if out.rule == "three-level" else ""))
-        if target is not None:
-            sl, el = out.per_length()
-            out.target = goal(target, rel_target, sl)
-            out.target_met = bool(el <= out.target)
-            if not out.target_met:
-                out.message += (f"; target s_err L/c_p <= {out.target:g} not reached by N = "
-                                f"{out.n_points[-1]} (next level > {max_points} points)")
+        _finish(out, target, rel_target, max_points)
     out.wall_time = time.perf_counter() - t0
     return out
+
+
+def level_pulse(params, p, source, gmap, n):
+    """(the pulse re-solved on ``gmap(n)`` from the level below `p`, else from `source`; '') or
+    (None, why)."""
+    sol = mapped_pulse(params, p, gmap, n)
+    if not sol.stats.converged and source is not None:
+        sol = mapped_pulse(params, source, gmap, n)
+    if not sol.stats.converged:
+        return None, f"(N = {sol.problem.n}) did not converge: {sol.stats.message}"
+    return sol.to_pulse(), ""
+
+
+def level_eigen(q, p, params, lead, mode, neighbour, tol, pin_translation):
+    """The leading eigenvalue of level `q` from the level below (`p`, its leading σ and mode):
+    Newton from the neighbour's value on this N first where there is one, else (or where that
+    fails) from the level below's σ at equal σL/c, with its mode interpolated (cubic: the first
+    Newton step lands 4.6e-7 c/L from the eigenvalue, against 4.9e-6 from a linear one,
+    measured at 1.05 τ_min, N = 1000 → 1414; one iteration fewer). Pinned, σ_t = 0 by
+    construction: the neutral pair is not computed above level 0."""
+    starts = [lead * (q.c_p / q.L) / (p.c_p / p.L)]
+    if neighbour and int(q.n_points) in neighbour:
+        starts.insert(0, complex(neighbour[int(q.n_points)]) * (q.c_p / q.L))
+    gmode = None
+    if mode is not None:
+        gmode = [CubicSpline(p.xi, mode.real)(q.xi) + 1j * CubicSpline(p.xi, mode.imag)(q.xi)]
+    for start in starts:
+        res = pulse_spectrum(q, params, guesses=[start], extra=False, tol=tol,
+                             guess_modes=gmode, pin_translation=pin_translation,
+                             neutral=not pin_translation)
+        if res.status == "converged" and res.sigmas.size:
+            break
+    return res
+
+
+def _finish(out, target, rel_target, max_points):
+    """The estimate of a converged ladder (s, s_err, order, rule; the check extrapolations) and
+    whether it meets the goal."""
+    out.s, out.s_err, out.order, out.rule = estimate(out.s_levels)
+    out.s_per_L, out.s_err_per_L = estimate(out.s_per_L_levels)[:2]
+    out.s_extrapolated = richardson(out.s_levels)[0]
+    if not out.pinned:              # pinned: σ_t = 0 by construction, nothing to check
+        out.translation_extrapolated, out.translation_err = \
+            richardson(out.translation_levels)[:2]
+    out.message = (f"{len(out.s_levels)} levels, N = "
+                   f"{'/'.join(str(n) for n in out.n_points)}, {out.rule}"
+                   + (f" (order {out.order:.2f})" if out.rule == "three-level" else ""))
+    if target is not None:
+        sl, el = out.per_length()
+        out.target = goal(target, rel_target, sl)
+        out.target_met = bool(el <= out.target)
+        if not out.target_met:
+            out.message += (f"; target s_err L/c_p <= {out.target:g} not reached by N = "
+                            f"{out.n_points[-1]} (next level > {max_points} points)")

@@ -12,8 +12,8 @@ MODE_FIELDS = {"delta": ("m", "slip perturbation delta_1 (mode normalised: max |
                "lnv": ("1", "perturbation of ln(v/v* + 1)")}
 
 
-def write_spectrum(path, res, settings: dict):
-    """Store `res` (a :class:`~slippulse.stability.spectrum.PulseSpectrum`) as /pulses/<label>/spectrum (replacing an earlier one), atomically.
+def write_spectrum(path, res, settings: dict, extra_attrs: dict | None = None):
+    """Store `res` (a :class:`~slippulse.spectrum.pulse.PulseSpectrum`) as /pulses/<label>/spectrum (replacing an earlier one), atomically.
 
     Layout (xarray: ``open_datatree(path, engine="h5netcdf")``): coordinate ``eigenvalue`` (index,
     by decreasing Re σ); ``sigma_real``/``sigma_imag`` (1/s) and ``s_per_L_*`` on it; mode fields
@@ -83,6 +83,8 @@ def write_spectrum(path, res, settings: dict):
                 g.attrs["count"] = int(cnt.count)
         for k, v in settings.items():
             g.attrs[f"setting_{k}"] = v
+        for k, v in (extra_attrs or {}).items():       # e.g. the settings' text, the attempt
+            g.attrs[k] = v
         units = {"leading_sigma_real": "1/s", "leading_sigma_imag": "1/s",
                  "rate_unit_c_over_L": "1/s", "translation_sigma": "1/s", "wall_time": "s",
                  "s": "1/s", "s_err": "1/s", "refine_s_levels": "1/s",

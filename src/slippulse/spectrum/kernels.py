@@ -15,7 +15,7 @@ whose σ-derivative is ∂_σ W̃ = x F′(x)/(σ π r²), x F′ = sβx − x²
 This module holds what is compiled: the kernel tables in u = ln|r| (series for |x| ≤ 2, scaled
 Bessel functions beyond), the product integration of W̃ against the cubic-spline interpolant on a
 non-uniform grid (log part of near segments exact, Gauss–Legendre elsewhere), and the state
-recursion of the linearised ageing law. Orchestration lives in :mod:`slippulse.stability.spectrum`.
+recursion of the linearised ageing law. Orchestration lives in :mod:`slippulse.spectrum.pulse`.
 """
 from __future__ import annotations
 
@@ -143,7 +143,7 @@ class KernelTables:
         self.EB = np.ascontiguousarray(np.stack([x * kve(1, x), x * x * kve(0, x)]))
 
         #: at real σ the tables are real (exactly: zero imaginary parts), and the assembly runs
-        #: in real arithmetic (stop 38: 2x faster than complex at N = 3542)
+        #: in real arithmetic (2x faster than complex at N = 3542)
         self.real = (sigma.imag == 0.0 and not np.any(self.GA.imag)
                      and not np.any(self.EB.imag))
         if self.real:
@@ -254,13 +254,13 @@ def _hermite(s):
     return 2 * s3 - 3 * s2 + 1.0, -2 * s3 + 3 * s2, s3 - 2 * s2 + s, s3 - s2
 
 
-#: Filon–Gauss rule of :func:`assemble_w` for far segments whose exponential turns fast (stop 33):
+#: Filon–Gauss rule of :func:`assemble_w` for far segments whose exponential turns fast:
 #: ∫₀¹ f(t) e^{−αt} dt ≈ Σ_k w_k(α) f(t_k), exact for f of degree < FILON_N, at the Gauss–Legendre
 #: nodes t_k: w_k = W_k Σ_j (2j + 1) P̃_j(t_k) M_j(α), M_j = ∫₀¹ P̃_j(t) e^{−αt} dt the Legendre
 #: moments (P̃_j(t) = P_j(2t − 1)), by their upward recurrence J_{j+1} = J_{j−1} + (2j + 1) J_j/z,
 #: z = α/2, M_j = J_j/2, stable for j < |z|: used where |α| ≥ 2 FILON_N. With the target at least
 #: two sub-panel lengths away, f (the smooth factor of the kernel times the spline basis) is
-#: integrated to ~3e-11 relative (measured against adaptive quadrature, stop 33).
+#: integrated to ~3e-11 relative (measured against adaptive quadrature).
 FILON_N = 12
 _FG_X, _FG_W = np.polynomial.legendre.leggauss(FILON_N)
 _FG_T = 0.5 * (_FG_X + 1.0)
@@ -295,7 +295,7 @@ def filon_weights(alpha, out):
 
 #: Sub-panel rule of :func:`assemble_w` for segments on one side of their target: True (default)
 #: splits by the exponential of that side, e^{−(1+sβ)κ|r|}; False splits both sides as the fast one
-#: (the rule before stop 33, kept for benchmarks/bench_assembly.py; no Filon–Gauss then).
+#: (the rule before, kept for benchmarks/bench_assembly.py; no Filon–Gauss then).
 SPLIT_PER_SIDE = True
 
 
@@ -314,7 +314,7 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
     while (1 + sβ) Re κ times its distance is below EXP_CUT. On the side r < 0 the rate is
     (1 − β)|κ|, ≈ 1e-3 |κ| at the deep pulses, so those segments need no split
     (``per_side=False``: every segment split as the side r > 0 and kept while (1 − β) Re κ times
-    its distance is below EXP_CUT, as before stop 33; 2–3× the evaluations at |σ| ~ c_p/L there).
+    its distance is below EXP_CUT, as before; 2–3× the evaluations at |σ| ~ c_p/L there).
     ``split_scale`` multiplies every sub-panel count (> 1: a finer reference, for tests).
 
     With ``per_side``, a far segment (|2x0 − 1| > 3) that the rule above would split,
@@ -631,7 +631,7 @@ def times_D4(X, dX, a, B, j0s, da, dB, XD, dXD, deriv):
 @njit(parallel=True, cache=True)
 def stability_rows(W, dW, H, H0, cx, cdx, Phi, dPhi, corr, fphi, fv, ch, a, B, j0s, da, dB,
                    pin_r, pin_t, tau, has_w, pinned, deriv):
-    """M(σ) and M′(σ) of :meth:`slippulse.stability.operators.StabilityOperator.matrices`, row by
+    """M(σ) and M′(σ) of :meth:`slippulse.spectrum.operators.StabilityOperator.matrices`, row by
     row in one pass, written over Phi and dPhi (which hold Φ(σ) and ∂_σΦ on entry):
 
         X  = cx[0] W + cx[1] H + cx[2] H0,      X′ = cdx[0] W′ + cdx[1] H + cdx[2] H0,
@@ -641,7 +641,7 @@ def stability_rows(W, dW, H, H0, cx, cdx, Phi, dPhi, corr, fphi, fv, ch, a, B, j
     with X D and X′ D + X D′ as in :func:`times_D4`. has_w False: the W terms are absent (σ = 0;
     W, dW are not read); pinned False: no rank-one term. Each row of X is formed, multiplied by
     D and combined while it is in cache: the numpy passes and the X, XD temporaries it replaces
-    cost 1.1 s of a 4.4 s assembly at N = 3542 (stop 39)."""
+    cost 1.1 s of a 4.4 s assembly at N = 3542."""
     m, n = Phi.shape
     for r in prange(m):
         x = np.empty(n, Phi.dtype)

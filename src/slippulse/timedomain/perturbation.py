@@ -614,7 +614,7 @@ def _fate(status: str) -> str:
 def run_perturbation(case: dict, progress: bool = False):
     """Run one perturbed pulse to its fate; returns (pulse, params, VerifyResult, analysis dict)."""
     from ..core.h5io import read_pulse, require_converged
-    from .verify import verify_pulse
+    from .verify import VerifySettings, verify_pulse
     from .seeding import DomainSpec
     from ..dynamics.stepper import TimeStepRule
 
@@ -638,13 +638,13 @@ def run_perturbation(case: dict, progress: bool = False):
     if c["perturbation"] in ("mode", "mode_front"):
         from .eigenmode import leading_mode
         eigen = leading_mode(pulse, params, path=c["steady"], mode_path=c["mode_file"] or None)
-    res = verify_pulse(pulse, params, float(c["distance"]), spec, rule=rule, eigen=eigen,
-                       n_samples=max(10, int(round(float(c["distance"]) * float(c["samples_per_L"])))),
-                       n_snapshots=8, progress=progress,
-                       history_options=HISTORIES[c["history"]], threads=int(c["threads"]),
-                       lost_factor=float(c["lost_factor"]),
-                       perturbation=None if eps == 0 else (c["perturbation"], eps),
-                       stop_check=stop, device=c["device"])
+    run = VerifySettings(
+        rule=rule, n_samples=max(10, int(round(float(c["distance"]) * float(c["samples_per_L"])))),
+        n_snapshots=8, history_options=HISTORIES[c["history"]], threads=int(c["threads"]),
+        lost_factor=float(c["lost_factor"]),
+        perturbation=None if eps == 0 else (c["perturbation"], eps), device=c["device"])
+    res = verify_pulse(pulse, params, float(c["distance"]), spec, run, eigen=eigen,
+                       progress=progress, stop_check=stop)
     return pulse, params, res, analyse(res, pulse, c)
 
 
@@ -715,7 +715,7 @@ def read_row(out_path: str) -> dict:
         for k in keys:
             v = h5.attrs[k]
             row[k] = v.item() if hasattr(v, "item") else v
-        v = h5.attrs.get("eigen_s_per_L", math.nan)       # files before issue 20: none
+        v = h5.attrs.get("eigen_s_per_L", math.nan)       # older files: none
         row["eigen_s_per_L"] = v.item() if hasattr(v, "item") else v
     return row
 

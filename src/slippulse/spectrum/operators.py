@@ -28,7 +28,7 @@ from ..core import friction as fr
 from ..core.h5io import state_order_of
 from ..steady.equations import RADAU_A, RADAU_C, integrate_state_radau, radau_stage_values
 from ..steady.hilbert import add_times_slopes, hilbert_matrix, tail_columns
-from .spectrum_kernels import (SPLIT_PER_SIDE, KernelTables, assemble_w, slip_coefficients4,
+from .kernels import (SPLIT_PER_SIDE, KernelTables, assemble_w, slip_coefficients4,
                                stability_rows, state_rows4)
 
 
@@ -47,7 +47,7 @@ class ElasticOperator:
 
     H: PV Hilbert matrix of the cubic spline with the algebraic far-field tails (the steady
     solver's operator), H₀: the same without tails, 𝒲̃: product integration of the kernel W̃
-    (:mod:`slippulse.stability.spectrum_kernels`). At σ = 0, K_0 = (λ/π) H S is the steady operator acting on
+    (:mod:`slippulse.spectrum.kernels`). At σ = 0, K_0 = (λ/π) H S is the steady operator acting on
     V = −c δ′.
     """
 
@@ -68,7 +68,7 @@ class ElasticOperator:
         self.H0[:, -1] -= ahead
         self.lam = self.mu * math.sqrt(1.0 - self.beta ** 2) / 2.0
         #: far segments of 𝒲̃ by each side's own exponential, Filon–Gauss where it turns fast
-        #: (:func:`assemble_w`; False: the rule before stop 33, for benchmarks)
+        #: (:func:`assemble_w`; False: the rule before, for benchmarks)
         self.split_per_side = SPLIT_PER_SIDE
         h = np.diff(self.xi)
         self.r_min = 0.005 * h.min()
@@ -230,7 +230,7 @@ class StabilityOperator:
         el = self.elastic
         lam, c = el.lam, self.c
         # at real σ every part is real (M(σ̄) = conj M(σ)) and is built in real arithmetic,
-        # half the work and memory of the complex (stop 38); W decides, being real only where
+        # half the work and memory of the complex; W decides, being real only where
         # its tables came out exactly real
         if sigma != 0.0:
             W, dW = el.kernel_matrices(sigma, deriv)
@@ -244,7 +244,7 @@ class StabilityOperator:
         has_w = sigma != 0.0
         a, B, da, dB = self._slip(s_)
         pin_r, pin_t = self.pin if self.pin is not None else (np.zeros(1), np.zeros(1))
-        # M over Phi and M′ over dPhi, row by row in one compiled pass (stop 39)
+        # M over Phi and M′ over dPhi, row by row in one compiled pass
         stability_rows(W if has_w else dummy, dW if has_w and deriv else dummy, el.H, el.H0,
                        cx, cdx, Phi, dPhi if deriv else dummy, self.phi_correction, self.fphi, self.fv, k_h,
                        a, B, self.cells[1], da, dB, pin_r, pin_t, self.tau_d, has_w,
@@ -287,7 +287,7 @@ class StabilityOperator:
         Vm = (-self.c) * self.S.astype(type(s_))
         Vm[np.diag_indices(n)] += s_
         # state_correction @ Vm with Vm = −c S + σ I: the product with S in O(N²)
-        # (add_times_slopes), not as a dense N³ product (2 s at N = 3542, stop 39)
+        # (add_times_slopes), not as a dense N³ product (2 s at N = 3542)
         corr = (-self.c) * add_times_slopes(np.zeros((n, n)), self.state_correction, self.xi)
         corr = corr + s_ * self.state_correction
         Y = self._state(s_, Vm, False)[0] + corr

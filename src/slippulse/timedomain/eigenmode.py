@@ -1,6 +1,6 @@
 """The unstable eigenmode of a steady pulse in time: source of growth rates, SBI seed, front frame.
 
-The linear stability spectrum (:mod:`slippulse.stability.spectrum`, docs/spectrum.md) gives, per
+The linear stability spectrum (:mod:`slippulse.spectrum.pulse`, docs/spectrum.md) gives, per
 pulse, the leading eigenvalue σ and its mode (δ₁, V₁, φ₁) on the pulse's own grid, normalised so
 that the perturbation of y = ln(v/v* + 1), y₁ = V₁/(v₀ + v*), has modulus 1 and phase 0 at its
 largest modulus. This module
@@ -114,7 +114,7 @@ def stored_mode(path: str, label: str) -> Eigenmode | None:
     """The leading mode stored in ``path`` for pulse ``label`` (``slippulse steady stability``),
     or None when there is none. A stored spectrum that failed, or holds no unstable eigenvalue,
     raises :class:`SpectrumError` naming the file."""
-    from .spectrum import read_spectrum
+    from ..spectrum.pulse import read_spectrum
     try:
         d = read_spectrum(path, label)
     except (OSError, KeyError) as exc:
@@ -134,7 +134,7 @@ def stored_mode(path: str, label: str) -> Eigenmode | None:
 def computed_mode(pulse, params) -> Eigenmode:
     """The leading mode computed now (``spectrum.pulse_spectrum``, leading eigenvalue only).
     N = 2000: about a minute; the cost grows as N³."""
-    from .spectrum import pulse_spectrum
+    from ..spectrum.pulse import pulse_spectrum
     if pulse.mode != "III":
         raise SpectrumError(f"pulse {pulse.label} is a mode-{pulse.mode} pulse: the spectrum "
                             "is for mode III")
