@@ -85,7 +85,7 @@ def _short_run(s_true, s_meas_growth, s_err):
     window, the pulse's stored eigenvalue s_true ± s_err."""
     import numpy as np
 
-    from slippulse.stability.verify import SERIES, VerifyResult, growth_rate
+    from slippulse.timedomain.verify import SERIES, VerifyResult, growth_rate
     d = np.linspace(0.0, 0.1, 21)
     err = 1e-3 * np.exp(s_meas_growth * d)
     series = {k: np.zeros_like(d) for k in SERIES}
@@ -100,7 +100,7 @@ def test_verify_verdict_agrees_with_the_growth_its_figure_draws():
     """The mode grows by e^0.8 over the run and the drift grows at its rate: the verdict says so
     (it said 'the drift is not its growth'), leaves it unattributed as too short, and quotes the
     eigenvalue with its stored s_err."""
-    from slippulse.stability.verify import drift_verdict, mode_growth
+    from slippulse.timedomain.verify import drift_verdict, mode_growth
     res = _short_run(8.0, 8.0, 0.02)
     assert mode_growth(res.info)[1] == 0.02
     verdict, text = drift_verdict(res)
@@ -114,7 +114,7 @@ def test_verify_verdict_agrees_with_the_growth_its_figure_draws():
 def test_steady_solve_and_verify_lines_say_they_carry_no_error_estimate(pulse12):
     from slippulse.cli.steady import summary_line
     from slippulse.core.params import DEFAULT
-    from slippulse.stability.verify import summary
+    from slippulse.timedomain.verify import summary
     assert "no error estimate" in summary_line(pulse12.to_pulse(), DEFAULT)
     res = _short_run(8.0, 8.0, 0.02)
     res.errors.update(c_p_error=1e-4, v_max_error=2e-3, L_error=1e-4, lnv_error=1e-3)
