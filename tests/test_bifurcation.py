@@ -135,3 +135,63 @@ def test_pulse_indicators_regular_at_1p2(params, pulse12):
     assert v.cramer_defect < 1e-6
     assert v.fold_sign != 0 and v.t_param < 0         # τ_d falls as β rises: no fold here
     assert v.sigma[0] > 1e-8 and v.sigma[0] < v.sigma[1]
+
+
+# --------------------------------------------------------------------------- referee checks
+def _fake_pulse(q, beta, slip, params):
+    """A pulse-shaped record with total slip `slip` (a box of slip rate over 1 m)."""
+    from slippulse.core.h5io import Pulse
+    xi = np.linspace(-2.0, 1.0, 301)
+    v_st = 1e-7
+    c = beta * params.c_s
+    v = np.where((xi > -1.0) & (xi < 0.0), v_st + slip * c, v_st)
+    z = np.zeros_like(xi)
+    return Pulse(xi=xi, v=v, phi=z, tau=z, residual=z, tau_d_ratio=q, tau_d=q, tau_min=1.0,
+                 beta=beta, c_p=c, L=1.0, L_tilde=1.0, v_stick=v_st, v_max=float(v.max()),
+                 max_residual=0.0, converged=True, n_points=xi.size, wall_time=0.0)
+
+
+def test_slip_criterion_sign_and_agreement(params):
+    from slippulse.steady.analysis import slip_criterion
+    # b = (q − 1.1)² has db/dq < 0 below 1.1 and > 0 above; β rises as q falls
+    qs = [1.2, 1.15, 1.12, 1.08, 1.05, 1.02]
+    ps = [_fake_pulse(q, 0.5 - q / 3, (q - 1.1) ** 2 + 0.01, params) for q in qs]
+    rates = {1.15: (2.0, 0.1), 1.05: (0.5, 0.1), 1.08: (0.01, 0.1)}
+    rows = {r["tau_d_ratio"]: r for r in slip_criterion(ps, params, rates)}
+    # exact derivative 2 (q − 1.1) (quadratic: three-point differences are exact), to trapezoid error
+    for q in qs[1:-1]:
+        assert rows[q]["db_dq"] == pytest.approx(2 * (q - 1.1), rel=2e-2, abs=2e-4)
+    assert rows[1.05]["predicted"] == "unstable" and rows[1.05]["agree"] is True
+    assert rows[1.15]["predicted"] == "stable" and rows[1.15]["agree"] is False
+    assert rows[1.08]["s_sign"] == "unresolved" and rows[1.08]["agree"] is None
+    assert rows[1.12]["s_sign"] is None
+
+
+def test_paper_range_fit_recovers_constants(tmp_path, params):
+    """Pulses placed exactly on Eqs. 3–4 with known constants: the fit over 1.015–1.2 returns them."""
+    from slippulse.steady.analysis import paper_range_fit
+    from slippulse.steady.fits import scaling_law
+    from slippulse.core.h5io import write_pulse
+    path = str(tmp_path / "fam.h5")
+    qs = np.linspace(1.015, 1.2, 8)
+    b, Lt = scaling_law(qs, 1.0091, 1.3, 0.6, params)
+    for q, bb, ll in zip(qs, b, Lt):
+        p = _fake_pulse(float(q), float(bb), 1e-4, params)
+        p.L = float(ll * params.L_Gc)
+        write_pulse(path, p, params)
+    fit = paper_range_fit(path)
+    assert fit["both"]["tau_star"] == pytest.approx(1.0091, abs=1e-7)
+    assert fit["both"]["a_v"] == pytest.approx(1.3, rel=1e-5)
+    assert fit["both"]["a_G"] == pytest.approx(0.6, rel=1e-5)
+    assert fit["paper"]["tau_star"] == 1.0087
+
+
+def test_null_vector_bordered_branch_matches_qr(monkeypatch):
+    """The bordered-LU null vector (large systems) is the QR one up to sign."""
+    import slippulse.steady.bifurcation as bif
+    rng = np.random.default_rng(5)
+    J = rng.standard_normal((30, 31))
+    t_qr = bif.null_vector(J)
+    monkeypatch.setattr(bif, "QR_MAX", 10)
+    t_lu = bif.null_vector(J)
+    assert abs(abs(t_qr @ t_lu) - 1) < 1e-12 and np.linalg.norm(J @ t_lu) < 1e-12

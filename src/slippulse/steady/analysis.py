@@ -208,7 +208,8 @@ def slip_criterion(pulses, params, rates=None):
     pulses : sequence of h5io.Pulse
         Converged pulses of one family (any order; sorted by β, monotone along the main family).
     rates : mapping τ_d/τ_min → (s L/c_p, s_err L/c_p), optional
-        Growth rates of the spectrum (e.g. the rates of record), matched within 1e-6 in τ_d.
+        Growth rates of the spectrum (e.g. the rates of record), each given to the nearest pulse
+        within 5e-7 in τ_d (the rounding of a label).
 
     Returns
     -------
@@ -232,13 +233,15 @@ def slip_criterion(pulses, params, rates=None):
                      + b[hi] * (x1 - x0) / ((x2 - x0) * (x2 - x1)))
         elif hi > lo and q[hi] != q[lo]:
             db[i] = (b[hi] - b[lo]) / (q[hi] - q[lo])
+    # each rate goes to the nearest pulse within the rounding of a 6-decimal label
+    matched = {}
+    for qq, (sv, ev) in (rates or {}).items():
+        i = int(np.argmin(np.abs(q - qq)))
+        if abs(q[i] - qq) <= 5.01e-7:
+            matched[i] = (float(sv), float(ev))
     rows = []
     for i, p in enumerate(ps):
-        s = se = math.nan
-        if rates:
-            for qq, (sv, ev) in rates.items():
-                if abs(qq - p.tau_d_ratio) <= 1e-6:
-                    s, se = float(sv), float(ev)
+        s, se = matched.get(i, (math.nan, math.nan))
         sign = None
         if math.isfinite(s):
             sign = "unresolved" if abs(s) < 2 * se else ("+" if s > 0 else "-")

@@ -49,10 +49,36 @@ def lu_det(M):
     return int(sign), float(np.sum(np.log(np.abs(d)))), (lu, piv)
 
 
+#: Above this many equations the null vector comes from one bordered LU solve instead of a full
+#: QR (a third of the work; 6615 equations: one LU of ~40 s on this machine instead of a QR of ~2 min).
+QR_MAX = 2000
+
+
 def null_vector(J):
-    """Unit null vector of an n × (n + 1) matrix of rank n (the last column of Q in J^T = QR)."""
-    Q, _ = sla.qr(J.T, mode="full", check_finite=False)
-    return Q[:, -1].copy()
+    """Unit null vector of an n × (n + 1) matrix of rank n: the last column of Q in J^T = QR; for
+    n > :data:`QR_MAX`, the solution of [J; e_kᵀ] t = e_{n+1} normalised, k the column whose
+    removal leaves J best conditioned among the last two (the pulse's β and q), refined once."""
+    n = J.shape[0]
+    if n <= QR_MAX:
+        Q, _ = sla.qr(J.T, mode="full", check_finite=False)
+        return Q[:, -1].copy()
+    best = None
+    for k in (n, n - 1):
+        M = np.vstack([J, np.eye(1, n + 1, k)])
+        lu = sla.lu_factor(M, check_finite=False)
+        rhs = np.zeros(n + 1)
+        rhs[-1] = 1.0
+        t = sla.lu_solve(lu, rhs, check_finite=False)
+        t /= np.linalg.norm(t)
+        # one refinement step against the residual J t
+        t -= sla.lu_solve(lu, np.concatenate([J @ t, [0.0]]), check_finite=False)
+        t /= np.linalg.norm(t)
+        res = float(np.linalg.norm(J @ t))
+        if best is None or res < best[0]:
+            best = (res, t)
+        if abs(t[k]) > 0.1 * float(np.max(np.abs(t))):
+            break
+    return best[1]
 
 
 def smallest_singular_values(M, lu=None, k=2):
