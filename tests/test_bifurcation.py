@@ -183,7 +183,7 @@ def test_paper_range_fit_recovers_constants(tmp_path, params):
     assert fit["both"]["tau_star"] == pytest.approx(1.0091, abs=1e-7)
     assert fit["both"]["a_v"] == pytest.approx(1.3, rel=1e-5)
     assert fit["both"]["a_G"] == pytest.approx(0.6, rel=1e-5)
-    assert fit["paper"]["tau_star"] == 1.0087
+    assert fit["paper"]["tau_star"] == 1.0087 and fit["paper_rms"] > 0.01
 
 
 def test_null_vector_bordered_branch_matches_qr(monkeypatch):
@@ -195,3 +195,23 @@ def test_null_vector_bordered_branch_matches_qr(monkeypatch):
     monkeypatch.setattr(bif, "QR_MAX", 10)
     t_lu = bif.null_vector(J)
     assert abs(abs(t_qr @ t_lu) - 1) < 1e-12 and np.linalg.norm(J @ t_lu) < 1e-12
+
+
+def test_cli_bifurcations_prints_and_stores_the_test_functions(tmp_path, params, pulse12):
+    import cli_inproc
+    from slippulse.core.h5io import read_pulse, write_pulse
+    path = str(tmp_path / "one.h5")
+    write_pulse(path, pulse12.to_pulse(), params)
+    r = cli_inproc.run(["steady", "bifurcations", path, "--write", "-q"])
+    assert r.returncode == 0, r.stderr
+    assert "0 folds" in r.stdout and "0 branch points" in r.stdout
+    p, _ = read_pulse(path, "td1.2000")
+    assert p.extra["bif_fold_sign"] in (-1, 1) and p.extra["bif_sigma1"] > 0
+    r = cli_inproc.run(["steady", "bifurcations", path, "--labels", "td1.1000", "-q"])
+    assert r.returncode == 2 and "td1.1000" in r.stderr
+
+
+def test_locate_says_when_it_did_not_converge():
+    bif = locate(SCurve(), _scurve_point(0.3), _scurve_point(0.9), max_eval=2)
+    assert bif.kind == "fold" and not bif.converged
+    assert locate(SCurve(), _scurve_point(0.3), _scurve_point(0.9)).converged

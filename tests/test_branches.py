@@ -125,3 +125,18 @@ def test_solution_labels_parse_to_the_same_tau_d():
     labs = [solution_label(1.2, k) for k in range(3)]
     assert labs == ["td1.2000", "td1.20000", "td1.200000"]
     assert all(label_ratio(lab) == 1.2 for lab in labs)
+
+
+def test_trace_follows_the_main_family_down_from_1p2(params, pulse12):
+    """Three pseudo-arclength steps down from the 1.2 pulse: τ_d falls, β rises, one hump, no
+    fold or branch point; the last point is the pulse a fixed-τ_d solve gives there."""
+    from slippulse.steady.branch_trace import trace
+    from slippulse.steady.solver import solve_on_grid
+    tr = trace(params, pulse12.to_pulse(), direction=-1, max_steps=3)
+    q = [p.q for p in tr.points]
+    b = [p.beta for p in tr.points]
+    assert len(q) == 4 and all(np.diff(q) < 0) and all(np.diff(b) > 0)
+    assert {p.humps for p in tr.points} == {1} and not tr.events
+    last = tr.pulses[-1]
+    prob, x, st = solve_on_grid(params, last.tau_d_ratio, last.xi, np.log(last.v), 1.05 * last.beta)
+    assert st.converged and x[-1] == pytest.approx(last.beta, rel=1e-9)

@@ -44,6 +44,9 @@ def cmd_bifurcations(args) -> int:
         print(f"{r.label} {r.tau_d_ratio:.7f} {r.beta:.7g} {r.L:.6g} {r.n_points} "
               f"{v.fold_sign:+d} {v.fold_logdet:.6g} {v.bordered_sign:+d} {v.t_param:+.4e} "
               f"{v.sigma[0]:.4e} {v.sigma[1]:.4e} {r.max_residual:.1e} {cnt}")
+    if args.write:
+        from ..steady.bifurcation import write_indicators
+        write_indicators(args.file, rows)
     located = []
     if args.locate:
         from ..core.h5io import read_pulse
@@ -55,7 +58,8 @@ def cmd_bifurcations(args) -> int:
                     b = locate_between_pulses(pa, pb, stored)
                     located.append(f"{b.kind} at tau_d/tau_min={b.extra['tau_d_ratio']:.9f} "
                                    f"beta={b.extra['beta']:.8g} L={b.extra['L']:.6g} m "
-                                   f"({b.evaluations} evaluations)")
+                                   f"({b.evaluations} evaluations"
+                                   f"{'' if b.converged else ', NOT CONVERGED: bracket still open, best point shown'})")
                 except LocateError as exc:
                     located.append(f"{e.kind} between {e.between}: not located ({exc})")
     for e in evs:
@@ -216,6 +220,10 @@ def register_steady(ss) -> None:
                         "by the file's decreasing tau_d")
     p.add_argument("--locate", action="store_true",
                    help="locate each fold or branch point found (re-solves between neighbours)")
+    p.add_argument("--write", action="store_true",
+                   help="also store them as attributes of each pulse (bif_fold_sign, "
+                        "bif_fold_logdet, bif_bordered_sign, bif_t_q, bif_sigma1, bif_sigma2), "
+                        "atomically")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_bifurcations)

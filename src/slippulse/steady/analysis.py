@@ -261,7 +261,9 @@ PAPER_WINDOW = (1.015, 1.2)
 
 def paper_range_fit(path, window=PAPER_WINDOW):
     """Eqs. 3–4 fitted over the paper's range on the converged pulses of a family file (joint and
-    single-equation fits, :func:`scaling_fit`), with the paper's constants for comparison."""
+    single-equation fits, :func:`scaling_fit`: keys 'both', 'beta', 'L'), with the paper's
+    constants ('paper') and the rms of the log residuals of β and L̃ they leave on the same
+    pulses ('paper_rms')."""
     from ..core.reference import paper_scaling
     x, b, Lt = [], [], []
     params = None
@@ -274,6 +276,13 @@ def paper_range_fit(path, window=PAPER_WINDOW):
     out = {"paper": dict(paper_scaling())}
     for eq in ("both", "beta", "L"):
         out[eq] = scaling_fit(x, b, Lt, params, window=window, equations=eq)
+    # the paper's constants on the same pulses: rms of the log residuals of β and L̃ together
+    x, b, Lt = np.asarray(x), np.asarray(b), np.asarray(Lt)
+    sel = (x >= window[0]) & (x <= window[1])
+    pp = out["paper"]
+    bm, Lm = scaling_law(x[sel], pp["tau_star"], pp["a_v"], pp["a_G"], params)
+    res = np.concatenate([np.log(bm / b[sel]), np.log(Lm / Lt[sel])])
+    out["paper_rms"] = float(np.sqrt(np.mean(res ** 2)))
     return out
 
 

@@ -160,7 +160,8 @@ def indicators(J, scale=None, orient=None, singular_values=True) -> Indicators:
 class Bifurcation:
     """A located fold or branch point: ``kind`` ('fold' or 'branch point'), its unknowns x (the
     parameter last), the chord position θ in [0, 1], the test function's value there relative to
-    the bracket's (``residual_test``), and the evaluations it took."""
+    the bracket's (``residual_test``), the evaluations it took, and whether the bracket closed
+    (``converged``; when not, x is only the best point met)."""
     kind: str
     x: np.ndarray = field(repr=False)
     theta: float
@@ -168,6 +169,7 @@ class Bifurcation:
     residual_test: float
     evaluations: int
     extra: dict = field(default_factory=dict)
+    converged: bool = True        # False: max_eval reached with the bracket still open
 
 
 class LocateError(RuntimeError):
@@ -299,7 +301,9 @@ def locate(system, xa, xb, scale=None, tol=1e-12, theta_tol=1e-10, max_eval=60,
             if side == 1:
                 fb *= 0.5
             side = 1
-    return Bifurcation(kind, x_best, t_best, float(x_best[-1]), float(f_best), nev)
+    converged = (tb - ta <= theta_tol) or abs(f_best) <= tol
+    return Bifurcation(kind, x_best, t_best, float(x_best[-1]), float(f_best), nev,
+                       converged=bool(converged))
 
 
 # --------------------------------------------------------------------------- steady pulses
@@ -475,3 +479,23 @@ def locate_between_pulses(pa, pb, params, **kw) -> Bifurcation:
     bif.extra = {"tau_d_ratio": float(bif.x[-1]), "beta": float(bif.x[-2]),
                  "L": float(pulse_length(prob.xi, v, params.v_star, crossings=False))}
     return bif
+
+
+def write_indicators(path, rows):
+    """Store the test functions of :func:`scan` rows as attributes of their pulses in ``path``
+    (bif_fold_sign, bif_fold_logdet, bif_bordered_sign, bif_t_q, bif_sigma1, bif_sigma2),
+    atomically."""
+    from ..core.h5io import atomic_update
+
+    def fill(h5):
+        for r in rows:
+            g = h5["pulses"][r.label]
+            v = r.values
+            g.attrs["bif_fold_sign"] = int(v.fold_sign)
+            g.attrs["bif_fold_logdet"] = float(v.fold_logdet)
+            g.attrs["bif_bordered_sign"] = int(v.bordered_sign)
+            g.attrs["bif_t_q"] = float(v.t_param)
+            if len(v.sigma) == 2:
+                g.attrs["bif_sigma1"], g.attrs["bif_sigma2"] = map(float, v.sigma)
+
+    atomic_update(path, fill)
