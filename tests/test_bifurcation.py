@@ -215,3 +215,9 @@ def test_locate_says_when_it_did_not_converge():
     bif = locate(SCurve(), _scurve_point(0.3), _scurve_point(0.9), max_eval=2)
     assert bif.kind == "fold" and not bif.converged
     assert locate(SCurve(), _scurve_point(0.3), _scurve_point(0.9)).converged
+
+
+def test_scan_reads_the_stored_count_of_real_unstable_eigenvalues(steady12_with_spectrum):
+    from slippulse.steady.bifurcation import scan
+    rows, ev = scan(steady12_with_spectrum)
+    assert len(rows) == 1 and rows[0].unstable_count == 1 and not ev

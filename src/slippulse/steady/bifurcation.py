@@ -335,6 +335,7 @@ def pulse_tests(pulse, params, orient_scalars=None, singular_values=True):
 
     orient_scalars : (dβ, dq), optional: orient the tangent so that its (β, q) part (in the
         scaled unknowns (ln β, q)) has a positive product with it (the direction of the family).
+
     Returns (Indicators, max|r|) — the residual shows whether the stored pulse is a solution of
     the rebuilt system (it must be ~1e-13).
     """
@@ -369,25 +370,20 @@ class Event:
 
 
 def _stored_count(path, label):
-    """Real eigenvalues of the pinned operator in (0, ∞) stored with a pulse's spectrum (the
-    count of real positive eigenvalues found), or None where no spectrum is stored."""
+    """Real eigenvalues of the pinned operator in (0, ∞) among those stored with a pulse's
+    spectrum (datasets sigma_real, sigma_imag of its 'spectrum' group; real: |Im| ≤ 1e-9 |Re|),
+    or None where no spectrum is stored. Only the eigenvalues the spectrum search found are
+    counted (the argument-principle count, attribute 'count', is over a complex box)."""
     import h5py
     with h5py.File(path, "r") as h5:
         grp = h5["pulses"][label]
-        if "spectrum" not in grp:
+        if "spectrum" not in grp or "sigma_real" not in grp["spectrum"]:
             return None
         sp = grp["spectrum"]
-        if "eigenvalues" in sp:
-            ev = np.asarray(sp["eigenvalues"][...])
-            if np.iscomplexobj(ev):
-                real = ev[np.abs(ev.imag) <= 1e-9 * np.maximum(np.abs(ev.real), 1e-300)].real
-            else:
-                real = ev
-            return int(np.count_nonzero(real > 0))
-        for key in ("n_unstable_real", "count"):
-            if key in sp.attrs:
-                return int(np.asarray(sp.attrs[key]).item())
-        return None
+        re = np.asarray(sp["sigma_real"][...], float)
+        im = np.asarray(sp["sigma_imag"][...], float) if "sigma_imag" in sp else np.zeros_like(re)
+        real = np.abs(im) <= 1e-9 * np.abs(re)
+        return int(np.count_nonzero(real & (re > 0)))
 
 
 def scan(path, order="beta", labels=None, progress=None, singular_values=True):
@@ -397,6 +393,7 @@ def scan(path, order="beta", labels=None, progress=None, singular_values=True):
     order : 'beta' (default; the main family's β rises monotonically from 1.33 τ_min to its deep
         end, through any fold in τ_d) or 'file' (decreasing τ_d). The tangent of each pulse is
         oriented along this order (its (ln β, q) part by the centred secant of its neighbours).
+
     Returns (rows, events): events are a sign change of t_q ('fold'), of det B with t oriented
     ('branch point'), both compared only between pulses of equal N ('not comparable' otherwise;
     then a fold still shows in t_q, which does not depend on N), and an interior local minimum
