@@ -817,3 +817,5 @@ def register(sub) -> None:
                         "they are named in the output")
     add_params_args(p)
     p.set_defaults(func=cmd_analyse)
+    from .branches import register_steady
+    register_steady(ss)

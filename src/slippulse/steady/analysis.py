@@ -7,6 +7,8 @@ The measures, fits, storage and table are re-exported here (``analysis.pulse_len
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..core import h5io
@@ -199,3 +201,101 @@ def analyse_family(path, write=True, scaling_window=SCALING_WINDOW, gc_window=GC
     if write:
         write_family(path, rows, fam, scaling_window, gc_window)
     return rows
+
+
+# --------------------------------------------------------------------------- referee checks
+def slip_criterion(pulses, params, rates=None):
+    """Brantut, Garagash & Noda (2019)'s criterion along a family: a steady pulse is unstable
+    where its total slip b decreases with the load, db/dτ_d < 0.
+
+    Parameters
+    ----------
+    pulses : sequence of h5io.Pulse
+        Converged pulses of one family (any order; sorted by β, monotone along the main family).
+    rates : mapping τ_d/τ_min → (s L/c_p, s_err L/c_p), optional
+        Growth rates of the spectrum (e.g. the rates of record), each given to the nearest pulse
+        within 5e-7 in τ_d (the rounding of a label).
+
+    Returns
+    -------
+    list of dict, one per pulse by rising β: label, tau_d_ratio, beta, L (m), slip (b, m: the
+    slip across the whole domain, :func:`slip_profile` at its back end), db_dq (m, d b/d(τ_d/τ_min)
+    by second-order differences along the family, NaN at the ends of a pair), predicted
+    ('unstable' where db/dq < 0), s, s_err (or NaN), s_sign ('+', '-' or 'unresolved' when
+    |s| < 2 s_err, None without a rate), agree (None where either is missing or unresolved).
+    """
+    ps = sorted(pulses, key=lambda p: p.beta)
+    q = np.array([p.tau_d_ratio for p in ps], float)
+    b = np.array([float(slip_profile(p.xi, p.v, p.v_stick, p.beta, params.c_s)[0]) for p in ps])
+    db = np.full(q.size, np.nan)
+    for i in range(q.size):
+        lo, hi = max(i - 1, 0), min(i + 1, q.size - 1)
+        if hi - lo == 2:
+            # second-order derivative on a non-uniform stencil (Lagrange through three points)
+            x0, x1, x2 = q[lo], q[i], q[hi]
+            db[i] = (b[lo] * (x1 - x2) / ((x0 - x1) * (x0 - x2))
+                     + b[i] * (2 * x1 - x0 - x2) / ((x1 - x0) * (x1 - x2))
+                     + b[hi] * (x1 - x0) / ((x2 - x0) * (x2 - x1)))
+        elif hi > lo and q[hi] != q[lo]:
+            db[i] = (b[hi] - b[lo]) / (q[hi] - q[lo])
+    # each rate goes to the nearest pulse within the rounding of a 6-decimal label
+    matched = {}
+    for qq, (sv, ev) in (rates or {}).items():
+        i = int(np.argmin(np.abs(q - qq)))
+        if abs(q[i] - qq) <= 5.01e-7:
+            matched[i] = (float(sv), float(ev))
+    rows = []
+    for i, p in enumerate(ps):
+        s, se = matched.get(i, (math.nan, math.nan))
+        sign = None
+        if math.isfinite(s):
+            sign = "unresolved" if abs(s) < 2 * se else ("+" if s > 0 else "-")
+        pred = None if not math.isfinite(db[i]) else ("unstable" if db[i] < 0 else "stable")
+        agree = None
+        if pred is not None and sign in ("+", "-"):
+            agree = (pred == "unstable") == (sign == "+")
+        rows.append({"label": p.label, "tau_d_ratio": float(p.tau_d_ratio), "beta": float(p.beta),
+                     "L": float(p.L), "slip": float(b[i]), "db_dq": float(db[i]),
+                     "predicted": pred, "s": s, "s_err": se, "s_sign": sign, "agree": agree})
+    return rows
+
+
+#: The paper's own range of τ_d/τ_min, where its constants of Eqs. 3–4 were fitted (its Fig. 3).
+PAPER_WINDOW = (1.015, 1.2)
+
+
+def paper_range_fit(path, window=PAPER_WINDOW):
+    """Eqs. 3–4 fitted over the paper's range on the converged pulses of a family file (joint and
+    single-equation fits, :func:`scaling_fit`: keys 'both', 'beta', 'L'), with the paper's
+    constants ('paper') and the rms of the log residuals of β and L̃ they leave on the same
+    pulses ('paper_rms')."""
+    from ..core.reference import paper_scaling
+    x, b, Lt = [], [], []
+    params = None
+    for lab in h5io.list_pulses(path):
+        p, params = h5io.read_pulse(path, lab)
+        if p.converged:
+            x.append(p.tau_d_ratio)
+            b.append(p.beta)
+            Lt.append(p.L / params.L_Gc)
+    out = {"paper": dict(paper_scaling())}
+    for eq in ("both", "beta", "L"):
+        out[eq] = scaling_fit(x, b, Lt, params, window=window, equations=eq)
+    # the paper's constants on the same pulses: rms of the log residuals of β and L̃ together
+    x, b, Lt = np.asarray(x), np.asarray(b), np.asarray(Lt)
+    sel = (x >= window[0]) & (x <= window[1])
+    pp = out["paper"]
+    bm, Lm = scaling_law(x[sel], pp["tau_star"], pp["a_v"], pp["a_G"], params)
+    res = np.concatenate([np.log(bm / b[sel]), np.log(Lm / Lt[sel])])
+    out["paper_rms"] = float(np.sqrt(np.mean(res ** 2)))
+    return out
+
+
+def edge_record(path, label=None):
+    """ζ (edge singularity, joint fit) and Ḡ_max of the pulse ``label`` (default: the smallest
+    τ_d) of a family file, with τ_m the minimum of τ of the smallest-τ_d pulse (as
+    :func:`analyse_family`). Returns the :func:`analyse_pulse` row."""
+    labels = h5io.list_pulses(path)
+    deepest, params = h5io.read_pulse(path, labels[-1])
+    p = deepest if label is None else h5io.read_pulse(path, label)[0]
+    return analyse_pulse(p, params, tau_m=float(np.min(deepest.tau)))

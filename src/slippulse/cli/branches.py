@@ -1,0 +1,260 @@
+"""``slippulse steady branches`` (every pulse at one τ_d, by deflated Newton) and ``slippulse steady
+bifurcations`` (fold and branch-point test functions along a family file)."""
+from __future__ import annotations
+
+import math
+import os
+import sys
+
+from tqdm import tqdm
+
+from ..core.errors import UsageError
+from ..core.params import ParameterError
+from .paramargs import add_params_args, params_for_input, params_for_output
+
+
+def cmd_bifurcations(args) -> int:
+    from ..core.h5io import list_pulses, open_h5, read_parameters
+    from ..steady.bifurcation import locate_between_pulses, scan, LocateError
+
+    with open_h5(args.file, "FILE") as h5:
+        stored = read_parameters(h5)
+    params_for_input(args, stored, args.file)
+    labels = list_pulses(args.file)
+    if args.labels:
+        missing = [lab for lab in args.labels if lab not in labels]
+        if missing:
+            raise UsageError(f"labels={missing} not in {args.file}; present: {labels[:6]}"
+                             f"{' ...' if len(labels) > 6 else ''}")
+        labels = args.labels
+    bar = tqdm(total=len(labels), desc="test functions", unit="pulse", disable=args.quiet,
+               file=sys.stderr)
+
+    def progress(row):
+        bar.set_postfix_str(f"{row.label} sigma1={row.values.sigma[0]:.2e}")
+        bar.update(1)
+
+    rows, evs = scan(args.file, order=args.order, labels=labels, progress=progress)
+    bar.close()
+    print("label tau_d/tau_min beta L(m) N sign(detA) ln|detA| sign(detB) t_q sigma1 sigma2 "
+          "max|r| n_unstable_real")
+    for r in rows:
+        v = r.values
+        cnt = "-" if r.unstable_count is None else str(r.unstable_count)
+        print(f"{r.label} {r.tau_d_ratio:.7f} {r.beta:.7g} {r.L:.6g} {r.n_points} "
+              f"{v.fold_sign:+d} {v.fold_logdet:.6g} {v.bordered_sign:+d} {v.t_param:+.4e} "
+              f"{v.sigma[0]:.4e} {v.sigma[1]:.4e} {r.max_residual:.1e} {cnt}")
+    if args.write:
+        from ..steady.bifurcation import write_indicators
+        write_indicators(args.file, rows)
+    located = []
+    if args.locate:
+        from ..core.h5io import read_pulse
+        for e in evs:
+            if e.kind in ("fold", "branch point"):
+                pa, _ = read_pulse(args.file, e.between[0])
+                pb, _ = read_pulse(args.file, e.between[1])
+                try:
+                    b = locate_between_pulses(pa, pb, stored)
+                    located.append(f"{b.kind} at tau_d/tau_min={b.extra['tau_d_ratio']:.9f} "
+                                   f"beta={b.extra['beta']:.8g} L={b.extra['L']:.6g} m "
+                                   f"({b.evaluations} evaluations"
+                                   f"{'' if b.converged else ', NOT CONVERGED: bracket still open, best point shown'})")
+                except LocateError as exc:
+                    located.append(f"{e.kind} between {e.between}: not located ({exc})")
+    for e in evs:
+        print(f"event: {e.kind} between {e.between[0]} and {e.between[1]}: {e.detail}")
+    for line in located:
+        print(f"located: {line}")
+    nf = sum(e.kind == "fold" for e in evs)
+    nb = sum(e.kind == "branch point" for e in evs)
+    nc = sum(e.kind == "not comparable" for e in evs)
+    nm = sum(e.kind == "sigma minimum" for e in evs)
+    smin = min(r.values.sigma[0] for r in rows) if rows else math.nan
+    print(f"{len(rows)} pulses: {nf} folds (t_q sign changes), {nb} branch points (det B sign "
+          f"changes at equal N), {nc} det B sign changes across a change of N (not comparable), "
+          f"{nm} sigma1/sigma2 minima; smallest sigma1 = {smin:.3e}; the test functions have "
+          "no uncertainty estimate (their signs are exact for the discrete system)")
+    return 0
+
+
+def _guess_arg(text: str, params_cli, args):
+    """A --guess FILE:LABEL, checked before any work: the file readable, the label in it, its
+    parameters those of the run."""
+    from ..core.h5io import list_pulses, open_h5, read_parameters, SchemaError
+    if ":" not in text:
+        raise UsageError(f"guess={text!r} is invalid: must be FILE:LABEL (e.g. family.h5:td1.2000)")
+    path, label = text.rsplit(":", 1)
+    with open_h5(path, "guess") as h5:
+        stored = read_parameters(h5)
+    labels = list_pulses(path)
+    if label not in labels:
+        raise SchemaError(f"guess={text!r}: no pulse label={label!r} in {path}; present: "
+                          f"{labels[:6]}{' ...' if len(labels) > 6 else ''}")
+    from ..core.params import differing, describe_difference
+    if differing(stored, params_cli):
+        raise ParameterError(f"guess={text!r}: {path} holds pulses of other parameters: "
+                             f"{describe_difference(stored, params_cli, 'in the file', 'given')}")
+
+
+def solution_label(tau_d_ratio: float, k: int) -> str:
+    """Label of the k-th distinct solution at one τ_d: ``pulse_label`` for the first, then the
+    same number with 4 + k decimals (td1.2000, td1.20000, td1.200000, ...: every reader parses
+    them to the same τ_d)."""
+    from ..core.h5io import pulse_label
+    if k == 0:
+        return pulse_label(tau_d_ratio)
+    dec = max(4, len(pulse_label(tau_d_ratio).split(".")[1])) + k
+    return f"td{tau_d_ratio:.{dec}f}"
+
+
+def cmd_branches(args) -> int:
+    from ..core.h5io import check_writable, write_pulse
+    from ..steady.branch_search import GUESS_SETS, Guess, search
+
+    out = args.out
+    params = params_for_output(args, out)
+    try:
+        q = float(args.tau_d)
+    except ValueError:
+        raise ParameterError(f"tau-d={args.tau_d!r} is invalid: must be a number (tau_d/tau_min) "
+                             f"in (1, {params.tau_peak / params.tau_min:.5f})") from None
+    if not (math.isfinite(q) and 1.0 < q < params.tau_peak / params.tau_min):
+        raise ParameterError(f"tau-d={args.tau_d} is invalid: must be in (1, "
+                             f"{params.tau_peak / params.tau_min:.5f}) (tau_min < tau_d < the "
+                             "local maximum of tau_ss)")
+    if not (args.p >= 1 and math.isfinite(args.p)):
+        raise ParameterError(f"p={args.p!r} is invalid: the deflation power must be >= 1")
+    if not (args.sigma >= 0 and math.isfinite(args.sigma)):
+        raise ParameterError(f"sigma={args.sigma!r} is invalid: the deflation shift must be >= 0")
+    from ..steady.solver import check_points
+    check_points(args.points)
+    check_points(args.coarse_points)
+    if args.max_solutions < 1:
+        raise ParameterError(f"max-solutions={args.max_solutions} is invalid: must be >= 1")
+    check_writable(out, "out")
+    if os.path.exists(out) and not args.overwrite:
+        raise UsageError(f"out={out!r} exists; --overwrite replaces it")
+    for g in args.guess:
+        _guess_arg(g, params, args)
+    guesses = ([] if args.guesses == "none" else GUESS_SETS[args.guesses]())
+    guesses += [Guess(source=g) for g in args.guess]
+    if not guesses:
+        raise UsageError("no guesses: --guesses none needs at least one --guess FILE:LABEL")
+    bar = tqdm(total=len(guesses), desc=f"branches {q:g}", unit="guess", disable=args.quiet,
+               file=sys.stderr)
+
+    def progress(msg):
+        g = int(msg.split(":")[0].split()[1])
+        bar.n = g
+        bar.set_postfix_str(msg[:60])
+
+    rep = search(params, q, guesses, n_points=args.points, coarse_points=args.coarse_points,
+                 p=args.p, sigma=args.sigma, max_solutions=args.max_solutions,
+                 check=not args.no_grid_check, progress=progress)
+    bar.n = len(guesses)
+    bar.close()
+    for gi, g in enumerate(guesses):
+        got = ", ".join(str(i) for i in rep.reached[gi]) or "none"
+        print(f"guess {gi} ({g.describe(params)}): reached {got}; "
+              f"{'; '.join(rep.attempts[gi])}")
+    if not rep.found:
+        print(f"slippulse: no pulse converged at tau_d/tau_min={q:g} from {len(guesses)} guesses; "
+              f"nothing written to {out}", file=sys.stderr)
+        return 1
+    import tempfile
+    d = os.path.dirname(os.path.abspath(out))
+    os.makedirs(d, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-branches-", suffix=".h5", dir=d)
+    os.close(fd)
+    os.remove(tmp)
+    try:
+        for k, f in enumerate(rep.found):
+            p = f.pulse
+            p.name = solution_label(q, k)
+            p.extra.update({
+                "branch_index": k, "guess_index": int(f.guess),
+                "guess": guesses[f.guess].describe(params),
+                "reached_by": ",".join(str(gi) for gi, r in enumerate(rep.reached) if k in r),
+                "deflation": f"p={args.p:g} sigma={args.sigma:g} norm=sqrt(mean(dlnv^2)+"
+                             "(dbeta/beta)^2)",
+                "grid_check_passed": bool(f.check.get("passed", False)),
+                "grid_check_n_fine": int(f.check.get("n_fine", 0)),
+                "grid_check_dbeta": float(f.check.get("dbeta", math.nan)),
+                "grid_check_dL_rel": float(f.check.get("dL_rel", math.nan))})
+            write_pulse(tmp, p, params)
+        os.replace(tmp, out)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    for k, f in enumerate(rep.found):
+        p, c = f.pulse, f.check
+        chk = (f"grid check N={p.n_points}->{c['n_fine']}: dbeta={c['dbeta']:.1e} "
+               f"dL/L={c['dL_rel']:.1e}" if c.get("passed") else
+               f"grid check {'failed: ' + c.get('message', '') if c else 'not run'}")
+        print(f"solution {k} [{solution_label(q, k)}]: beta={p.beta:.8g} L={p.L:.6g} m "
+              f"humps={p.extra['n_humps']} max|D|={p.max_residual:.1e} N={p.n_points}; {chk}")
+    print(f"{len(rep.found)} distinct pulses at tau_d/tau_min={q:g} from {len(guesses)} guesses "
+          f"(deflation p={args.p:g}, sigma={args.sigma:g}; norm: RMS of ln v over the nodes with "
+          f"the relative speed), written to {out}; wall={rep.wall_time:.1f} s. Distinct means "
+          "farther apart than 0.05 in that norm; solutions no guess reached are not excluded")
+    return 0
+
+
+def register_steady(ss) -> None:
+    """Add ``branches`` and ``bifurcations`` to the ``steady`` sub-parsers."""
+    p = ss.add_parser("bifurcations", help="fold and branch-point test functions along a family",
+                      description="For every converged pulse of FILE: the sign and ln|det| of the "
+                                  "pinned fixed-tau_d Newton matrix A = [F_u F_c] (LU), the "
+                                  "tangent's tau_d component t_q, the sign of det B of the "
+                                  "bordered matrix B = [J; t^T] and its two smallest singular "
+                                  "values (speed column scaled by beta). A sign change of t_q "
+                                  "between neighbours is a fold, of det B (equal N) a branch "
+                                  "point; --locate finds them by regula falsi on det A or "
+                                  "det[J; d] (docs/branches.md).")
+    p.add_argument("file", metavar="FILE", help="HDF5 family file")
+    p.add_argument("--labels", nargs="+", default=None, metavar="LABEL",
+                   help="pulses to examine (default: all converged)")
+    p.add_argument("--order", choices=("beta", "file"), default="beta",
+                   help="neighbour order: by beta (default; monotone along the main family) or "
+                        "by the file's decreasing tau_d")
+    p.add_argument("--locate", action="store_true",
+                   help="locate each fold or branch point found (re-solves between neighbours)")
+    p.add_argument("--write", action="store_true",
+                   help="also store them as attributes of each pulse (bif_fold_sign, "
+                        "bif_fold_logdet, bif_bordered_sign, bif_t_q, bif_sigma1, bif_sigma2), "
+                        "atomically")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_params_args(p)
+    p.set_defaults(func=cmd_bifurcations)
+
+    p = ss.add_parser("branches", help="every steady pulse at one tau_d, by deflated Newton",
+                      description="Deflated Newton (Farrell, Birkisson & Funke 2015) from a stated "
+                                  "set of guesses: each solution found is removed from the "
+                                  "residual by M(x) = prod (1/||x - x_i||^p + sigma) and Newton "
+                                  "restarts from the same guess until it fails. Each distinct "
+                                  "pulse is refined to --points, grid-checked at 2N-1 and written "
+                                  "to --out (labels tdX.XXXX, tdX.XXXX0, ...) with its beta, L, "
+                                  "hump count and check; the guesses and what each reached are "
+                                  "printed (docs/branches.md).")
+    p.add_argument("--tau-d", required=True, help="driving stress tau_d/tau_min, in (1, 1.3319)")
+    p.add_argument("--out", required=True, help="output HDF5 (refused if it exists, unless "
+                                                "--overwrite)")
+    p.add_argument("--guesses", choices=("basin", "single", "quick", "none"), default="basin",
+                   help="built-in guesses: basin (default: 27 Freund pulses of the measured basin "
+                        "and 5 two- and three-pulse bound states), single (the 27), quick (the "
+                        "built-in guess and one two-pulse state 1.4 m apart), none")
+    p.add_argument("--guess", action="append", default=[], metavar="FILE:LABEL",
+                   help="also start from a stored pulse (repeatable)")
+    p.add_argument("--points", type=int, default=1000, help="grid points N of each solution "
+                                                            "(default 1000)")
+    p.add_argument("--coarse-points", type=int, default=500,
+                   help="points of the guesses' grids, where deflation acts (default 500)")
+    p.add_argument("--p", type=float, default=2.0, help="deflation power p (default 2)")
+    p.add_argument("--sigma", type=float, default=1.0, help="deflation shift sigma (default 1)")
+    p.add_argument("--max-solutions", type=int, default=8, help="stop after this many (default 8)")
+    p.add_argument("--no-grid-check", action="store_true", help="skip the 2N-1 re-solves")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_params_args(p)
+    p.set_defaults(func=cmd_branches)

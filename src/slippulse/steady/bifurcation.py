@@ -1,0 +1,498 @@
+"""Test functions for folds and branch points of a one-parameter family, and their locator.
+
+A *system* is any object with ``residual_and_jacobian(x) -> (r, J)``: n equations in n + 1
+unknowns x = (u, λ), the parameter λ last, J of shape n × (n + 1). For the steady pulse that is
+:class:`~slippulse.steady.equations.SteadyProblem` with ``free="both"``: u = (ln v, β), λ = q =
+τ_d/τ_min, the phase condition (the front pin) the last row (:func:`pulse_system`). Then
+
+* A = J[:, :n] is the pinned fixed-τ_d Newton matrix [F_u F_c]: singular at a fold in λ and at a
+  branch point (docs/stability.md §9.5);
+* t, the unit null vector of J, is the family's tangent, unique where J has full rank n;
+* B = [J; t^T] is the bordered matrix of pseudo-arclength continuation: regular at a fold,
+  singular at a branch point (J rank n − 1).
+
+Cramer's rule gives det A = det B · t_λ exactly (:func:`indicators` returns both for a check).
+Hence, along a branch with t oriented by continuity, a fold is a sign change of t_λ (of det A, with
+det B of one sign), and a simple branch point a sign change of det B (of both det B and t_λ, det A
+keeping its sign or not). The signs of two determinants are comparable only on one discretisation
+(the same N and a grid deformed continuously); :func:`scan` says where they are not, and the
+smallest singular values σ₁ ≤ σ₂ of B (a branch point drives σ₁ → 0, a fold does not) are the
+grid-independent indicator.
+
+:func:`locate` finds the zero between two solutions of one system by regula falsi (Illinois) on
+a test function along the branch, parametrised by the chord hyperplane
+d·(x − x_a) = θ|d|², d = x_b − x_a (which passes folds and branch points alike):
+ψ(θ) = det[J; d^T] (zero only at a branch point) or φ(θ) = det A (zero at a fold).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+
+#: Largest bordered matrix whose singular values are taken by a full SVD; above, the two smallest
+#: come from ARPACK on B⁻¹B⁻ᵀ with the LU of B (same numbers to ~1e-10, far cheaper at N = 6614).
+DENSE_SVD_MAX = 400
+
+
+def lu_det(M):
+    """(sign, ln|det M|) from an LU factorisation: the product of U's diagonal signs and the
+    permutation's parity. Returns (sign, logdet, lu); sign 0 for an exactly singular M."""
+    lu, piv = sla.lu_factor(M, check_finite=False)
+    d = np.diag(lu)
+    if np.any(d == 0.0):
+        return 0, -math.inf, (lu, piv)
+    parity = int(np.count_nonzero(piv != np.arange(piv.size))) % 2
+    sign = (-1) ** parity * int(np.prod(np.sign(d)))
+    return int(sign), float(np.sum(np.log(np.abs(d)))), (lu, piv)
+
+
+#: Above this many equations the null vector comes from one bordered LU solve instead of a full
+#: QR (a third of the work; 6615 equations: one LU of ~40 s on this machine instead of a QR of ~2 min).
+QR_MAX = 2000
+
+
+def null_vector(J):
+    """Unit null vector of an n × (n + 1) matrix of rank n: the last column of Q in J^T = QR; for
+    n > :data:`QR_MAX`, the solution of [J; e_kᵀ] t = e_{n+1} normalised, k the column whose
+    removal leaves J best conditioned among the last two (the pulse's β and q), refined once."""
+    n = J.shape[0]
+    if n <= QR_MAX:
+        Q, _ = sla.qr(J.T, mode="full", check_finite=False)
+        return Q[:, -1].copy()
+    best = None
+    for k in (n, n - 1):
+        M = np.vstack([J, np.eye(1, n + 1, k)])
+        lu = sla.lu_factor(M, check_finite=False)
+        rhs = np.zeros(n + 1)
+        rhs[-1] = 1.0
+        t = sla.lu_solve(lu, rhs, check_finite=False)
+        t /= np.linalg.norm(t)
+        # one refinement step against the residual J t
+        t -= sla.lu_solve(lu, np.concatenate([J @ t, [0.0]]), check_finite=False)
+        t /= np.linalg.norm(t)
+        res = float(np.linalg.norm(J @ t))
+        if best is None or res < best[0]:
+            best = (res, t)
+        if abs(t[k]) > 0.1 * float(np.max(np.abs(t))):
+            break
+    return best[1]
+
+
+def smallest_singular_values(M, lu=None, k=2):
+    """The k smallest singular values of a square M, ascending (dense SVD for small M; else
+    ARPACK on M⁻¹M⁻ᵀ with the LU of M, ``lu`` if given)."""
+    m = M.shape[0]
+    if m <= DENSE_SVD_MAX:
+        return np.sort(sla.svdvals(M, check_finite=False))[:k]
+    from scipy.sparse.linalg import LinearOperator, eigsh
+    if lu is None:
+        lu = sla.lu_factor(M, check_finite=False)
+
+    def mv(x):
+        return sla.lu_solve(lu, sla.lu_solve(lu, np.ravel(x), trans=1, check_finite=False),
+                            check_finite=False)
+
+    op = LinearOperator((m, m), matvec=mv, dtype=float)
+    lam = eigsh(op, k=k, which="LM", return_eigenvectors=False, tol=1e-10,
+                v0=np.ones(m) / math.sqrt(m))
+    return np.sort(1.0 / np.sqrt(np.abs(lam)))
+
+
+@dataclass
+class Indicators:
+    """Test functions at one solution (J column-scaled by ``scale``; signs need no scale).
+
+    fold_sign, fold_logdet : sign and ln|det| of A = J[:, :n] (the fixed-λ Newton matrix).
+    bordered_sign, bordered_logdet : the same of B = [J; t^T].
+    tangent : unit null vector t of J, oriented by ``orient`` when given (t·orient > 0).
+    t_param : t's λ component (t_λ); det A = det B · t_λ (Cramer).
+    sigma : the two smallest singular values of B, ascending.
+    n : number of equations.
+    """
+    fold_sign: int
+    fold_logdet: float
+    bordered_sign: int
+    bordered_logdet: float
+    tangent: np.ndarray = field(repr=False)
+    t_param: float
+    sigma: tuple
+    n: int
+
+    @property
+    def cramer_defect(self) -> float:
+        """|det A − det B t_λ| / |det A| from the logs (0 when Cramer's identity holds)."""
+        if self.fold_sign == 0:
+            return math.inf
+        rhs = self.bordered_sign * math.copysign(1.0, self.t_param) * math.exp(
+            self.bordered_logdet + math.log(abs(self.t_param)) - self.fold_logdet)
+        return abs(self.fold_sign - rhs)
+
+
+def indicators(J, scale=None, orient=None, singular_values=True) -> Indicators:
+    """Fold and branch-point test functions of a solution with extended Jacobian J (n × (n+1)).
+
+    scale : column scaling (x = scale · x̂; the functions of the scaled unknowns x̂), e.g. β for
+        the speed column of a pulse; default none.
+    orient : a vector of length n + 1 (in the same scaled unknowns); t is flipped so that
+        t·orient > 0 (continuity along a family). Default: the sign QR gives.
+    """
+    J = np.asarray(J, dtype=float)
+    if scale is not None:
+        J = J * np.asarray(scale, dtype=float)[None, :]
+    n = J.shape[0]
+    if J.shape != (n, n + 1):
+        raise ValueError(f"extended Jacobian must be n x (n+1), got {J.shape}")
+    fs, fl, _ = lu_det(J[:, :n])
+    t = null_vector(J)
+    if orient is not None and float(np.dot(t, orient)) < 0:
+        t = -t
+    B = np.vstack([J, t[None, :]])
+    bs, bl, lu = lu_det(B)
+    sig = tuple(float(s) for s in smallest_singular_values(B, lu)) if singular_values else ()
+    return Indicators(fs, fl, bs, bl, t, float(t[-1]), sig, n)
+
+
+# --------------------------------------------------------------------------- locating a zero
+@dataclass
+class Bifurcation:
+    """A located fold or branch point: ``kind`` ('fold' or 'branch point'), its unknowns x (the
+    parameter last), the chord position θ in [0, 1], the test function's value there relative to
+    the bracket's (``residual_test``), the evaluations it took, and whether the bracket closed
+    (``converged``; when not, x is only the best point met)."""
+    kind: str
+    x: np.ndarray = field(repr=False)
+    theta: float
+    parameter: float
+    residual_test: float
+    evaluations: int
+    extra: dict = field(default_factory=dict)
+    converged: bool = True        # False: max_eval reached with the bracket still open
+
+
+class LocateError(RuntimeError):
+    """The locator could not bracket or converge (message says which)."""
+
+
+def _newton_on_chord(system, x0, xa, d, theta, tol, max_iter):
+    """Solve F(x) = 0, d·(x − x_a) = θ|d|² by Newton from x0; returns (x, J) or raises."""
+    dd = float(d @ d)
+    x = np.array(x0, dtype=float)
+    for _ in range(max_iter):
+        r, J = system.residual_and_jacobian(x)
+        g = float(d @ (x - xa)) - theta * dd
+        if np.max(np.abs(r)) <= tol and abs(g) <= tol * math.sqrt(dd):
+            return x, J
+        M = np.vstack([J, d[None, :]])
+        step = sla.solve(M, -np.concatenate([r, [g]]), check_finite=False)
+        x = x + step
+        valid = getattr(system, "valid", None)
+        if valid is not None and not valid(x):
+            raise LocateError(f"chord Newton left the valid region at theta={theta:.6g}")
+    r, J = system.residual_and_jacobian(x)
+    if np.max(np.abs(r)) <= 10 * tol:
+        return x, J
+    raise LocateError(f"chord Newton did not converge at theta={theta:.6g} "
+                      f"(max|r| = {np.max(np.abs(r)):.2e})")
+
+
+def _tests_on_chord(J, d, scale):
+    """(ψ, φ) as (sign, logdet) pairs: ψ = det[J; d^T] (branch point), φ = det A (fold)."""
+    Js = J if scale is None else J * scale[None, :]
+    ds = d if scale is None else d / scale          # d in scaled unknowns
+    n = Js.shape[0]
+    psi = lu_det(np.vstack([Js, ds[None, :] / np.linalg.norm(ds)]))[:2]
+    phi = lu_det(Js[:, :n])[:2]
+    return psi, phi
+
+
+#: The branch must leave both ends within 60° of the chord (|cos| ≥ 0.5): then, for close
+#: solutions, it is a graph over the chord and the chord orientation is the continuity one.
+GRAPH_COS = 0.5
+
+
+def classify(system, xa, xb, scale=None):
+    """Which test function changes sign between two solutions of ``system``: 'branch point'
+    (ψ = det[J; d^T] = (d·t) det[J; t^T]), 'fold' (only φ = det A), or None. Valid where the
+    branch between them is a graph over the chord d = x_b − x_a (then d·t keeps its sign and ψ
+    changes sign with det[J; t^T] for t oriented by continuity); two solutions whose tangent is
+    more than 60° off the chord at either end are refused (:class:`LocateError`). Returns (kind, (ψ_a, ψ_b, φ_a, φ_b))
+    with each value a (sign, logdet) pair."""
+    xa, xb = np.asarray(xa, float), np.asarray(xb, float)
+    d = xb - xa
+    sc = None if scale is None else np.asarray(scale, float)
+    Ja = system.residual_and_jacobian(xa)[1]
+    Jb = system.residual_and_jacobian(xb)[1]
+    dn = d if sc is None else d / sc
+    for J, end in ((Ja, "a"), (Jb, "b")):
+        Js = J if sc is None else J * sc[None, :]
+        cos = abs(float(null_vector(Js) @ dn)) / float(np.linalg.norm(dn))
+        if cos < GRAPH_COS:
+            raise LocateError(f"the branch at x_{end} makes an angle of {math.degrees(math.acos(cos)):.0f} deg "
+                              f"with the chord (> {math.degrees(math.acos(GRAPH_COS)):.0f}): the two "
+                              "solutions are too far apart to bracket a fold or branch point; "
+                              "take closer ones")
+    psi_a, phi_a = _tests_on_chord(Ja, d, sc)
+    psi_b, phi_b = _tests_on_chord(Jb, d, sc)
+    if psi_a[0] * psi_b[0] < 0:
+        kind = "branch point"
+    elif phi_a[0] * phi_b[0] < 0:
+        kind = "fold"
+    else:
+        kind = None
+    return kind, (psi_a, psi_b, phi_a, phi_b)
+
+
+def locate(system, xa, xb, scale=None, tol=1e-12, theta_tol=1e-10, max_eval=60,
+           newton_tol=1e-12, newton_iter=20) -> Bifurcation:
+    """Locate the fold or branch point between two solutions x_a, x_b of one system.
+
+    The branch between them is followed on the chord hyperplanes d·(x − x_a) = θ|d|²
+    (d = x_b − x_a), each solved by Newton from the nearest solved point. The test function
+    that changes sign (:func:`classify`: ψ for a branch point, else φ for a fold) is driven to
+    zero in θ by the Illinois variant of regula falsi, on its value sign·exp(logdet − logdet_a)
+    (no overflow). Stops when the bracket is shorter than ``theta_tol`` or |test| < ``tol`` relative
+    to its value at x_a. Raises :class:`LocateError` when neither changes sign.
+    """
+    xa, xb = np.asarray(xa, float), np.asarray(xb, float)
+    kind, (psi_a, psi_b, phi_a, phi_b) = classify(system, xa, xb, scale)
+    if kind is None:
+        raise LocateError("no test function changes sign between the two solutions "
+                          f"(det[J;d]: {psi_a[0]:+d} -> {psi_b[0]:+d}, det A: {phi_a[0]:+d} -> "
+                          f"{phi_b[0]:+d}): no fold or simple branch point bracketed")
+    which = 0 if kind == "branch point" else 1
+    sc = None if scale is None else np.asarray(scale, float)
+    d = xb - xa
+    ref = (psi_a, phi_a)[which][1]
+
+    def value(pair):
+        s, lg = pair
+        return s * math.exp(min(lg - ref, 700.0))
+
+    fa, fb = value((psi_a, phi_a)[which]), value((psi_b, phi_b)[which])
+    ta, tb = 0.0, 1.0
+    pts = {0.0: xa, 1.0: xb}
+    side = 0
+    nev = 0
+    x_best, t_best, f_best = (xa, 0.0, fa) if abs(fa) < abs(fb) else (xb, 1.0, fb)
+    while nev < max_eval and tb - ta > theta_tol:
+        t = (ta * fb - tb * fa) / (fb - fa)
+        if not ta < t < tb:
+            t = 0.5 * (ta + tb)
+        near = min(pts, key=lambda s: abs(s - t))
+        x0 = pts[near] + (t - near) * d
+        x, J = _newton_on_chord(system, x0, xa, d, t, newton_tol, newton_iter)
+        pts[t] = x
+        nev += 1
+        f = value(_tests_on_chord(J, d, sc)[which])
+        if abs(f) < abs(f_best):
+            x_best, t_best, f_best = x, t, f
+        if abs(f) <= tol:
+            break
+        if f * fb > 0:          # Illinois: the end kept twice has its value halved
+            tb, fb = t, f
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        else:
+            ta, fa = t, f
+            if side == 1:
+                fb *= 0.5
+            side = 1
+    converged = (tb - ta <= theta_tol) or abs(f_best) <= tol
+    return Bifurcation(kind, x_best, t_best, float(x_best[-1]), float(f_best), nev,
+                       converged=bool(converged))
+
+
+# --------------------------------------------------------------------------- steady pulses
+def pulse_system(pulse, params):
+    """The extended steady system of a stored pulse on its own grid and pin:
+    (SteadyProblem(free='both'), x = (ln v, β, q), column scale (1, …, 1, β, 1))."""
+    from ..core.h5io import state_order_of
+    from .equations import SteadyProblem
+    from .solver import front_pin
+
+    xi = np.asarray(pulse.xi, float)
+    y = np.log(np.asarray(pulse.v, float))
+    if "pin_index" in pulse.extra and "y_pin" in pulse.extra:
+        k, ypin = int(pulse.extra["pin_index"]), float(pulse.extra["y_pin"])
+    else:
+        k, _ = front_pin(xi, y, math.log(pulse.v_stick))
+        ypin = float(y[k])
+    hil = str(pulse.extra.get("hilbert", "cubic"))
+    prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, ypin, hilbert=hil, free="both",
+                         state_order=state_order_of(pulse))
+    x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
+    scale = np.ones(x.size)
+    scale[-2] = pulse.beta
+    return prob, x, scale
+
+
+def pulse_tests(pulse, params, orient_scalars=None, singular_values=True):
+    """:func:`indicators` of a converged pulse (its extended Jacobian at its stored fields).
+
+    orient_scalars : (dβ, dq), optional: orient the tangent so that its (β, q) part (in the
+        scaled unknowns (ln β, q)) has a positive product with it (the direction of the family).
+
+    Returns (Indicators, max|r|) — the residual shows whether the stored pulse is a solution of
+    the rebuilt system (it must be ~1e-13).
+    """
+    prob, x, scale = pulse_system(pulse, params)
+    r, J = prob.residual_and_jacobian(x)
+    orient = None
+    if orient_scalars is not None:
+        orient = np.zeros(x.size)
+        orient[-2] = orient_scalars[0] / pulse.beta
+        orient[-1] = orient_scalars[1]
+    return indicators(J, scale, orient, singular_values), float(np.max(np.abs(r)))
+
+
+@dataclass
+class ScanRow:
+    label: str
+    tau_d_ratio: float
+    beta: float
+    L: float
+    n_points: int
+    max_residual: float
+    values: Indicators
+    unstable_count: object = None   # count of real eigenvalues in (0, ∞), where a spectrum is stored
+
+
+@dataclass
+class Event:
+    """A sign change or a minimum between two neighbouring pulses of a scan."""
+    kind: str            # 'fold', 'branch point', 'sigma minimum', 'not comparable'
+    between: tuple       # (label_a, label_b)
+    detail: str
+
+
+def _stored_count(path, label):
+    """Real eigenvalues of the pinned operator in (0, ∞) among those stored with a pulse's
+    spectrum (datasets sigma_real, sigma_imag of its 'spectrum' group; real: |Im| ≤ 1e-9 |Re|),
+    or None where no spectrum is stored. Only the eigenvalues the spectrum search found are
+    counted (the argument-principle count, attribute 'count', is over a complex box)."""
+    import h5py
+    with h5py.File(path, "r") as h5:
+        grp = h5["pulses"][label]
+        if "spectrum" not in grp or "sigma_real" not in grp["spectrum"]:
+            return None
+        sp = grp["spectrum"]
+        re = np.asarray(sp["sigma_real"][...], float)
+        im = np.asarray(sp["sigma_imag"][...], float) if "sigma_imag" in sp else np.zeros_like(re)
+        real = np.abs(im) <= 1e-9 * np.abs(re)
+        return int(np.count_nonzero(real & (re > 0)))
+
+
+def scan(path, order="beta", labels=None, progress=None, singular_values=True):
+    """The test functions of every converged pulse of a family file, and the events between
+    neighbours.
+
+    order : 'beta' (default; the main family's β rises monotonically from 1.33 τ_min to its deep
+        end, through any fold in τ_d) or 'file' (decreasing τ_d). The tangent of each pulse is
+        oriented along this order (its (ln β, q) part by the centred secant of its neighbours).
+
+    Returns (rows, events): events are a sign change of t_q ('fold'), of det B with t oriented
+    ('branch point'), both compared only between pulses of equal N ('not comparable' otherwise;
+    then a fold still shows in t_q, which does not depend on N), and an interior local minimum
+    of σ₁/σ₂ below 0.1 of both neighbours' ('sigma minimum': a candidate to re-examine).
+    """
+    from ..core import h5io
+    labs = h5io.list_pulses(path) if labels is None else list(labels)
+    pulses, params = [], None
+    for lab in labs:
+        p, params = h5io.read_pulse(path, lab)
+        if p.converged:
+            pulses.append(p)
+    if order == "beta":
+        pulses.sort(key=lambda p: p.beta)
+    elif order != "file":
+        raise ValueError(f"order={order!r}: must be 'beta' or 'file'")
+    rows = []
+    m = len(pulses)
+    for i, p in enumerate(pulses):
+        a, b = pulses[max(i - 1, 0)], pulses[min(i + 1, m - 1)]
+        if a is b:
+            orient = None
+        else:
+            orient = (math.log(b.beta / a.beta) * p.beta, b.tau_d_ratio - a.tau_d_ratio)
+        vals, res = pulse_tests(p, params, orient, singular_values)
+        rows.append(ScanRow(p.label, float(p.tau_d_ratio), float(p.beta), float(p.L),
+                            int(p.n_points), res, vals, _stored_count(path, p.name or p.label)))
+        if progress:
+            progress(rows[-1])
+    return rows, events(rows)
+
+
+def events(rows):
+    """Fold / branch-point / σ-minimum events between neighbouring rows of :func:`scan`."""
+    out = []
+    for a, b in zip(rows[:-1], rows[1:]):
+        va, vb = a.values, b.values
+        pair = (a.label, b.label)
+        if va.t_param * vb.t_param < 0:
+            out.append(Event("fold", pair, f"t_q {va.t_param:+.3e} -> {vb.t_param:+.3e}"))
+        if va.bordered_sign * vb.bordered_sign < 0:
+            if a.n_points == b.n_points:
+                out.append(Event("branch point", pair,
+                                 f"sign det B {va.bordered_sign:+d} -> {vb.bordered_sign:+d}"))
+            else:
+                out.append(Event("not comparable", pair,
+                                 f"sign det B {va.bordered_sign:+d} -> {vb.bordered_sign:+d} "
+                                 f"across N {a.n_points} -> {b.n_points}"))
+    ratios = [r.values.sigma[0] / r.values.sigma[1] if len(r.values.sigma) == 2 else math.nan
+              for r in rows]
+    for i in range(1, len(rows) - 1):
+        if ratios[i] < 0.1 * min(ratios[i - 1], ratios[i + 1]):
+            out.append(Event("sigma minimum", (rows[i - 1].label, rows[i + 1].label),
+                             f"sigma1/sigma2 = {ratios[i]:.3e} at {rows[i].label}"))
+    return out
+
+
+def locate_between_pulses(pa, pb, params, **kw) -> Bifurcation:
+    """Locate a fold or branch point between two pulses: pulse b is re-solved on a's grid and
+    pin at its own τ_d (so both are solutions of one system), then :func:`locate`. The result's
+    ``extra`` holds τ_d/τ_min, β and L (FWHM) there."""
+    from .measures import pulse_length
+    from .solver import interpolate
+    from .newton import newton
+    from .equations import SteadyProblem
+
+    prob, xa, scale = pulse_system(pa, params)
+    # b on a's grid: fixed q_b, free β, a's pin (the interpolated guess is re-pinned by Newton)
+    yb = interpolate(np.asarray(pb.xi, float), np.log(np.asarray(pb.v, float)), prob.xi,
+                     pb.v_stick)
+    fixed = SteadyProblem(params, pb.tau_d_ratio, prob.xi, prob.pin_index, prob.y_pin,
+                          hilbert=prob.hilbert, H=prob.H, state_order=prob.state_order)
+    xb0, stats = newton(fixed, np.concatenate([yb, [pb.beta]]))
+    if not stats.converged:
+        raise LocateError(f"pulse {pb.label} did not re-solve on {pa.label}'s grid: "
+                          f"{stats.message}")
+    xb = np.concatenate([xb0, [pb.tau_d_ratio]])
+    bif = locate(prob, xa, xb, scale=scale, **kw)
+    v = np.exp(bif.x[:-2])
+    bif.extra = {"tau_d_ratio": float(bif.x[-1]), "beta": float(bif.x[-2]),
+                 "L": float(pulse_length(prob.xi, v, params.v_star, crossings=False))}
+    return bif
+
+
+def write_indicators(path, rows):
+    """Store the test functions of :func:`scan` rows as attributes of their pulses in ``path``
+    (bif_fold_sign, bif_fold_logdet, bif_bordered_sign, bif_t_q, bif_sigma1, bif_sigma2),
+    atomically."""
+    from ..core.h5io import atomic_update
+
+    def fill(h5):
+        for r in rows:
+            g = h5["pulses"][r.label]
+            v = r.values
+            g.attrs["bif_fold_sign"] = int(v.fold_sign)
+            g.attrs["bif_fold_logdet"] = float(v.fold_logdet)
+            g.attrs["bif_bordered_sign"] = int(v.bordered_sign)
+            g.attrs["bif_t_q"] = float(v.t_param)
+            if len(v.sigma) == 2:
+                g.attrs["bif_sigma1"], g.attrs["bif_sigma2"] = map(float, v.sigma)
+
+    atomic_update(path, fill)

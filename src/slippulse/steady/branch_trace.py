@@ -1,0 +1,203 @@
+"""Pseudo-arclength tracing of one branch of pulses in τ_d, with its test functions at every step.
+
+Standalone (it uses only :class:`~slippulse.steady.equations.SteadyProblem` with ``free="both"``
+and :mod:`.bifurcation`), for a branch other than the main family (e.g. the two-pulse bound state
+that :mod:`.branch_search` finds). Unknowns x = (ln v, β, q); the arclength is measured in the
+scalars z = (ln β, q/Q_SCALE) only (ln v follows), so a fold in τ_d (q turning while β moves on)
+is passed; the corrector is Newton on [F(x); τ·(z(x) − z₀) − ds] with τ the unit tangent in z.
+The grid is the start pulse's, re-laid (adapted to the current pulse, N points, re-solved at fixed
+τ_d) whenever L has moved by more than ``regrid`` since the grid was laid. At every accepted step:
+β, L, the hump count, sign det A, t_q (continuity-oriented) and sign det B (comparable between
+re-lays only); a sign change of t_q is a fold, of det B on one grid a branch point.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+
+from .bifurcation import indicators
+from .equations import SteadyProblem
+from .measures import pulse_length
+from .solver import adapted_grid, count_humps, front_pin, interpolate, solve_on_grid
+
+#: q = τ_d/τ_min enters the arclength as q/Q_SCALE (a step of 0.04 in q weighs as one in ln β).
+Q_SCALE = 0.04
+
+
+@dataclass
+class TracePoint:
+    q: float
+    beta: float
+    L: float
+    humps: int
+    fold_sign: int
+    t_q: float
+    bordered_sign: int
+    grid: int            # index of the grid (re-lays counted); det B signs compare within one
+    n_points: int
+
+
+@dataclass
+class Trace:
+    points: list = field(default_factory=list)
+    events: list = field(default_factory=list)     # (kind, index of the point after it, detail)
+    stop_reason: str = ""
+    wall_time: float = 0.0
+    pulses: list = field(default_factory=list, repr=False)   # the accepted solutions (Pulse)
+
+
+def _z(x):
+    return np.array([math.log(x[-2]), x[-1] / Q_SCALE])
+
+
+def _tangent(J, x, orient=None):
+    """Unit tangent in z and the full tangent scaled to move z by one unit along it."""
+    from .bifurcation import null_vector
+    t = null_vector(J)
+    tz = np.array([t[-2] / x[-2], t[-1] / Q_SCALE])
+    nz = float(np.linalg.norm(tz))
+    if nz < 1e-14:
+        raise RuntimeError("the branch turns in ln v alone (tangent with no (beta, q) part)")
+    if orient is not None and float(tz @ orient) < 0:
+        t, tz = -t, -tz
+    return tz / nz, t / nz
+
+
+def _pulse(prob, x, params):
+    from .solver import SteadySolution
+    from .newton import SolveStats
+    fixed = SteadyProblem(params, float(x[-1]), prob.xi, prob.pin_index, prob.y_pin, H=prob.H)
+    st = SolveStats(True, "traced", 0, float(np.max(np.abs(fixed.residual(x[:-1])))))
+    return SteadySolution(fixed, x[:-1].copy(), st, 0.0, 0).to_pulse()
+
+
+def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_steps=80,
+          n_points=None, regrid=0.25, q_min=1.0005, L_max=1e3, max_iter=12, progress=None,
+          tol=1e-11, stop_on_humps=False) -> Trace:
+    """Trace the branch of ``pulse`` (a converged Pulse) starting toward decreasing τ_d
+    (direction −1) or increasing (+1). Stops at ``max_steps``, when the step falls below
+    ``ds_min``, when τ_d leaves (q_min, τ_peak/τ_min − 1e-4) or L exceeds ``L_max`` (m), and, with
+    ``stop_on_humps``, when the hump count changes (always reported as an event 'humps'). Returns
+    a :class:`Trace`."""
+    t0 = time.perf_counter()
+    n_points = n_points or int(pulse.n_points)
+    xi = np.asarray(pulse.xi, float)
+    y = np.log(np.asarray(pulse.v, float))
+    k, _ = front_pin(xi, y, math.log(pulse.v_stick))
+    prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, float(y[k]), free="both")
+    x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
+    r, J = prob.residual_and_jacobian(x)
+    tz, t = _tangent(J, x)
+    if tz[1] * direction < 0:
+        tz, t = -tz, -t
+    out = Trace()
+    L_grid = pulse_length(xi, np.exp(y), params.v_star, crossings=False)
+    grid_id = 0
+    humps0 = count_humps(np.exp(y))
+    q_hi = params.tau_peak / params.tau_min - 1e-4
+
+    def record(x, J, tz_or):
+        v = indicators(J, orient=None, singular_values=False)
+        # orient the indicators' tangent like the march's (continuity)
+        t_full = v.tangent
+        tzv = np.array([t_full[-2] / x[-2], t_full[-1] / Q_SCALE])
+        sgn = 1 if float(tzv @ tz_or) >= 0 else -1
+        Lx = pulse_length(prob.xi, np.exp(x[:-2]), params.v_star, crossings=False)
+        pt = TracePoint(float(x[-1]), float(x[-2]), float(Lx), count_humps(np.exp(x[:-2])),
+                        v.fold_sign, sgn * v.t_param, sgn * v.bordered_sign, grid_id, prob.n)
+        if out.points:
+            a = out.points[-1]
+            if a.t_q * pt.t_q < 0:
+                out.events.append(("fold", len(out.points), f"t_q {a.t_q:+.2e} -> {pt.t_q:+.2e} "
+                                   f"between q={a.q:.6f} and {pt.q:.6f}"))
+            if a.grid == pt.grid and a.bordered_sign * pt.bordered_sign < 0:
+                out.events.append(("branch point", len(out.points),
+                                   f"det B {a.bordered_sign:+d} -> {pt.bordered_sign:+d} between "
+                                   f"q={a.q:.6f} and {pt.q:.6f}"))
+        out.points.append(pt)
+        out.pulses.append(_pulse(prob, x, params))
+        if progress:
+            progress(pt)
+        return pt
+
+    record(x, J, tz)
+    while len(out.points) <= max_steps:
+        z0 = _z(x)
+        xp = x + ds * t
+        ok = False
+        if prob.valid(xp):
+            xc = xp.copy()
+            for it in range(max_iter):
+                rc, Jc = prob.residual_and_jacobian(xc)
+                g = float(tz @ (_z(xc) - z0)) - ds
+                if np.max(np.abs(rc)) <= tol and abs(g) <= 1e-10:
+                    ok = True
+                    break
+                row = np.zeros(xc.size)
+                row[-2] = tz[0] / xc[-2]
+                row[-1] = tz[1] / Q_SCALE
+                try:
+                    step = sla.solve(np.vstack([Jc, row]), -np.concatenate([rc, [g]]),
+                                     check_finite=False)
+                except (ValueError, np.linalg.LinAlgError):
+                    break
+                big = float(np.max(np.abs(step[:-2])))
+                if big > 1.0:
+                    step *= 1.0 / big
+                xc = xc + step
+                if not prob.valid(xc):
+                    break
+        if not ok:
+            ds *= 0.5
+            if ds < ds_min:
+                out.stop_reason = f"step below ds_min={ds_min:g} at q={x[-1]:.6f}"
+                break
+            continue
+        x, J = xc, Jc
+        tz, t = _tangent(J, x, orient=tz)
+        pt = record(x, J, tz)
+        if it <= 3:
+            ds = min(ds * 1.5, ds_max)
+        if not (q_min < pt.q < q_hi):
+            out.stop_reason = f"tau_d/tau_min={pt.q:.6f} left ({q_min}, {q_hi:.5f})"
+            break
+        if pt.L > L_max:
+            out.stop_reason = f"L={pt.L:.4g} m above L_max={L_max:g} m"
+            break
+        if pt.humps != humps0:
+            out.events.append(("humps", len(out.points) - 1,
+                               f"hump count {humps0} -> {pt.humps} at q={pt.q:.6f} "
+                               f"(beta={pt.beta:.6g}, L={pt.L:.4g} m)"))
+            humps0 = pt.humps
+            if stop_on_humps:
+                out.stop_reason = out.events[-1][2]
+                break
+        if abs(pt.L / L_grid - 1.0) > regrid:
+            # re-lay the grid on the current pulse, re-solve at fixed τ_d, keep going
+            yv = x[:-2]
+            vst = params.v_stick(pt.q * params.tau_min)
+            fields = SteadyProblem(params, pt.q, prob.xi, prob.pin_index, prob.y_pin, H=prob.H)
+            phi = fields.fields(x[:-1])[1]
+            xi_new = adapted_grid(prob.xi, yv, phi, pt.beta, params, vst, n_points)
+            y_new = interpolate(prob.xi, yv, xi_new, vst)
+            p2, x2, st = solve_on_grid(params, pt.q, xi_new, y_new, pt.beta)
+            if not st.converged:
+                out.stop_reason = f"re-lay of the grid at q={pt.q:.6f} failed: {st.message}"
+                break
+            prob = SteadyProblem(params, pt.q, xi_new, p2.pin_index, p2.y_pin, free="both",
+                                 H=p2.H)
+            x = np.concatenate([x2, [pt.q]])
+            J = prob.residual_and_jacobian(x)[1]
+            tz, t = _tangent(J, x, orient=tz)
+            L_grid = pulse_length(xi_new, np.exp(x2[:-1]), params.v_star, crossings=False)
+            grid_id += 1
+    else:
+        out.stop_reason = f"max_steps={max_steps} reached"
+    if not out.stop_reason:
+        out.stop_reason = f"max_steps={max_steps} reached"
+    out.wall_time = time.perf_counter() - t0
+    return out

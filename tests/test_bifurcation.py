@@ -1,0 +1,223 @@
+"""Fold and branch-point test functions and their locator (steady/bifurcation.py), on small
+systems whose folds and branch points are known exactly, and on a pulse."""
+import math
+
+import numpy as np
+import pytest
+
+from slippulse.steady.bifurcation import (LocateError, ScanRow, events, indicators, locate,
+                                          lu_det, pulse_tests)
+
+
+class Pitchfork:
+    """F(x, z; λ) = (x³ − λx + μ, z − x² − λ): a pitchfork at λ = 0, x = 0 for μ = 0; for
+    μ ≠ 0 the x > 0 branch (μ > 0) folds at x = (μ/2)^(1/3), λ = 3 (μ/2)^(2/3)."""
+
+    def __init__(self, mu=0.0):
+        self.mu = mu
+
+    def residual_and_jacobian(self, X):
+        x, z, lam = X
+        r = np.array([x ** 3 - lam * x + self.mu, z - x * x - lam])
+        J = np.array([[3 * x * x - lam, 0.0, -x], [-2 * x, 1.0, -1.0]])
+        return r, J
+
+
+class SCurve:
+    """F(x, z; λ) = (x³ − x − λ, 2z − sin x): folds at x = ±1/√3, λ = ∓2/(3√3)."""
+
+    def residual_and_jacobian(self, X):
+        x, z, lam = X
+        r = np.array([x ** 3 - x - lam, 2 * z - math.sin(x)])
+        J = np.array([[3 * x * x - 1, 0.0, -1.0], [-math.cos(x), 2.0, 0.0]])
+        return r, J
+
+
+def _scurve_point(x):
+    return np.array([x, 0.5 * math.sin(x), x ** 3 - x])
+
+
+def test_lu_det_sign_and_log_match_numpy():
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        M = rng.standard_normal((7, 7))
+        s, lg, _ = lu_det(M)
+        s2, lg2 = np.linalg.slogdet(M)
+        assert s == int(s2) and lg == pytest.approx(lg2, rel=1e-12)
+
+
+def test_cramer_identity_det_A_equals_det_B_times_t_lambda():
+    rng = np.random.default_rng(2)
+    J = rng.standard_normal((9, 10))
+    v = indicators(J)
+    assert v.cramer_defect < 1e-10
+    # the tangent is a null vector of unit length
+    assert np.linalg.norm(J @ v.tangent) < 1e-12 and np.linalg.norm(v.tangent) == pytest.approx(1)
+
+
+def test_fold_located_on_s_curve():
+    xa, xb = _scurve_point(0.3), _scurve_point(0.9)
+    bif = locate(SCurve(), xa, xb)
+    assert bif.kind == "fold"
+    assert bif.x[0] == pytest.approx(1 / math.sqrt(3), abs=1e-8)
+    assert bif.parameter == pytest.approx(-2 / (3 * math.sqrt(3)), abs=1e-10)
+
+
+def test_pitchfork_located_on_trivial_branch():
+    xa, xb = np.array([0.0, -0.5, -0.5]), np.array([0.0, 0.7, 0.7])
+    bif = locate(Pitchfork(), xa, xb)
+    assert bif.kind == "branch point"
+    assert abs(bif.parameter) < 1e-10
+
+
+def test_imperfect_pitchfork_is_a_fold_not_a_branch_point():
+    mu = 0.01
+    sys_ = Pitchfork(mu)
+
+    def point(x):
+        lam = x * x + mu / x
+        return np.array([x, x * x + lam, lam])
+
+    bif = locate(sys_, point(0.12), point(0.25))
+    xf = (mu / 2) ** (1 / 3)
+    assert bif.kind == "fold"
+    assert bif.x[0] == pytest.approx(xf, rel=1e-7)
+    assert bif.parameter == pytest.approx(3 * (mu / 2) ** (2 / 3), rel=1e-9)
+
+
+def test_locate_refuses_solutions_too_far_apart():
+    """Far apart, the branch is not a graph over the chord (it leaves x = 0.05 at 109° from it)
+    and a sign change of det[J; d] would not mean a branch point: refused."""
+    mu = 0.01
+
+    def point(x):
+        lam = x * x + mu / x
+        return np.array([x, x * x + lam, lam])
+
+    with pytest.raises(LocateError, match="too far apart"):
+        locate(Pitchfork(mu), point(0.05), point(0.5))
+
+
+def test_locate_refuses_a_regular_stretch():
+    with pytest.raises(LocateError):
+        locate(SCurve(), _scurve_point(0.7), _scurve_point(1.2))
+
+
+def _rows(system, points, labels=None):
+    rows, prev = [], None
+    for i, X in enumerate(points):
+        nxt = points[min(i + 1, len(points) - 1)]
+        prv = points[max(i - 1, 0)]
+        orient = np.zeros(X.size)
+        orient[-1] = 1.0 if nxt[-1] == prv[-1] else 0.0
+        orient = nxt - prv
+        v = indicators(system.residual_and_jacobian(X)[1], orient=orient)
+        rows.append(ScanRow(f"p{i}", X[-1], 0.0, 0.0, 2, 0.0, v))
+    return rows
+
+
+def test_scan_events_find_the_pitchfork_and_the_folds():
+    lam = np.linspace(-1, 1, 21) + 0.025           # λ = 0 between two points
+    pts = [np.array([0.0, l, l]) for l in lam]
+    ev = events(_rows(Pitchfork(), pts))
+    kinds = [(e.kind, e.between) for e in ev if e.kind != "sigma minimum"]
+    assert kinds == [("branch point", ("p9", "p10"))]
+    xs = np.linspace(-1.0, 1.0, 20)                 # ±1/√3 = ±0.577 between points
+    ev = events(_rows(SCurve(), [_scurve_point(x) for x in xs]))
+    folds = [e.between for e in ev if e.kind == "fold"]
+    assert folds == [("p4", "p5"), ("p14", "p15")]
+    assert not [e for e in ev if e.kind == "branch point"]
+
+
+def test_pulse_indicators_regular_at_1p2(params, pulse12):
+    v, res = pulse_tests(pulse12.to_pulse(), params, orient_scalars=(1.0, -1.0))
+    assert res < 1e-11                                # the rebuilt system holds the stored pulse
+    assert v.cramer_defect < 1e-6
+    assert v.fold_sign != 0 and v.t_param < 0         # τ_d falls as β rises: no fold here
+    assert v.sigma[0] > 1e-8 and v.sigma[0] < v.sigma[1]
+
+
+# --------------------------------------------------------------------------- referee checks
+def _fake_pulse(q, beta, slip, params):
+    """A pulse-shaped record with total slip `slip` (a box of slip rate over 1 m)."""
+    from slippulse.core.h5io import Pulse
+    xi = np.linspace(-2.0, 1.0, 301)
+    v_st = 1e-7
+    c = beta * params.c_s
+    v = np.where((xi > -1.0) & (xi < 0.0), v_st + slip * c, v_st)
+    z = np.zeros_like(xi)
+    return Pulse(xi=xi, v=v, phi=z, tau=z, residual=z, tau_d_ratio=q, tau_d=q, tau_min=1.0,
+                 beta=beta, c_p=c, L=1.0, L_tilde=1.0, v_stick=v_st, v_max=float(v.max()),
+                 max_residual=0.0, converged=True, n_points=xi.size, wall_time=0.0)
+
+
+def test_slip_criterion_sign_and_agreement(params):
+    from slippulse.steady.analysis import slip_criterion
+    # b = (q − 1.1)² has db/dq < 0 below 1.1 and > 0 above; β rises as q falls
+    qs = [1.2, 1.15, 1.12, 1.08, 1.05, 1.02]
+    ps = [_fake_pulse(q, 0.5 - q / 3, (q - 1.1) ** 2 + 0.01, params) for q in qs]
+    rates = {1.15: (2.0, 0.1), 1.05: (0.5, 0.1), 1.08: (0.01, 0.1)}
+    rows = {r["tau_d_ratio"]: r for r in slip_criterion(ps, params, rates)}
+    # exact derivative 2 (q − 1.1) (quadratic: three-point differences are exact), to trapezoid error
+    for q in qs[1:-1]:
+        assert rows[q]["db_dq"] == pytest.approx(2 * (q - 1.1), rel=2e-2, abs=2e-4)
+    assert rows[1.05]["predicted"] == "unstable" and rows[1.05]["agree"] is True
+    assert rows[1.15]["predicted"] == "stable" and rows[1.15]["agree"] is False
+    assert rows[1.08]["s_sign"] == "unresolved" and rows[1.08]["agree"] is None
+    assert rows[1.12]["s_sign"] is None
+
+
+def test_paper_range_fit_recovers_constants(tmp_path, params):
+    """Pulses placed exactly on Eqs. 3–4 with known constants: the fit over 1.015–1.2 returns them."""
+    from slippulse.steady.analysis import paper_range_fit
+    from slippulse.steady.fits import scaling_law
+    from slippulse.core.h5io import write_pulse
+    path = str(tmp_path / "fam.h5")
+    qs = np.linspace(1.015, 1.2, 8)
+    b, Lt = scaling_law(qs, 1.0091, 1.3, 0.6, params)
+    for q, bb, ll in zip(qs, b, Lt):
+        p = _fake_pulse(float(q), float(bb), 1e-4, params)
+        p.L = float(ll * params.L_Gc)
+        write_pulse(path, p, params)
+    fit = paper_range_fit(path)
+    assert fit["both"]["tau_star"] == pytest.approx(1.0091, abs=1e-7)
+    assert fit["both"]["a_v"] == pytest.approx(1.3, rel=1e-5)
+    assert fit["both"]["a_G"] == pytest.approx(0.6, rel=1e-5)
+    assert fit["paper"]["tau_star"] == 1.0087 and fit["paper_rms"] > 0.01
+
+
+def test_null_vector_bordered_branch_matches_qr(monkeypatch):
+    """The bordered-LU null vector (large systems) is the QR one up to sign."""
+    import slippulse.steady.bifurcation as bif
+    rng = np.random.default_rng(5)
+    J = rng.standard_normal((30, 31))
+    t_qr = bif.null_vector(J)
+    monkeypatch.setattr(bif, "QR_MAX", 10)
+    t_lu = bif.null_vector(J)
+    assert abs(abs(t_qr @ t_lu) - 1) < 1e-12 and np.linalg.norm(J @ t_lu) < 1e-12
+
+
+def test_cli_bifurcations_prints_and_stores_the_test_functions(tmp_path, params, pulse12):
+    import cli_inproc
+    from slippulse.core.h5io import read_pulse, write_pulse
+    path = str(tmp_path / "one.h5")
+    write_pulse(path, pulse12.to_pulse(), params)
+    r = cli_inproc.run(["steady", "bifurcations", path, "--write", "-q"])
+    assert r.returncode == 0, r.stderr
+    assert "0 folds" in r.stdout and "0 branch points" in r.stdout
+    p, _ = read_pulse(path, "td1.2000")
+    assert p.extra["bif_fold_sign"] in (-1, 1) and p.extra["bif_sigma1"] > 0
+    r = cli_inproc.run(["steady", "bifurcations", path, "--labels", "td1.1000", "-q"])
+    assert r.returncode == 2 and "td1.1000" in r.stderr
+
+
+def test_locate_says_when_it_did_not_converge():
+    bif = locate(SCurve(), _scurve_point(0.3), _scurve_point(0.9), max_eval=2)
+    assert bif.kind == "fold" and not bif.converged
+    assert locate(SCurve(), _scurve_point(0.3), _scurve_point(0.9)).converged
+
+
+def test_scan_reads_the_stored_count_of_real_unstable_eigenvalues(steady12_with_spectrum):
+    from slippulse.steady.bifurcation import scan
+    rows, ev = scan(steady12_with_spectrum)
+    assert len(rows) == 1 and rows[0].unstable_count == 1 and not ev

@@ -1,0 +1,142 @@
+"""Deflated Newton (steady/deflation.py), the search for every pulse at one τ_d
+(steady/branch_search.py) and its command ``slippulse steady branches``."""
+import math
+
+import numpy as np
+import pytest
+
+import cli_inproc
+from slippulse.core.h5io import list_pulses, read_pulse, write_pulse
+from slippulse.steady.deflation import Deflation, deflated_newton
+
+
+class Cubic:
+    """F(x) = (x − 1)(x − 2)(x + 3) and z − x²: three roots, known exactly."""
+
+    def residual(self, X):
+        x, z = X
+        return np.array([(x - 1) * (x - 2) * (x + 3), z - x * x])
+
+    def residual_and_jacobian(self, X):
+        x, z = X
+        d = (x - 2) * (x + 3) + (x - 1) * (x + 3) + (x - 1) * (x - 2)
+        return self.residual(X), np.array([[d, 0.0], [-2 * x, 1.0]])
+
+    def valid(self, X):
+        return bool(np.all(np.isfinite(X)))
+
+
+def test_deflation_gradient_matches_finite_differences():
+    rng = np.random.default_rng(3)
+    D = Deflation(p=2.0, sigma=0.5)
+    for _ in range(2):
+        D.add(rng.standard_normal(5), rng.uniform(0.5, 2.0, 5))
+    x = rng.standard_normal(5)
+    M, g = D(x)
+    h = 1e-6
+    fd = np.array([(D(x + h * e)[0] - D(x - h * e)[0]) / (2 * h) for e in np.eye(5)])
+    assert np.allclose(g, fd, rtol=1e-6, atol=1e-9)
+
+
+def test_sherman_morrison_step_is_newton_on_the_deflated_residual():
+    """δ = δ₀/(1 − ∇M·δ₀/M) solves (M J + F ∇Mᵀ) δ = −M F."""
+    rng = np.random.default_rng(4)
+    J, F = rng.standard_normal((6, 6)), rng.standard_normal(6)
+    D = Deflation()
+    D.add(rng.standard_normal(6), np.ones(6))
+    x = rng.standard_normal(6)
+    M, g = D(x)
+    d0 = np.linalg.solve(J, -F)
+    d = d0 / (1 - g @ d0 / M)
+    assert np.allclose((M * J + np.outer(F, g)) @ d, -M * F)
+
+
+def test_deflated_newton_finds_all_three_roots_from_one_guess():
+    D = Deflation(p=2.0, sigma=1.0)
+    roots = []
+    for _ in range(4):
+        res = deflated_newton(Cubic(), np.array([0.1, 0.0]), D, tol=1e-12, max_iter=100,
+                              max_dy=10.0, n_free=0)
+        if not res.converged:
+            break
+        roots.append(res.x[0])
+        D.add(res.x, np.ones(2))
+    assert sorted(np.round(roots, 10)) == [-3.0, 1.0, 2.0]
+
+
+def test_search_finds_the_family_pulse_and_the_two_hump_pulse(params):
+    """At 1.2 τ_min the quick guesses (the built-in one, a two-pulse state 1.4 m apart) reach the
+    family pulse and the bound state of two pulses (docs/steady.md §6), at N = 500."""
+    from slippulse.steady.branch_search import GUESS_SETS, search
+    rep = search(params, 1.2, GUESS_SETS["quick"](), n_points=500, check=False)
+    got = sorted((f.pulse.extra["n_humps"], f.pulse.beta, f.pulse.L) for f in rep.found)
+    assert [g[0] for g in got] == [1, 2]
+    assert got[0][1] == pytest.approx(0.0072417, rel=2e-3) and got[0][2] == pytest.approx(1.074, rel=5e-3)
+    assert got[1][1] == pytest.approx(0.0054863, rel=2e-3) and got[1][2] == pytest.approx(2.071, rel=5e-3)
+    # the built-in guess is deflated once it has its pulse: it then fails, it does not re-find it
+    assert rep.reached[0] == [0]
+
+
+@pytest.mark.parametrize("args,name", [
+    (["--tau-d", "1.0"], "tau-d"), (["--tau-d", "1.34"], "tau-d"), (["--tau-d", "x"], "tau-d"),
+    (["--tau-d", "1.2", "--p", "0.5"], "p="), (["--tau-d", "1.2", "--points", "10"], "points")])
+def test_cli_bad_input_one_line_exit_2_no_file(tmp_path, args, name):
+    out = tmp_path / "b.h5"
+    r = cli_inproc.run(["steady", "branches", *args, "--out", out, "-q"])
+    assert r.returncode == 2, r.stderr
+    assert name in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_cli_refuses_a_missing_label_and_a_file_of_other_parameters(tmp_path, params, pulse12):
+    src = str(tmp_path / "src.h5")
+    write_pulse(src, pulse12.to_pulse(), params)
+    out = tmp_path / "b.h5"
+    r = cli_inproc.run(["steady", "branches", "--tau-d", "1.2", "--guesses", "none", "--guess",
+                        f"{src}:td1.1000", "--out", out, "-q"])
+    assert r.returncode == 2 and "td1.1000" in r.stderr and not out.exists()
+    assert len(r.stderr.strip().splitlines()) == 1
+    r = cli_inproc.run(["steady", "branches", "--tau-d", "1.2", "--guesses", "none", "--guess",
+                        f"{src}:td1.2000", "--set", "params.sigma=2e6", "--out", out, "-q"])
+    assert r.returncode == 2 and "sigma" in r.stderr and not out.exists()
+    r = cli_inproc.run(["steady", "branches", "--tau-d", "1.2", "--out", src, "--overwrite",
+                        "--set", "params.sigma=2e6", "-q"])
+    assert r.returncode == 2 and "other parameters" in r.stderr
+
+
+def test_cli_writes_each_solution_under_its_own_label(tmp_path, params, pulse12):
+    """From a stored pulse only: one solution, written with its hump count and grid check."""
+    src = str(tmp_path / "src.h5")
+    write_pulse(src, pulse12.to_pulse(), params)
+    out = str(tmp_path / "b.h5")
+    r = cli_inproc.run(["steady", "branches", "--tau-d", "1.2", "--guesses", "none", "--guess",
+                        f"{src}:td1.2000", "--points", "500", "--no-grid-check", "--out", out,
+                        "-q"])
+    assert r.returncode == 0, r.stderr
+    assert list_pulses(out) == ["td1.2000"]
+    p, _ = read_pulse(out, "td1.2000")
+    assert p.extra["n_humps"] == 1 and p.extra["reached_by"] == "0"
+    assert p.beta == pytest.approx(0.0072417, rel=2e-3)
+
+
+def test_solution_labels_parse_to_the_same_tau_d():
+    from slippulse.cli.branches import solution_label
+    from slippulse.core.h5io import label_ratio
+    labs = [solution_label(1.2, k) for k in range(3)]
+    assert labs == ["td1.2000", "td1.20000", "td1.200000"]
+    assert all(label_ratio(lab) == 1.2 for lab in labs)
+
+
+def test_trace_follows_the_main_family_down_from_1p2(params, pulse12):
+    """Three pseudo-arclength steps down from the 1.2 pulse: τ_d falls, β rises, one hump, no
+    fold or branch point; the last point is the pulse a fixed-τ_d solve gives there."""
+    from slippulse.steady.branch_trace import trace
+    from slippulse.steady.solver import solve_on_grid
+    tr = trace(params, pulse12.to_pulse(), direction=-1, max_steps=3)
+    q = [p.q for p in tr.points]
+    b = [p.beta for p in tr.points]
+    assert len(q) == 4 and all(np.diff(q) < 0) and all(np.diff(b) > 0)
+    assert {p.humps for p in tr.points} == {1} and not tr.events
+    last = tr.pulses[-1]
+    prob, x, st = solve_on_grid(params, last.tau_d_ratio, last.xi, np.log(last.v), 1.05 * last.beta)
+    assert st.converged and x[-1] == pytest.approx(last.beta, rel=1e-9)
