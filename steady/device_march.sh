@@ -6,7 +6,7 @@
 #
 #   bash steady/device_march.sh FILE SECONDS [slippulse steady family options ...]
 #
-# Used in stop 45 through the device tool (run, carry=[FILE]): 16 cores, one process.
+# Run on a lent GPU machine's host cores (16 cores, one process), the family file carried there.
 set -u
 f=$1; secs=$2; shift 2
 n=$(getconf _NPROCESSORS_ONLN)

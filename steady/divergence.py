@@ -65,7 +65,7 @@ def load(family, deep_dir):
         pu, _ = read_pulse(family, lab)
         if pu.converged:
             if pu.extra.get("continuation") == "arclength":
-                # a deep pulse of `slippulse steady family` (issue 18): the march step, checked
+                # a deep pulse of `slippulse steady family`: the march step, checked
                 pu.extra.update(source=lab, dbeta=float(pu.extra["grid_check_dbeta"]),
                                 dL_rel=float(pu.extra["grid_check_dL_rel"]),
                                 n_check=float(pu.extra["grid_check_n"]))
@@ -279,7 +279,7 @@ def main(argv=None):
                  if d[k] > 0 and d[j] > 0 else float("nan"))
         print(f"| {q[i]:.6f} | {om[i]:.3e} | {L[i]:.4g} | {r_loc:.3f} | {m_loc:.3f} |")
 
-    # the deepest decade of L (issue 18, item 4): local exponents against L, with τ̃* from the
+    # the deepest decade of L: local exponents against L, with τ̃* from the
     # joint fit to that decade, and the two single fits that bracket it
     deep = L >= L.max() / 10.0
     tau_deep, loc = float("nan"), None

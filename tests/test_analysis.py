@@ -537,7 +537,7 @@ def test_edge_structure_on_an_analytic_pulse():
 
 
 def test_analyse_names_the_results_a_shallow_family_cannot_support(tmp_path, capsys):
-    """Issue 19: a family that stops above 1.015 (or has too few pulses near tau_*) gets the
+    """A family that stops above 1.015 (or has too few pulses near tau_*) gets the
     reason instead of a scaling fit and G_c, in the printed table and in the file."""
     from slippulse.cli.app import main
     path = str(tmp_path / "fam.h5")

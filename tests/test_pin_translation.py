@@ -1,4 +1,4 @@
-"""Translation pinned (issue 17): the rank-one change that makes v₀′ an exact null vector of M(0),
+"""Translation pinned: the rank-one change that makes v₀′ an exact null vector of M(0),
 the Newton stop on a converged σ with an unconverged vector, the det-sign bracket of real
 eigenvalues, and the Richardson value of the translation eigenvalue (docs/spectrum.md §5)."""
 import math
@@ -104,7 +104,7 @@ def test_pinned_ladder_in_the_product(tmp_path, pulse12, params):
     assert st["setting_pin_translation"] == 1 and st["setting_level0_points"] == 400
     tl = np.asarray(st["refine_translation_levels"])
     # σ_t = 0 by construction (test_pinned_M0_has_translation_as_exact_null_vector): not
-    # computed on any level since stop 39 (it was rounding, ≤ 1e-9 s, at a cost of 6 s of a
+    # computed on any level (it was rounding, ≤ 1e-9 s, at a cost of 6 s of a
     # deep pulse's 30 s), stored as nan; uniform slip is still checked at level 0
     assert np.all(np.isnan(tl))
     assert st["uniform_slip_backward_error"] < 1e-12

@@ -86,7 +86,7 @@ def analyse_pulse(pulse, params, tau_m=None, edge_window=None):
 #: The scaling fit and G_c are read off the pulses down to τ_d/τ_min = SUPPORT_DEPTH (the
 #: paper's family ends there; its Fig. 4 curves and Eq. 3-4 constants come from them). A family
 #: that stops above it, or holds fewer than SUPPORT_MIN pulses in the window, gets the reason
-#: instead of the number (issue 19: a 1.2 -> 1.02 family printed G_c = 0.0047 for the paper's 0.6).
+#: instead of the number (a 1.2 -> 1.02 family would print G_c = 0.0047 for the paper's 0.6).
 SUPPORT_DEPTH = 1.015
 SUPPORT_MIN = {"scaling": 5, "fracture": 3}
 
