@@ -177,8 +177,12 @@ def cmd_run(args) -> int:
                              "to replace it, or --out for another file")
         check_writable(path, "--out")
         out = RunFile.create(path, cfg, stepper.params, stepper)
-        out.snapshot(stepper)
-        out.checkpoint(stepper)
+        try:
+            out.snapshot(stepper)
+            out.checkpoint(stepper)
+        except BaseException:
+            out.close()
+            raise
     return _drive(stepper, out, cfg, progress=not args.no_progress)
 
 
@@ -196,6 +200,7 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
                bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
     status, message, rc = "finished", "t_end reached", 0
     sigint = _StepBoundaryInterrupt()
+    failed_write = None
     try:
         while st.t < t_end * (1 - 1e-14):
             if max_steps is not None and st.nstep >= max_steps:
@@ -217,17 +222,28 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
         status, message, rc = "failed", str(exc), 1
     except KeyboardInterrupt:
         status, message, rc = "interrupted", "interrupted by the user", 130
+    except OSError as exc:                       # a full disk: the work file is discarded
+        failed_write = exc
     finally:
         sigint.restore()
         bar.close()
+    if failed_write is None and status != "interrupted":
+        try:
+            if status == "finished" and out.last_snapshot_step() != st.nstep:
+                out.snapshot(st)
+            out.checkpoint(st, status=status, message=message)
+        except OSError as exc:
+            failed_write = exc
+    if failed_write is not None:
+        out.close()
+        raise OSError(failed_write.errno, f"{failed_write.strerror or failed_write}; the run "
+                      f"stopped at step {st.nstep}, {out.path} holds its last checkpoint "
+                      "(--resume continues from it)", failed_write.filename or out.work)
     if status == "interrupted":
         # the state may be half-updated mid-step: keep FILE at its last checkpoint, marked
         out.close()
         _mark_interrupted(out)
     else:
-        if status == "finished" and out.last_snapshot_step() != st.nstep:
-            out.snapshot(st)
-        out.checkpoint(st, status=status, message=message)
         out.close()
     wall = time.perf_counter() - wall0
     print(f"slippulse dynamic: {status} ({message}); {st.nstep} steps, t = {st.t:.6g} s, "

@@ -58,3 +58,14 @@ def replacing_open(path: str, mode: str = "w", **kwargs):
     with replacing(path) as tmp:
         with open(tmp, mode, **kwargs) as fh:
             yield fh
+
+
+def read_only(path: str) -> bool:
+    """Whether an existing file is read-only: no write permission for this process, or no write
+    bit at all (a file its owner marked read-only is not replaced, even by root, who may
+    write anything)."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return False
+    return not os.access(path, os.W_OK) or not mode & 0o222
