@@ -22,7 +22,7 @@ from ..dynamics.config import RESUME_MUTABLE, build_stepper, diff_keys, load_con
 from ..core.h5io import check_writable
 from ..dynamics.runfile import RunFile
 from ..dynamics.stepper import MAX_GRID_POINTS
-from .checks import check_figure, finite
+from .checks import check_distinct, check_figure, finite
 
 #: Fewest points of a seeded grid (as --points of verify).
 MIN_GRID_POINTS = 16
@@ -152,8 +152,9 @@ def _eigenmode(args, pulse, params, required: bool):
 def cmd_run(args) -> int:
     cfg = load_config(args.config, config_sets(args, args.sets))
     check_config_params(cfg)
-    if args.out:
+    if args.out is not None:
         cfg["output"]["file"] = args.out
+        check_writable(args.out, "--out")
     path = cfg["output"]["file"]
     if os.path.isdir(path):
         raise UsageError(f"--out={path!r} is a directory; give a file name (e.g. "
@@ -331,7 +332,9 @@ def cmd_verify(args) -> int:
     _require_converged(args, pulse)
     params = params_for_input(args, params, args.steady)
     label = pulse.label
-    out = args.out or f"verify_{label}.h5"
+    out = f"verify_{label}.h5" if args.out is None else args.out
+    check_writable(out, "--out")
+    check_distinct(out, "--out", **{"--steady": args.steady, "--mode-file": args.mode_file})
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
     check_writable(out, "--out")
@@ -379,7 +382,9 @@ def cmd_seed(args) -> int:
         raise UsageError(str(exc))
     _require_converged(args, pulse)
     params = params_for_input(args, params, args.steady)
-    out = args.out or f"seed_{pulse.label}.h5"
+    out = f"seed_{pulse.label}.h5" if args.out is None else args.out
+    check_writable(out, "--out")
+    check_distinct(out, "--out", **{"--steady": args.steady, "--mode-file": args.mode_file})
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
     check_writable(out, "--out")
@@ -400,11 +405,13 @@ def cmd_seed(args) -> int:
         raise UsageError(str(exc))
     mis = write_seed(out, seed, source=os.path.abspath(args.steady), label=pulse.label)
     if eigen is not None:
-        import h5py
-        with h5py.File(out, "a") as h5:
+        from ..core.h5io import atomic_update
+
+        def fill(h5):
             h5.attrs["perturbation"], h5.attrs["eps"] = args.perturb, float(args.eps)
             h5.attrs["eigen_s_per_L"], h5.attrs["eigen_sigma"] = eigen.s_per_L, eigen.sigma.real
             h5.attrs["eigen_source"] = eigen.source
+        atomic_update(out, fill)
     st = seed.stepper
     print(_unconverged_prefix(pulse) + f"seed {pulse.label}: N={st.n}, dx={st.dx * 1e3:.3g} mm, domain {st.length:.4g} m "
           f"({args.behind:g} L behind + {args.ahead:g} L ahead); t = 0 stress vs steady: "

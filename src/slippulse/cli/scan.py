@@ -111,6 +111,8 @@ def cmd_scan(args) -> int:
     if args.workers < 1:
         raise UsageError(f"--workers={args.workers} must be >= 1")
     _check_steady_pulses(scan)
+    from .checks import check_outdir
+    check_outdir(scan.out_dir, "scan.out_dir")
     executor = "local"
     if args.scheduler:
         try:

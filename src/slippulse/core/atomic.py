@@ -69,3 +69,13 @@ def read_only(path: str) -> bool:
     except OSError:
         return False
     return not os.access(path, os.W_OK) or not mode & 0o222
+
+
+def save_figure(fig, path: str, **kwargs) -> None:
+    """``fig.savefig(path, **kwargs)`` through :func:`replacing`: a full disk or an interrupt
+    leaves the previous figure (or none), never an empty or truncated one. The format is taken
+    from the extension of ``path`` (the temporary file's name has the same one)."""
+    ext = os.path.splitext(path)[1]
+    kwargs.setdefault("format", ext.lstrip(".").lower() or None)
+    with replacing(path, suffix=ext) as tmp:
+        fig.savefig(tmp, **kwargs)

@@ -476,7 +476,13 @@ def open_h5(path: str, what: str = "file") -> h5py.File:
 def check_writable(path: str, what: str = "out") -> None:
     """Refuse (:class:`SchemaError`), before any work is done, an output path that could not be
     written: its nearest existing parent is not a directory, or no file can be created there (a
-    trial file is created and removed), or it names an existing directory or read-only file."""
+    trial file is created and removed), or it names an existing directory or read-only file,
+    or it is empty or ends in a path separator (a directory meant, not a file)."""
+    if not isinstance(path, str) or not path.strip():
+        raise SchemaError(f"{what}={path!r} is empty; give a file name")
+    if path.endswith((os.sep, "/")) or (os.altsep and path.endswith(os.altsep)):
+        raise SchemaError(f"{what}={path!r} ends in a path separator; give a file name "
+                          f"(e.g. {os.path.join(path, 'out.h5')})")
     full = os.path.abspath(path)
     d = os.path.dirname(full)
     while not os.path.exists(d):
@@ -510,6 +516,17 @@ def _labels(h5, path: str) -> list[str]:
             raise SchemaError(f"{path}: /pulses/{lab} is not a pulse label (expected tdX.XXXX)")
         validate.member(pulses, lab, path, h5py.Group)
     return [lab for _, lab in sorted(zip(ratios, labels), key=lambda p: -p[0])]
+
+
+def labels_in(h5, path: str) -> list[str]:
+    """Pulse labels of an open file by decreasing τ_d, each a group that resolves inside the
+    file (the public name of the check every reader of a family makes)."""
+    return _labels(h5, path)
+
+
+def check_pulse_group(grp, path: str) -> Pulse:
+    """The validating reader of one open pulse group (:func:`read_pulse` without opening)."""
+    return _group_to_pulse(grp, path)
 
 
 def list_pulses(path: str) -> list[str]:

@@ -25,6 +25,12 @@ import os
 import struct
 
 from .errors import SchemaError
+from .killpoint import kill_point
+
+#: Points of :meth:`JournaledFile.commit` where ``SLIPPULSE_KILL_AT`` (:mod:`.killpoint`) kills
+#: the writer: inside the journal (torn), after it (committed, file untouched), half-way through
+#: writing the file.
+KILL_POINTS = ("journal_torn", "journal_written", "file_half_written")
 
 PAGE = 4096
 _MAGIC = b"SLPJRNL1"
@@ -172,7 +178,11 @@ class JournaledFile:
         body += hashlib.sha256(body).digest()
         try:
             with open(jp, "wb") as jf:
-                jf.write(body)
+                half = len(body) // 2
+                jf.write(body[:half])
+                jf.flush()
+                kill_point("journal_torn")
+                jf.write(body[half:])
                 jf.flush()
                 os.fsync(jf.fileno())
         except BaseException:
@@ -180,6 +190,7 @@ class JournaledFile:
             self.close()
             raise
         _fsync_dir(os.path.dirname(jp))
+        kill_point("journal_written")
         fd = self._fh.fileno()
         if self._size > self._orig:
             try:
@@ -201,7 +212,10 @@ class JournaledFile:
 
 
 def _apply(fd: int, pages, size: int) -> None:
-    for k, data in pages:
+    pages = list(pages)
+    for i, (k, data) in enumerate(pages):
+        if i == len(pages) // 2:
+            kill_point("file_half_written")
         end = min(PAGE, max(0, size - k * PAGE))
         if end:
             os.pwrite(fd, bytes(data[:end]), k * PAGE)

@@ -38,7 +38,6 @@ import datetime as _dt
 import json
 import os
 import shutil
-import signal
 
 import h5py
 import numpy as np
@@ -46,6 +45,7 @@ import numpy as np
 from .. import __version__
 from ..core.atomic import read_only
 from ..core.guarded import GuardedFile
+from ..core.killpoint import kill_point as _kill_point
 from ..core.h5io import (SchemaError, atomic_update, coordinate, describe, dimension,
                          format_version, open_h5, stamp_format)
 from ..core.locking import file_lock, hold_exclusive
@@ -64,24 +64,9 @@ _STATE_UNITS = {"t": "s", "dt_prev": "s", "delta": "m", "V": "m/s", "phi": "s", 
 
 
 #: Points of :meth:`RunFile.checkpoint` (and of the catch-up it calls) where the test hook
-#: ``SLIPPULSE_KILL_AT=POINT:N`` kills the process with SIGKILL the N-th time it gets there
-#: (tests/test_kill_safety.py: kills at defined moments instead of after random delays).
+#: ``SLIPPULSE_KILL_AT=POINT:N`` (:mod:`slippulse.core.killpoint`) kills the process the N-th
+#: time it gets there (tests/test_kill_safety.py: kills at defined moments, not random delays).
 KILL_POINTS = ("state_written", "closed", "linked", "published", "rows_caught_up", "reopened")
-_kill_counts: dict = {}
-
-
-def _kill_point(name: str) -> None:
-    """The test hook (see :data:`KILL_POINTS`); does nothing unless SLIPPULSE_KILL_AT names
-    ``name``."""
-    spec = os.environ.get("SLIPPULSE_KILL_AT")
-    if not spec:
-        return
-    point, _, n = spec.partition(":")
-    if point != name:
-        return
-    _kill_counts[name] = _kill_counts.get(name, 0) + 1
-    if _kill_counts[name] == int(n or 1):
-        os.kill(os.getpid(), signal.SIGKILL)
 
 
 def _create_series(h5, n: int) -> None:

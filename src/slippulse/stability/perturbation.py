@@ -70,6 +70,17 @@ def check_case(case: dict) -> dict:
         raise ParameterError(f"unknown case key(s) {unknown}; valid: {sorted(CASE_DEFAULTS)}")
     c = dict(CASE_DEFAULTS)
     c.update(case)
+    for key, default in CASE_DEFAULTS.items():      # numbers where numbers belong, named
+        if isinstance(default, (int, float)) and not isinstance(default, bool):
+            val = c[key]
+            if isinstance(val, bool) or not isinstance(val, (int, float)) \
+                    or not math.isfinite(val):
+                raise ParameterError(f"case key {key}={val!r} must be a finite number")
+    if not (isinstance(c["samples_per_L"], int) and 2 <= c["samples_per_L"] <= 10_000):
+        raise ParameterError(f"samples_per_L={c['samples_per_L']!r} must be an integer in "
+                             "[2, 10000]")
+    if not (isinstance(c["threads"], int) and 1 <= c["threads"] <= 1024):
+        raise ParameterError(f"threads={c['threads']!r} must be an integer in [1, 1024]")
     for key in ("steady", "label"):
         if not isinstance(c[key], str) or not c[key]:
             raise ParameterError(f"case key {key!r} is required (a string)")
