@@ -23,7 +23,7 @@ def check_cd_over_cs(values):
 def cmd_analyse(args):
     """CLI action for ``slippulse steady analyse FILE [--no-write]`` (argparse namespace with
     ``file`` and optional ``no_write``): analyse, store the results in FILE, print the table."""
-    h5io.open_h5(args.file, "FILE").close()   # a directory, a missing or foreign file: named
+    h5io.check_pulses(args.file, "FILE")       # every pulse valid, before any work
     cd = check_cd_over_cs(getattr(args, "cd_cs", None))
     skip = h5io.require_converged(args.file, allow=getattr(args, "skip_unconverged", False),
                                   hint="--skip-unconverged leaves them out")

@@ -170,8 +170,13 @@ def cmd_run(args) -> int:
             out.close()
             raise UsageError(f"--resume: config differs from the stored run in {', '.join(changed)}"
                              f" (only {', '.join(sorted(RESUME_MUTABLE))} may change)")
-        stepper.load_state(state)
-        out.update_config(cfg)
+        try:
+            stepper.load_state(state)
+            out.update_config(cfg)
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            out.close()
+            raise UsageError(f"--resume: {path}: its checkpoint does not fit this run "
+                             f"({type(exc).__name__}: {exc})") from None
     else:
         if os.path.exists(path) and not args.overwrite:
             raise UsageError(f"output file {path} exists: use --resume to continue it, --overwrite "

@@ -32,9 +32,9 @@ def run(args):
     from .analyse import check_cd_over_cs
     from ..plotting import steady as plotting
 
-    from ..core.h5io import open_h5
+    from ..core.h5io import check_pulses
     for f, what in [(args.file, "FILE")] + ([(args.compare, "--compare")] if args.compare else []):
-        open_h5(f, what).close()              # a directory, a missing or foreign file: named
+        check_pulses(f, what)                 # every pulse valid, before any work
     formats = tuple(s.strip() for s in args.formats.split(",") if s.strip())
     bad = [f for f in formats if f not in ("png", "pdf", "svg")]
     if bad or not formats:

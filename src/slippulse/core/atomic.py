@@ -77,5 +77,18 @@ def save_figure(fig, path: str, **kwargs) -> None:
     from the extension of ``path`` (the temporary file's name has the same one)."""
     ext = os.path.splitext(path)[1]
     kwargs.setdefault("format", ext.lstrip(".").lower() or None)
-    with replacing(path, suffix=ext) as tmp:
-        fig.savefig(tmp, **kwargs)
+    with named_errors(path):
+        with replacing(path, suffix=ext) as tmp:
+            fig.savefig(tmp, **kwargs)
+
+
+@contextmanager
+def named_errors(path: str):
+    """Re-raise an ``OSError`` of the block (a full disk, a permission) as one that names
+    ``path``, the file the user asked for, rather than a temporary file or nothing."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.filename == path:
+            raise
+        raise OSError(exc.errno, exc.strerror or str(exc), path) from None

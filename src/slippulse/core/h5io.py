@@ -39,7 +39,7 @@ import numpy as np
 
 from .. import __version__
 from . import validate
-from .atomic import read_only, replacing
+from .atomic import named_errors, read_only, replacing
 from .errors import SchemaError
 from .journal import JournaledFile, recover
 from .locking import file_lock
@@ -281,7 +281,7 @@ def atomic_update(path: str, fill, replace: bool = False) -> None:
     if os.path.exists(d) and not os.path.isdir(d):
         raise SchemaError(f"{shown}: cannot write there, {d} is a file, not a directory")
     os.makedirs(d, exist_ok=True)
-    with file_lock(path):
+    with named_errors(shown), file_lock(path):
         recover(path)
         exists = os.path.exists(path)
         if exists and read_only(path):
@@ -527,6 +527,18 @@ def labels_in(h5, path: str) -> list[str]:
 def check_pulse_group(grp, path: str) -> Pulse:
     """The validating reader of one open pulse group (:func:`read_pulse` without opening)."""
     return _group_to_pulse(grp, path)
+
+
+def check_pulses(path: str, what: str = "FILE") -> list[str]:
+    """Validate a whole steady/family file before a command works on it: its parameters and
+    every pulse group (:func:`check_pulse_group`). Returns the labels (decreasing τ_d); the first
+    problem raises :class:`SchemaError` naming the file and the group."""
+    with open_h5(path, what) as h5:
+        labels = _labels(h5, path)
+        read_parameters(h5, path)
+        for lab in labels:
+            _group_to_pulse(h5["pulses"][lab], path)
+    return labels
 
 
 def list_pulses(path: str) -> list[str]:

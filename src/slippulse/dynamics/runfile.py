@@ -248,19 +248,27 @@ class RunFile:
             lock = cls._own(path)
         except SchemaError as exc:
             raise ValueError(f"--resume: {exc}") from None
+        h5 = None
         try:
             shutil.copyfile(path, work)
             raw = GuardedFile(work, "r+b")
             h5 = h5py.File(raw, "r+")
             upgrade_v1(h5)
-            cfg = json.loads(h5["config"].attrs["json"])
+            cfg = _stored_config(h5, path)
             st = read_checkpoint(h5, path)
             raw.check()
         except BaseException as exc:
+            try:
+                if h5 is not None:
+                    h5.close()
+            except Exception:                    # noqa: BLE001 (discarded with the work file)
+                pass
             _remove(work)
             lock.release()
             if isinstance(exc, OSError):
                 raise OSError(exc.errno, exc.strerror or str(exc), work) from None
+            if isinstance(exc, (KeyError, TypeError, AttributeError)):
+                raise ValueError(f"--resume: {path}: not a complete run file ({exc})") from None
             raise
         return cls(path, raw, h5, lock), cfg, st
 
@@ -379,6 +387,21 @@ class RunFile:
             if self._lock is not None:
                 self._lock.release()
                 self._lock = None
+
+
+def _stored_config(h5, path: str) -> dict:
+    """The resolved config stored in a run file (``/config`` attribute ``json``), checked: a
+    table of tables (:class:`SchemaError` naming the file otherwise)."""
+    from ..core import validate
+    g = validate.member(h5, "config", path, h5py.Group)
+    text = validate.text(g, "json", path)
+    try:
+        cfg = json.loads(text)
+    except ValueError as exc:
+        raise SchemaError(f"{path}: /config json is not valid JSON ({exc})") from None
+    if not (isinstance(cfg, dict) and all(isinstance(v, dict) for v in cfg.values())):
+        raise SchemaError(f"{path}: /config json is not a table of [section] tables")
+    return cfg
 
 
 def _store_config(h5, cfg: dict) -> None:
