@@ -39,7 +39,7 @@ import numpy as np
 
 from .. import __version__
 from . import validate
-from .atomic import named_errors, read_only, replacing
+from .atomic import named_errors, read_only, remove_stale_temporaries, replacing
 from .errors import SchemaError
 from .journal import JournaledFile, recover
 from .locking import file_lock
@@ -159,9 +159,10 @@ def upgrade_steady(h5) -> None:
 
 
 #: Order of the steady state integrator: the steady solver's default, and the order of every pulse
-#: written since issue 11 (stored as the pulse attribute ``state_order``).
+#: written with the fourth-order integrator (stored as the pulse attribute ``state_order``).
 STATE_ORDER = 4
-#: Order of a stored pulse whose file has no ``state_order`` attribute (written before issue 11).
+#: Order of a stored pulse whose file has no ``state_order`` attribute (written by the earlier
+#: second-order integrator).
 UNSTORED_STATE_ORDER = 2
 
 
@@ -192,7 +193,7 @@ SAME_PULSE_RATIO = 1e-9
 def unique_label(tau_d_ratio: float, taken: dict) -> str:
     """Label of a new pulse at ``tau_d_ratio`` in a file whose labels are ``taken`` (label → τ_d/τ_min
     of the pulse stored there): :func:`pulse_label` unless a pulse at another τ_d holds it (deep
-    steps closer than 1e-6, issue 18), then the fewest decimals beyond 6 that are free or hold
+    steps closer than 1e-6), then the fewest decimals beyond 6 that are free or hold
     the same τ_d (within :data:`SAME_PULSE_RATIO`). ValueError when none up to
     :data:`MAX_LABEL_DECIMALS` is."""
     def free(lab):
@@ -283,6 +284,7 @@ def atomic_update(path: str, fill, replace: bool = False) -> None:
     os.makedirs(d, exist_ok=True)
     with named_errors(shown), file_lock(path):
         recover(path)
+        remove_stale_temporaries(path)
         exists = os.path.exists(path)
         if exists and read_only(path):
             raise PermissionError(13, "file is not writable (read-only)", shown)

@@ -12,7 +12,7 @@ def keep_freed_memory():
     so that the N×N arrays a spectrum allocates and frees again at every assembly, LU and
     Newton step reuse pages already mapped instead of faulting fresh zeroed pages in.
 
-    Measured on one deep pulse (L = 3.8 km, N = 3542/5009, one thread, stop 40): 0.98 M minor
+    Measured on one deep pulse (L = 3.8 km, N = 3542/5009, one thread): 0.98 M minor
     page faults and 9.1 s of system time without, 0.26 M and 2.6 s with; the peak resident
     memory grows 10 % (2.86 → 3.16 GB; freed blocks stay with the process). A long-running
     process's malloc setting: called by the spectrum command and its workers, not on import.

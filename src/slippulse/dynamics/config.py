@@ -178,7 +178,11 @@ def check_ranges(cfg: dict, params: Parameters) -> None:
     settings, the load."""
     from ..core.params import ParameterError
 
+    from .stepper import MAX_GRID_POINTS
     n, length = cfg["grid"]["n"], cfg["grid"]["length"]
+    if not (isinstance(n, int) and 4 <= n <= MAX_GRID_POINTS and n % 2 == 0):
+        raise ParameterError(f"grid.n={n!r} is invalid: must be an even integer in [4, "
+                             f"{MAX_GRID_POINTS}]")
     lo, hi = (f * params.L0 for f in DX_RANGE_L0)
     if not (isinstance(n, int) and n > 0 and 0 < length < math.inf and lo <= length / n <= hi):
         raise ParameterError(f"grid.length={length!r} is invalid: with grid.n={n!r} the spacing "
