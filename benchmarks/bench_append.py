@@ -7,7 +7,7 @@ Usage (from the repository root; about 1 min, writes about 2x the largest size i
 
 For each size (MB of padding: a dataset ``pad`` added to a file holding one pulse) and each code
 tree (``--old``, and this checkout's ``src``), a fresh process builds the file and times
-``h5io.write_pulse`` of a 1.1k-point pulse ``--repeat`` times (public API only, so any version of
+``h5io.write_pulse`` of a 279-point pulse ``--repeat`` times (public API only, so any version of
 h5io is measured the same way). Prints one JSON line per (tree, size): median and min seconds.
 Put the directory on the disk the files live on in practice (``--dir``): a copy costs more there
 than on a tmpfs.
