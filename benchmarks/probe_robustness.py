@@ -355,11 +355,12 @@ def file_rows(d: str, steady: str, f: dict, rows: list, row) -> None:
 
 
 def concurrency_rows(d: str, steady: str, rows: list) -> None:
-    """Two writers (a family and three solves) and a reader (analyse, in a loop) on one file
-    padded with 200 MB, so that every write overlaps the others."""
+    """Four writers (a family and three solves) and a reader (analyse, in a loop) on one file
+    padded with 200 MB, so that the writes overlap."""
     from slippulse.core import h5io
     path = os.path.join(d, "shared.h5")
-    shutil.copyfile(steady, path)
+    first = ["steady", "family", "--from", "1.2", "--to", "1.19", "--out", path, "-q"]
+    subprocess.run(_cmd(first), check=True, capture_output=True)   # a family continues its own
     h5io.atomic_update(path, lambda h5: h5.create_dataset("pad", data=np.zeros(25_000_000)))
     t0 = time.time()
     fam = subprocess.Popen(_cmd(["steady", "family", "--from", "1.2", "--to", "1.16", "--step",
