@@ -259,6 +259,17 @@ def option_rows(d: str, steady: str, rows: list, row) -> None:
                  f'[defaults]\nsteady = "{steady}"\nlabel = "td1.2000"\n'
                  '[[case]]\neps = 1e-3\n')
     row("scan: out_dir is a file", ["dynamic", "scan", scan2])
+    dangling = os.path.join(d, "scan_dangling.h5")
+    shutil.copyfile(steady, dangling)
+    with h5py.File(dangling, "r+") as h5:
+        del h5["pulses/td1.2000"]
+        h5["pulses"]["td1.2000"] = h5py.SoftLink("/nowhere")
+    scan3 = os.path.join(d, "dangling_steady.toml")
+    with open(scan3, "w") as fh:
+        fh.write(f'[scan]\nname = "g"\nout_dir = "{os.path.join(d, "scan_g")}"\n'
+                 f'[defaults]\nsteady = "{dangling}"\nlabel = "td1.2000"\n'
+                 '[[case]]\neps = 1e-3\n')
+    row("scan: steady file with a dangling link", ["dynamic", "scan", scan3])
     for what, cmd in (("run: config not TOML", ["dynamic", "run", os.path.join(d, "bad.toml")]),
                       ("run: config binary", ["dynamic", "run", os.path.join(d, "binary.toml")]),
                       ("run: config missing", ["dynamic", "run", os.path.join(d, "nope.toml")]),
@@ -408,6 +419,18 @@ def disk_rows(d: str, steady: str, rows: list) -> None:
                      + (" [file unchanged, mode 0444]" if _md5(ro) == before
                         and os.stat(ro).st_mode & 0o777 == 0o444 else " [FILE CHANGED]"),
                      "tb": "Traceback" in p.stderr, "left": bool(left)}))
+    os.chmod(ro, 0o644)
+    with open(ro + ".partial", "wb") as fh:            # a killed run's work file, read-only
+        fh.write(b"stale")
+    os.chmod(ro + ".partial", 0o444)
+    p = subprocess.run(_cmd(["dynamic", "run", cfg, "--out", ro, "--resume", "--no-progress",
+                             "--set", "time.max_steps=100"]), capture_output=True, text=True)
+    rows.append(("run --resume beside a stale read-only FILE.partial", "slippulse dynamic run "
+                 "run.toml --out ro.h5 --resume", {
+                     "rc": p.returncode, "last": (p.stderr.strip().splitlines() or
+                                                  p.stdout.strip().splitlines() or [""])[-1][:150]
+                     + f" [{_run_state(ro)}]", "tb": "Traceback" in p.stderr,
+                     "left": os.path.exists(ro + ".partial")}))
     if os.geteuid() != 0:
         rows.append(("full disk (tmpfs)", "needs root to mount a tmpfs", {
             "rc": "–", "last": "skipped", "tb": False, "left": None}))

@@ -152,3 +152,21 @@ def test_an_uncommitted_update_changes_nothing_and_a_torn_journal_is_discarded(t
     jf.write(b"b" * 3_000)
     jf.commit()
     assert open(path, "rb").read() == b"a" * 9_000 + b"b" * 3_000
+
+
+def test_a_truncated_then_regrown_file_reads_zeros_where_it_was_cut(tmp_path):
+    """HDF5 may shrink the file and grow it again in one session: the bytes between the cut and
+    the new end read as zeros, before and after the commit."""
+    path = str(tmp_path / "f.bin")
+    with open(path, "wb") as fh:
+        fh.write(b"a" * 20_000)
+    jf = JournaledFile(path)
+    jf.truncate(8_192)                                     # a page boundary
+    jf.seek(12_000)
+    jf.write(b"b" * 1_000)
+    jf.seek(0)
+    seen = jf.read()
+    jf.commit()
+    want = b"a" * 8_192 + bytes(12_000 - 8_192) + b"b" * 1_000
+    assert seen == want
+    assert open(path, "rb").read() == want

@@ -33,8 +33,8 @@ from .killpoint import kill_point
 KILL_POINTS = ("journal_torn", "journal_written", "file_half_written")
 
 PAGE = 4096
-_MAGIC = b"SLPJRNL1"
-_HEAD = struct.Struct("<8sQQQ")          # magic, original size, new size, number of pages
+_MAGIC = b"SLPJRNL2"
+_HEAD = struct.Struct("<8sQQQQ")    # magic, original size, kept prefix, new size, number of pages
 _REC = struct.Struct("<Q")               # page index (followed by PAGE bytes)
 
 
@@ -66,6 +66,8 @@ class JournaledFile:
         self.path = path
         self._fh = open(path, "r+b")
         self._size = self._orig = os.fstat(self._fh.fileno()).st_size
+        #: bytes of the original file still in use: a truncation below it zeroes what follows
+        self._limit = self._orig
         self._pos = 0
         self._pages: dict[int, bytearray] = {}
 
@@ -96,9 +98,9 @@ class JournaledFile:
         if got is not None:
             return got
         start = k * PAGE
-        if start >= self._orig:
+        if start >= self._limit:
             return bytes(PAGE)
-        data = os.pread(self._fh.fileno(), PAGE, start)
+        data = os.pread(self._fh.fileno(), min(PAGE, self._limit - start), start)
         return data + bytes(PAGE - len(data))
 
     def readinto(self, buf) -> int:
@@ -147,6 +149,7 @@ class JournaledFile:
                 if page is None:
                     page = self._pages[last] = bytearray(self._page(last))
                 page[tail:] = bytes(PAGE - tail)
+            self._limit = min(self._limit, size)
         self._size = size
         return size
 
@@ -168,11 +171,12 @@ class JournaledFile:
         """Write the overlay to the file through the journal (module docstring). Returns the
         bytes written to the journal. Any OSError leaves the file as it was (before the commit
         point) or with a complete journal that the next :func:`recover` replays."""
-        if not self._pages and self._size == self._orig:
+        if not self._pages and self._size == self._orig == self._limit:
             self.close()
             return 0
         jp = journal_path(self.path)
-        body = bytearray(_HEAD.pack(_MAGIC, self._orig, self._size, len(self._pages)))
+        body = bytearray(_HEAD.pack(_MAGIC, self._orig, self._limit, self._size,
+                                    len(self._pages)))
         for k in sorted(self._pages):
             body += _REC.pack(k) + self._pages[k]
         body += hashlib.sha256(body).digest()
@@ -204,15 +208,19 @@ class JournaledFile:
                         self.close()
                     raise
         try:
-            _apply(fd, self._pages.items(), self._size)
+            _apply(fd, self._pages.items(), self._limit, self._size)
         finally:
             self.close()
         _remove(jp)
         return len(body)
 
 
-def _apply(fd: int, pages, size: int) -> None:
+def _apply(fd: int, pages, limit: int, size: int) -> None:
+    """Write ``pages`` into the file: first cut it to the ``limit`` bytes still in use (what
+    lies beyond was truncated and reads as zeros), then the pages, then the new ``size``."""
     pages = list(pages)
+    if limit < os.fstat(fd).st_size:
+        os.ftruncate(fd, limit)
     for i, (k, data) in enumerate(pages):
         if i == len(pages) // 2:
             kill_point("file_half_written")
@@ -245,7 +253,7 @@ def recover(path: str) -> str:
         raise SchemaError(f"{path}: cannot read its journal {jp} ({exc.strerror})") from None
     ok = len(body) >= _HEAD.size + 32 and hashlib.sha256(body[:-32]).digest() == body[-32:]
     if ok:
-        magic, _orig, size, n = _HEAD.unpack_from(body)
+        magic, _orig, limit, size, n = _HEAD.unpack_from(body)
         ok = magic == _MAGIC and len(body) == _HEAD.size + n * (_REC.size + PAGE) + 32
     if not ok:
         try:
@@ -266,7 +274,7 @@ def recover(path: str) -> str:
         raise SchemaError(f"{path}: an interrupted update must be completed from {jp} but the "
                           f"file cannot be opened for writing ({exc.strerror})") from None
     try:
-        _apply(fd, pages, size)
+        _apply(fd, pages, limit, size)
     except OSError as exc:
         raise SchemaError(f"{path}: cannot complete an interrupted update from {jp} "
                           f"({exc.strerror})") from None
