@@ -428,8 +428,8 @@ def disk_rows(d: str, steady: str, rows: list) -> None:
     rows.append(("run --resume beside a stale read-only FILE.partial", "slippulse dynamic run "
                  "run.toml --out ro.h5 --resume", {
                      "rc": p.returncode, "last": (p.stderr.strip().splitlines() or
-                                                  p.stdout.strip().splitlines() or [""])[-1][:150]
-                     + f" [{_run_state(ro)}]", "tb": "Traceback" in p.stderr,
+                                                  p.stdout.strip().splitlines() or [""])[-1][:60]
+                     + f"... [{_run_state(ro)}]", "tb": "Traceback" in p.stderr,
                      "left": os.path.exists(ro + ".partial")}))
     if os.geteuid() != 0:
         rows.append(("full disk (tmpfs)", "needs root to mount a tmpfs", {
