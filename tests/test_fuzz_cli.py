@@ -1,8 +1,13 @@
-"""Issue 19 item 6: property-based fuzzing (Hypothesis) of the command line's argument validation
-and of the pulse-file readers. Every input must end in a return code (0, 1, 2), an argparse exit,
-or — for arguments that pass validation — at the stubbed work function; never in another exception
-(which the console script would print as a traceback). The work itself (solves, runs, spectra,
-figures) is replaced by a stub that raises :class:`Reached`, so the fuzz stays in seconds."""
+"""Property-based fuzzing (Hypothesis) of the command line's argument validation and of the
+readers of pulse, family and run files. Every input must end in a return code (0, 1, 2), an
+argparse exit, or — for input that passes validation — at the stubbed work function; never in
+another exception (which the console script would print as a traceback). A file made invalid
+(a dangling or external link, NaN, a complex or non-positive slip rate, a 2-point grid, a label
+that disagrees with its τ_d, β out of (0, 1), ``converged`` stored as a string, a broken
+checkpoint) must be refused by every command that reads it: exit 2 with one line, never exit 0
+and never the work. The work itself (solves, runs, spectra, figures) is replaced by a stub that
+raises :class:`Reached`, so the default run stays in tens of seconds; ``-m slow`` runs the same
+properties with a larger budget. (Seed files are written, never read, by the commands.)"""
 import os
 import shutil
 import sys
@@ -25,6 +30,9 @@ from test_analysis import _synthetic_pulse  # noqa: E402
 FUZZ = settings(max_examples=40, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,
                                        HealthCheck.too_slow])
+#: The file properties: a small default budget; the slow variants run BIG examples.
+SMALL = settings(FUZZ, max_examples=15)
+BIG = settings(FUZZ, max_examples=200, derandomize=False)
 
 
 class Reached(Exception):
@@ -229,3 +237,172 @@ def test_fuzz_truncated_and_garbled_files(files, stubs, tmp_path, capsys, cut, j
         fh.write(raw[:at] + junk + raw[at + len(junk):n])
     _readers(path, str(tmp_path))
     assert "Traceback" not in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ invalid files: always refused
+
+def _invalidate(path, kind, data):
+    """Make pulse td1.1000 of ``path`` invalid in one way (each ``kind`` always does)."""
+    with h5py.File(path, "r+") as h5:
+        pulses = h5["pulses"]
+        grp = pulses["td1.1000"]
+        name = data.draw(st.sampled_from(sorted(h5io.DATASETS)))
+        if kind == "dangling_link":
+            del pulses["td1.1000"]
+            pulses["td1.1000"] = h5py.SoftLink("/nowhere")
+        elif kind == "external_link":
+            del pulses["td1.1000"]
+            pulses["td1.1000"] = h5py.ExternalLink("other.h5", "/pulses/td1.1000")
+        elif kind == "dangling_dataset":
+            del grp[name]
+            grp[name] = h5py.SoftLink("/nowhere")
+        elif kind == "nan":
+            a = grp[name][...]
+            a[data.draw(st.integers(0, a.size - 1))] = data.draw(
+                st.sampled_from([np.nan, np.inf, -np.inf]))
+            grp[name][...] = a
+        elif kind == "v_not_positive":
+            a = grp["v"][...]
+            a[data.draw(st.integers(0, a.size - 1))] = data.draw(st.sampled_from([0.0, -1e-9]))
+            grp["v"][...] = a
+        elif kind == "complex_v":
+            a = grp["v"][...]
+            del grp["v"]
+            grp.create_dataset("v", data=a + 1j * a)
+        elif kind == "two_points":
+            for n in h5io.DATASETS:
+                a = grp[n][...]
+                del grp[n]
+                grp.create_dataset(n, data=a[:2])
+            grp.attrs["n_points"] = 2
+        elif kind == "label_vs_attr":
+            q = data.draw(st.sampled_from([1.2, 1.05, 1.1001]))
+            grp.attrs["tau_d_ratio"] = q
+            grp.attrs["tau_d"] = q * grp.attrs["tau_min"]
+        elif kind == "tau_d_vs_ratio":
+            grp.attrs["tau_d"] = 1.3 * grp.attrs["tau_min"]
+        elif kind == "beta":
+            grp.attrs["beta"] = data.draw(st.sampled_from([1.5, 1.0, 0.0, -0.1, np.nan]))
+        elif kind == "length":
+            grp.attrs["L"] = data.draw(st.sampled_from([np.nan, -1.0, 0.0, np.inf]))
+        elif kind == "converged_text":
+            grp.attrs["converged"] = data.draw(st.sampled_from(["False", "True", b"True"]))
+
+
+INVALID = ["dangling_link", "external_link", "dangling_dataset", "nan", "v_not_positive",
+           "complex_v", "two_points", "label_vs_attr", "tau_d_vs_ratio", "beta", "length",
+           "converged_text"]
+
+
+def _check_invalid_file(files, tmp_path, capsys, kind, data):
+    path = str(tmp_path / "bad.h5")
+    shutil.copyfile(files["good"], path)
+    _invalidate(path, kind, data)
+    with pytest.raises(h5io.SchemaError):
+        h5io.read_pulse(path, "td1.1000")
+    outcomes = _readers(path, str(tmp_path))
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert all(o == "rc 2" for o in outcomes), (kind, outcomes, err)
+    lines = [ln for ln in err.splitlines() if ln.startswith("slippulse: error: ")]
+    assert len(lines) == len(outcomes), err
+    assert all(path in ln for ln in lines), (kind, err)       # each error names the file
+
+
+@SMALL
+@given(kind=st.sampled_from(INVALID), data=st.data())
+def test_invalid_pulse_files_are_refused_by_every_reader(files, stubs, tmp_path, capsys, kind,
+                                                         data):
+    _check_invalid_file(files, tmp_path, capsys, kind, data)
+
+
+@pytest.mark.slow
+@BIG
+@given(kind=st.sampled_from(INVALID), data=st.data())
+def test_invalid_pulse_files_are_refused_by_every_reader_big(files, stubs, tmp_path, capsys,
+                                                             kind, data):
+    _check_invalid_file(files, tmp_path, capsys, kind, data)
+
+
+# ------------------------------------------------------------------ run files (--resume)
+
+@pytest.fixture(scope="module")
+def run_file(files):
+    out = os.path.join(files["dir"], "run.h5")
+    assert main(["dynamic", "run", files["cfg"], "--out", out, "--no-progress"]) == 0
+    return out
+
+
+@pytest.fixture
+def drive_stub(monkeypatch):
+    import slippulse.cli.dynamic as cd
+    monkeypatch.setattr(cd, "_drive", _reached)
+
+
+def _break_run(path, kind, data):
+    """Make the run file invalid in one way (each ``kind`` always does)."""
+    with h5py.File(path, "r+") as h5:
+        ck = h5["checkpoint"]
+        names = sorted(n for n, o in ck.items() if isinstance(o, h5py.Dataset)
+                       and not o.is_scale and o.dtype.kind == "f" and o.size > 0)
+        name = data.draw(st.sampled_from(names))
+        if kind == "nan":
+            a = np.array(ck[name][()], dtype=float)
+            a.flat[data.draw(st.integers(0, a.size - 1))] = np.nan
+            ck[name][()] = a
+        elif kind == "dangling_link":
+            del ck[name]
+            ck[name] = h5py.SoftLink("/nowhere")
+        elif kind == "external_link":
+            del ck[name]
+            ck[name] = h5py.ExternalLink("other.h5", "/x")
+        elif kind == "no_checkpoint":
+            del h5["checkpoint"]
+        elif kind == "config":
+            h5["config"].attrs["json"] = data.draw(st.sampled_from(["{", "[]", "3", '{"a": 1}']))
+        elif kind == "no_config":
+            del h5["config"]
+        elif kind == "kind":
+            h5.attrs["kind"] = data.draw(st.sampled_from(["steady", "", "dynamic2"]))
+        elif kind == "version":
+            h5.attrs["format_version"] = data.draw(st.sampled_from([0, 3, "two"]))
+
+
+RUN_INVALID = ["nan", "dangling_link", "external_link", "no_checkpoint", "config", "no_config",
+               "kind", "version"]
+
+
+def _check_invalid_run(files, run_file, tmp_path, capsys, kind, data):
+    path = str(tmp_path / "run.h5")
+    shutil.copyfile(run_file, path)
+    _break_run(path, kind, data)
+    before = open(path, "rb").read()
+    res = _outcome(["dynamic", "run", files["cfg"], "--out", path, "--resume", "--no-progress"])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert res == "rc 2", (kind, res, err)
+    assert len([ln for ln in err.splitlines() if ln.strip()]) == 1, err
+    assert open(path, "rb").read() == before                  # a refused resume changes nothing
+    assert not os.path.exists(path + ".partial")
+
+
+def test_a_valid_run_file_resumes(files, run_file, drive_stub, tmp_path):
+    path = str(tmp_path / "run.h5")
+    shutil.copyfile(run_file, path)
+    assert _outcome(["dynamic", "run", files["cfg"], "--out", path, "--resume",
+                     "--no-progress"]) == "reached"
+
+
+@SMALL
+@given(kind=st.sampled_from(RUN_INVALID), data=st.data())
+def test_invalid_run_files_are_refused_by_resume(files, run_file, drive_stub, tmp_path, capsys,
+                                                 kind, data):
+    _check_invalid_run(files, run_file, tmp_path, capsys, kind, data)
+
+
+@pytest.mark.slow
+@BIG
+@given(kind=st.sampled_from(RUN_INVALID), data=st.data())
+def test_invalid_run_files_are_refused_by_resume_big(files, run_file, drive_stub, tmp_path,
+                                                     capsys, kind, data):
+    _check_invalid_run(files, run_file, tmp_path, capsys, kind, data)

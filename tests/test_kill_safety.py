@@ -1,7 +1,7 @@
-"""Atomic checkpoints of ``slippulse dynamic run`` under SIGKILL (issue 12, item 2; issue 22).
+"""Atomic checkpoints of ``slippulse dynamic run`` under SIGKILL.
 
 Default test: the run kills itself at each defined point of the checkpoint code in turn (test hook
-``SLIPPULSE_KILL_AT``, dynamics/runfile.py), so the outcome does not depend on timing. Slow tests:
+``SLIPPULSE_KILL_AT``, core/killpoint.py), so the outcome does not depend on timing. Slow tests:
 a run is started, killed with SIGKILL after a random delay, checked (FILE opens with h5py and
 xarray, holds a complete checkpoint and exactly the scalars up to it), resumed and killed again,
 several times; the last resume runs to the end, and every dataset must equal an uninterrupted
@@ -151,21 +151,18 @@ def test_kills_at_every_point_of_the_checkpoint(tmp_path):
     _kill_at_points(tmp_path, KILLS_ALL)
 
 
-def test_kill_hook_is_off_without_the_variable(tmp_path, monkeypatch):
-    """The hook kills only the named point's n-th pass (checked in-process with os.kill
-    stubbed)."""
-    import slippulse.dynamics.runfile as rf
-    calls = []
-    monkeypatch.setattr(rf.os, "kill", lambda pid, sig: calls.append(sig))
-    monkeypatch.setattr(rf, "_kill_counts", {})
-    monkeypatch.delenv("SLIPPULSE_KILL_AT", raising=False)
-    rf._kill_point("published")
-    monkeypatch.setenv("SLIPPULSE_KILL_AT", "published:2")
-    rf._kill_point("linked")
-    rf._kill_point("published")
-    assert calls == []
-    rf._kill_point("published")
-    assert calls == [signal.SIGKILL]
+def test_kill_hook_kills_only_the_named_pass():
+    """The hook (core.killpoint, through its public seam the environment variable) kills the
+    process at the named point's n-th pass and nowhere else; without the variable it is off."""
+    code = ("from slippulse.core.killpoint import kill_point\n"
+            "kill_point('linked'); kill_point('published'); print('one', flush=True)\n"
+            "kill_point('published'); print('two', flush=True)\n")
+    env = dict(os.environ, SLIPPULSE_KILL_AT="published:2")
+    p = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert p.returncode == -signal.SIGKILL and p.stdout == "one\n", p
+    env.pop("SLIPPULSE_KILL_AT")
+    p = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert p.returncode == 0 and p.stdout == "one\ntwo\n", p
 
 
 @pytest.mark.slow

@@ -1,4 +1,4 @@
-"""Issue 19: nothing lost (no pulse overwritten without --overwrite, a failed solve never replaces a
+"""Nothing lost (no pulse overwritten without --overwrite, a failed solve never replaces a
 converged pulse), nothing silently wrong (every reader refuses a pulse marked converged=False),
 and the probes of the issue: each a one-line error naming the option (exit 2) or a correct
 result."""

@@ -1,4 +1,4 @@
-"""Parameters as input of every command (issue 21): --params FILE.toml and --set params.NAME=VALUE,
+"""Parameters as input of every command: --params FILE.toml and --set params.NAME=VALUE,
 one resolver (core.params.resolve_params) with name/range/N-shape checks, parameters taken from
 the files a command reads, and mixing of parameters refused with the differing name."""
 import dataclasses as dc
@@ -173,8 +173,8 @@ def test_dynamic_run_params_file_into_config(tmp_path, capsys):
 
 
 def test_verify_attributes_drift_to_the_pulses_eigenvalue_for_any_params():
-    """Issue 20 replaced the table of Table-I rates by the pulse's own eigenvalue: a pulse of other
-    parameters (table_I False) gets its drift attributed to its eigenvalue; none without one."""
+    """The drift is attributed to the pulse's own eigenvalue, not to a table of Table-I rates: a
+    pulse of other parameters (table_I False) gets its drift attributed to its eigenvalue; none without one."""
     import numpy as np
 
     from slippulse.timedomain.verify import VerifyResult, drift_verdict, mode_growth

@@ -1,4 +1,4 @@
-"""Bad input and crashes (issue 12, item 5; table in docs/robustness.md): every command fed a
+"""Bad input and crashes (table in docs/robustness.md): every command fed a
 file that is not HDF5, empty, truncated, foreign or missing, a bad label or a huge size exits with
 code 2 and one line ``slippulse: error: ...`` naming the parameter or file, and leaves no output."""
 import os
@@ -142,3 +142,137 @@ def test_python_dash_m_reports_usage_errors(bad):
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 2
     assert p.stderr.strip().startswith("slippulse: error: FILE=") and "Traceback" not in p.stderr
+
+
+RUN_CFG = "[grid]\nn = 64\nlength = 0.5\n[time]\nmax_steps = 5\n"
+
+
+@pytest.mark.parametrize("item, names", [
+    ("grid.length=1e300", ["grid.length", "L0"]),
+    ("grid.n=1099511627776", ["grid.n", "even integer"]),
+    ("history.soe_h=0", ["history.soe_h", "(0, 2]"]),
+    ("history.soe_x_min=-1", ["soe_x_min"]),
+    ("history.soe_h=1e-9", ["nodes"]),
+])
+def test_dynamic_run_ranges_refused_before_work(tmp_path, capsys, item, names):
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RUN_CFG)
+    out = tmp_path / "r.h5"
+    assert main(["dynamic", "run", str(cfg), "--out", str(out), "--no-progress",
+                 "--set", item]) == 2
+    _one_error(capsys, *names)
+    assert sorted(os.listdir(tmp_path)) == ["run.toml"]
+
+
+@pytest.mark.parametrize("out, names", [("", ["--out=''", "empty"]),
+                                        ("sub/", ["ends in a path separator"])])
+def test_outputs_that_name_no_file_are_refused(bad, tmp_path, capsys, out, names):
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RUN_CFG)
+    assert main(["dynamic", "run", str(cfg), "--out", out, "--no-progress"]) == 2
+    _one_error(capsys, *names)
+    assert main(["dynamic", "seed", "--steady", bad["good"], "--out", out]) == 2
+    _one_error(capsys, *names)
+    assert not os.path.exists("dynamic_run.h5") and not os.path.exists("sub")
+
+
+@pytest.mark.parametrize("cmd", ["seed", "verify"])
+def test_an_output_equal_to_its_input_is_refused(bad, tmp_path, capsys, cmd):
+    same = str(tmp_path / "same.h5")
+    open(same, "wb").write(open(bad["good"], "rb").read())
+    raw = open(same, "rb").read()
+    argv = ["dynamic", cmd, "--steady", same, "--out", same, "--overwrite"]
+    assert main(argv + (["--no-progress"] if cmd == "verify" else [])) == 2
+    _one_error(capsys, "--steady", same)
+    assert open(same, "rb").read() == raw
+
+
+def test_a_directory_given_as_a_file_is_named(bad, capsys):
+    assert main(["steady", "analyse", bad["dir"]]) == 2
+    _one_error(capsys, "is a directory")
+
+
+def test_parameters_the_solver_cannot_represent_are_refused(tmp_path, capsys):
+    params = tmp_path / "p.toml"
+    params.write_text("[params]\nsigma = 1e308\n")
+    out = tmp_path / "o.h5"
+    assert main(["steady", "solve", "--params", str(params), "--out", str(out), "-q",
+                 "--no-figure"]) == 2
+    _one_error(capsys, "sigma=1e+308", "steady solver")
+    assert not out.exists()
+
+
+def test_tol_outside_its_range_is_refused(tmp_path, capsys):
+    for tol in ("1e10", "1e-3", "0", "1e-20"):
+        assert main(["steady", "solve", "--tol", tol, "--out", str(tmp_path / "o.h5"), "-q",
+                     "--no-figure"]) == 2
+        _one_error(capsys, "--tol", "1e-16")
+
+
+def test_scan_case_values_and_out_dir_checked_before_work(bad, tmp_path, capsys):
+    toml = tmp_path / "s.toml"
+    toml.write_text(f'[scan]\nname = "s"\nout_dir = "{tmp_path / "o"}"\n[defaults]\n'
+                    f'steady = "{bad["good"]}"\nlabel = "td1.1000"\n[[case]]\neps = "abc"\n')
+    assert main(["dynamic", "scan", str(toml)]) == 2
+    _one_error(capsys, "eps", "'abc'")
+    as_file = tmp_path / "file"
+    as_file.write_text("")
+    toml.write_text(f'[scan]\nname = "s"\nout_dir = "{as_file}"\n[defaults]\n'
+                    f'steady = "{bad["good"]}"\nlabel = "td1.1000"\n[[case]]\neps = 1e-3\n')
+    assert main(["dynamic", "scan", str(toml)]) == 2
+    _one_error(capsys, "is a file, not a directory")
+
+
+def _tmpfs(path, size):
+    """Mount a tmpfs of ``size`` at ``path`` (root only; the test is skipped otherwise)."""
+    if os.geteuid() != 0:
+        pytest.skip("mounting a tmpfs needs root")
+    os.makedirs(path)
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", path],
+                      capture_output=True).returncode:
+        pytest.skip("cannot mount a tmpfs here")
+
+
+def test_a_full_disk_stops_a_run_cleanly_and_keeps_its_last_checkpoint(tmp_path):
+    """On a 3 MB tmpfs the run fills the disk: one line naming the file, exit 2, no segfault
+    (HDF5 never sees the failed write), FILE complete at its last checkpoint, no work file."""
+    mnt = str(tmp_path / "mnt")
+    _tmpfs(mnt, "3m")
+    try:
+        cfg = tmp_path / "run.toml"
+        cfg.write_text("[grid]\nn = 1024\nlength = 0.5\n[time]\nmax_steps = 4000\n"
+                       "[output]\nsnapshot_every = 5\ncheckpoint_every = 100\n")
+        out = os.path.join(mnt, "r.h5")
+        p = subprocess.run([sys.executable, "-m", "slippulse", "dynamic", "run", str(cfg),
+                            "--out", out, "--no-progress"], capture_output=True, text=True,
+                           timeout=600)
+        lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+        assert p.returncode == 2 and len(lines) == 1, p.stderr[-2000:]
+        assert "No space left on device" in lines[0] and out in lines[0]
+        assert not os.path.exists(out + ".partial")
+        with h5py.File(out, "r") as h5:
+            n = int(h5["checkpoint/nstep"][()])
+            assert h5["scalars/step"].shape[0] == n and n % 100 == 0
+    finally:
+        subprocess.run(["umount", mnt])
+
+
+def test_a_full_disk_leaves_a_pulse_file_unchanged(bad, tmp_path, capsys):
+    mnt = str(tmp_path / "mnt")
+    _tmpfs(mnt, "1m")
+    try:
+        fam = os.path.join(mnt, "fam.h5")
+        open(fam, "wb").write(open(bad["good"], "rb").read())
+        with open(os.path.join(mnt, "fill"), "wb") as fh:
+            try:
+                fh.write(b"\0" * (2 << 20))
+            except OSError:
+                pass
+        raw = open(fam, "rb").read()
+        with pytest.raises(OSError) as exc:
+            h5io.write_pulse(fam, _synthetic_pulse(1.05, 0.3, 0.2), P)
+        assert exc.value.filename == fam
+        assert open(fam, "rb").read() == raw
+        assert sorted(os.listdir(mnt)) == [".fam.h5.lock", "fam.h5", "fill"]
+    finally:
+        subprocess.run(["umount", mnt])

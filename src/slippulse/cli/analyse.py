@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-import os
 
 from ..core import h5io
 from ..core.params import ParameterError
@@ -29,8 +28,7 @@ def check_cd_over_cs(values):
 def cmd_analyse(args):
     """CLI action for ``slippulse steady analyse FILE [--no-write]`` (argparse namespace with
     ``file`` and optional ``no_write``): analyse, store the results in FILE, print the table."""
-    if not os.path.isfile(args.file):
-        raise h5io.SchemaError(f"FILE={args.file!r} does not exist")
+    h5io.check_pulses(args.file, "FILE")       # every pulse valid, before any work
     cd = check_cd_over_cs(getattr(args, "cd_cs", None))
     skip = h5io.require_converged(args.file, allow=getattr(args, "skip_unconverged", False),
                                   hint="--skip-unconverged leaves them out")

@@ -27,6 +27,35 @@ def finite(value: float, option: str, lo: float | None = None, hi: float | None 
     return float(value)
 
 
+def check_distinct(out: str, option: str, **inputs) -> None:
+    """Refuse an output that is one of the command's input files (``inputs``: option name →
+    path), before any work: writing it would destroy the input (--overwrite included)."""
+    for name, path in inputs.items():
+        if not path or not os.path.exists(path) or not os.path.exists(out):
+            same = bool(path) and os.path.realpath(out) == os.path.realpath(path)
+        else:
+            same = os.path.samefile(out, path)
+        if same:
+            raise UsageError(f"{option}={out!r} is also the input {name}; give another output "
+                             "file (the input would be overwritten)")
+
+
+#: Valid range of the steady solver's residual target max|Δ| (relative to τ_d): a target above it
+#: would accept a starting guess as a pulse (max|Δ| of a default guess is ~1); below 1e-16 it is
+#: under the round-off of the residual itself.
+TOL_RANGE = (1e-16, 1e-4)
+
+
+def check_tol(value: float, option: str = "--tol") -> float:
+    """``value`` if it is within :data:`TOL_RANGE`; else a UsageError naming the option."""
+    lo, hi = TOL_RANGE
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
+        raise UsageError(f"{option}={value!r} is invalid: must be a number in [{lo:g}, {hi:g}] "
+                         "(the max |residual| a converged pulse must reach; a larger target would "
+                         "accept an unconverged guess)")
+    return float(value)
+
+
 def figure_formats() -> set[str]:
     """File extensions matplotlib can write (png, pdf, svg, ...)."""
     from matplotlib.backend_bases import FigureCanvasBase

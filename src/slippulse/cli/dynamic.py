@@ -22,7 +22,7 @@ from ..dynamics.config import RESUME_MUTABLE, build_stepper, diff_keys, load_con
 from ..core.h5io import check_writable
 from ..dynamics.runfile import RunFile
 from ..dynamics.stepper import MAX_GRID_POINTS
-from .checks import check_figure, finite
+from .checks import check_distinct, check_figure, finite
 
 #: Fewest points of a seeded grid (as --points of verify).
 MIN_GRID_POINTS = 16
@@ -152,8 +152,9 @@ def _eigenmode(args, pulse, params, required: bool):
 def cmd_run(args) -> int:
     cfg = load_config(args.config, config_sets(args, args.sets))
     check_config_params(cfg)
-    if args.out:
+    if args.out is not None:
         cfg["output"]["file"] = args.out
+        check_writable(args.out, "--out")
     path = cfg["output"]["file"]
     if os.path.isdir(path):
         raise UsageError(f"--out={path!r} is a directory; give a file name (e.g. "
@@ -169,16 +170,25 @@ def cmd_run(args) -> int:
             out.close()
             raise UsageError(f"--resume: config differs from the stored run in {', '.join(changed)}"
                              f" (only {', '.join(sorted(RESUME_MUTABLE))} may change)")
-        stepper.load_state(state)
-        out.update_config(cfg)
+        try:
+            stepper.load_state(state)
+            out.update_config(cfg)
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            out.close()
+            raise UsageError(f"--resume: {path}: its checkpoint does not fit this run "
+                             f"({type(exc).__name__}: {exc})") from None
     else:
         if os.path.exists(path) and not args.overwrite:
             raise UsageError(f"output file {path} exists: use --resume to continue it, --overwrite "
                              "to replace it, or --out for another file")
         check_writable(path, "--out")
         out = RunFile.create(path, cfg, stepper.params, stepper)
-        out.snapshot(stepper)
-        out.checkpoint(stepper)
+        try:
+            out.snapshot(stepper)
+            out.checkpoint(stepper)
+        except BaseException:
+            out.close()
+            raise
     return _drive(stepper, out, cfg, progress=not args.no_progress)
 
 
@@ -196,6 +206,7 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
                bar_format="{l_bar}{bar}| t={n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
     status, message, rc = "finished", "t_end reached", 0
     sigint = _StepBoundaryInterrupt()
+    failed_write = None
     try:
         while st.t < t_end * (1 - 1e-14):
             if max_steps is not None and st.nstep >= max_steps:
@@ -217,17 +228,28 @@ def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
         status, message, rc = "failed", str(exc), 1
     except KeyboardInterrupt:
         status, message, rc = "interrupted", "interrupted by the user", 130
+    except OSError as exc:                       # a full disk: the work file is discarded
+        failed_write = exc
     finally:
         sigint.restore()
         bar.close()
+    if failed_write is None and status != "interrupted":
+        try:
+            if status == "finished" and out.last_snapshot_step() != st.nstep:
+                out.snapshot(st)
+            out.checkpoint(st, status=status, message=message)
+        except OSError as exc:
+            failed_write = exc
+    if failed_write is not None:
+        out.close()
+        raise OSError(failed_write.errno, f"{failed_write.strerror or failed_write}; the run "
+                      f"stopped at step {st.nstep}, {out.path} holds its last checkpoint "
+                      "(--resume continues from it)", failed_write.filename or out.work)
     if status == "interrupted":
         # the state may be half-updated mid-step: keep FILE at its last checkpoint, marked
         out.close()
         _mark_interrupted(out)
     else:
-        if status == "finished" and out.last_snapshot_step() != st.nstep:
-            out.snapshot(st)
-        out.checkpoint(st, status=status, message=message)
         out.close()
     wall = time.perf_counter() - wall0
     print(f"slippulse dynamic: {status} ({message}); {st.nstep} steps, t = {st.t:.6g} s, "
@@ -315,7 +337,9 @@ def cmd_verify(args) -> int:
     _require_converged(args, pulse)
     params = params_for_input(args, params, args.steady)
     label = pulse.label
-    out = args.out or f"verify_{label}.h5"
+    out = f"verify_{label}.h5" if args.out is None else args.out
+    check_writable(out, "--out")
+    check_distinct(out, "--out", **{"--steady": args.steady, "--mode-file": args.mode_file})
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
     check_writable(out, "--out")
@@ -363,7 +387,9 @@ def cmd_seed(args) -> int:
         raise UsageError(str(exc))
     _require_converged(args, pulse)
     params = params_for_input(args, params, args.steady)
-    out = args.out or f"seed_{pulse.label}.h5"
+    out = f"seed_{pulse.label}.h5" if args.out is None else args.out
+    check_writable(out, "--out")
+    check_distinct(out, "--out", **{"--steady": args.steady, "--mode-file": args.mode_file})
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"output file {out} exists: use --overwrite or another --out")
     check_writable(out, "--out")
@@ -384,11 +410,13 @@ def cmd_seed(args) -> int:
         raise UsageError(str(exc))
     mis = write_seed(out, seed, source=os.path.abspath(args.steady), label=pulse.label)
     if eigen is not None:
-        import h5py
-        with h5py.File(out, "a") as h5:
+        from ..core.h5io import atomic_update
+
+        def fill(h5):
             h5.attrs["perturbation"], h5.attrs["eps"] = args.perturb, float(args.eps)
             h5.attrs["eigen_s_per_L"], h5.attrs["eigen_sigma"] = eigen.s_per_L, eigen.sigma.real
             h5.attrs["eigen_source"] = eigen.source
+        atomic_update(out, fill)
     st = seed.stepper
     print(_unconverged_prefix(pulse) + f"seed {pulse.label}: N={st.n}, dx={st.dx * 1e3:.3g} mm, domain {st.length:.4g} m "
           f"({args.behind:g} L behind + {args.ahead:g} L ahead); t = 0 stress vs steady: "

@@ -32,9 +32,9 @@ def run(args):
     from .analyse import check_cd_over_cs
     from ..plotting import steady as plotting
 
-    for f in [args.file] + ([args.compare] if args.compare else []):
-        if not os.path.isfile(f):
-            raise UsageError(f"FILE={f!r} does not exist")
+    from ..core.h5io import check_pulses
+    for f, what in [(args.file, "FILE")] + ([(args.compare, "--compare")] if args.compare else []):
+        check_pulses(f, what)                 # every pulse valid, before any work
     formats = tuple(s.strip() for s in args.formats.split(",") if s.strip())
     bad = [f for f in formats if f not in ("png", "pdf", "svg")]
     if bad or not formats:

@@ -52,13 +52,14 @@ def stored_params(path: str) -> Parameters | None:
     with open_h5(path, "out") as h5:
         if "parameters" not in h5:
             return None
-        return read_parameters(h5)
+        return read_parameters(h5, path)
 
 
 def params_for_output(args, out: str | None = None) -> Parameters:
     """Resolved parameters of a command that solves (Table I → ``--params`` → ``--set``),
     validated; refused if ``out`` exists with other stored parameters."""
     params = resolve_params(getattr(args, "params", None), getattr(args, "param_sets", ()) or ())
+    check_solvable(params, _given(args))
     if out is not None:
         old = stored_params(out)
         if old is not None and differing(old, params):
@@ -66,6 +67,28 @@ def params_for_output(args, out: str | None = None) -> Parameters:
                 f"out={out!r} holds pulses of other parameters: "
                 f"{describe_difference(old, params, 'in the file', 'given')}; "
                 "use another --out or the file's parameters")
+    return params
+
+
+def check_solvable(params: Parameters, given: dict | None = None) -> Parameters:
+    """Refuse, before any work, parameters within their ranges whose scales the steady solver
+    cannot represent in floating point: the built-in starting pulse (at τ_d = 1.2 τ_min) must be
+    finite and have a leading edge, where the solver pins its phase. ParameterError names the
+    parameters given and the reason (e.g. sigma = 1e308 overflows the guess's slip rate)."""
+    import numpy as np
+
+    from ..steady.solver import default_guess, front_pin
+    named = ", ".join(f"{k}={v:g}" for k, v in (given or {}).items()) or "these parameters"
+    try:
+        with np.errstate(all="ignore"):
+            xi, y, _ = default_guess(params, 1.2, 64)
+            if not (np.all(np.isfinite(xi)) and np.all(np.isfinite(y))):
+                raise RuntimeError("the starting pulse overflows (its slip rate or grid is not "
+                                   "finite)")
+            front_pin(xi, y, float(np.log(params.v_stick(1.2 * params.tau_min))))
+    except (RuntimeError, ValueError, ArithmeticError) as exc:
+        raise ParameterError(f"parameters {named}: outside what the steady solver can handle: "
+                             f"{exc}") from None
     return params
 
 
@@ -91,7 +114,7 @@ def check_files(args, paths) -> None:
     for path in dict.fromkeys(paths):
         with open_h5(path, "FILE") as h5:
             try:
-                stored = read_parameters(h5)
+                stored = read_parameters(h5, path)
             except SchemaError as exc:
                 raise SchemaError(f"{path}: {exc}") from None
         params_for_input(args, stored, path)

@@ -13,7 +13,6 @@ import sys
 
 from ..core.executor import add_executor_options, settings_from_args
 from ..core.params import ParameterError
-from .app import UsageError
 from .paramargs import add_params_args, check_files
 
 
@@ -109,6 +108,8 @@ def cmd_scan(args) -> int:
         return 0
     executor = settings_from_args(args)
     _check_steady_pulses(scan)
+    from .checks import check_outdir
+    check_outdir(scan.out_dir, "scan.out_dir")
     import signal
 
     def _terminate(signum, frame):          # a kill stops the workers too (TaskPool's exit)

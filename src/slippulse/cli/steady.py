@@ -10,7 +10,7 @@ from tqdm import tqdm
 
 from ..core.errors import UsageError
 from ..core.h5io import check_writable, pulse_label, stored_converged, write_pulse
-from .checks import check_figure, check_outdir, finite  # noqa: F401
+from .checks import check_figure, check_outdir, check_tol, finite  # noqa: F401
 from ..steady.newton import SOLVERS
 from ..core.params import DEFAULT, ParameterError
 from .analyse import CD_CS_DEFAULTS
@@ -32,15 +32,17 @@ def summary_line(pulse, params) -> str:
             "`steady family` grid-checks each pulse at 2N - 1)")
 
 
-def _ratio(text: str, params=DEFAULT) -> float:
+def _ratio(text: str, params=DEFAULT, option: str = "tau-d") -> float:
+    """τ_d/τ_min given as ``option``: a finite number in (1, τ_peak/τ_min)."""
+    hi = params.tau_peak / params.tau_min
     try:
         val = float(text)
     except ValueError:
-        raise ParameterError(f"tau-d={text!r} is invalid: must be a number (tau_d/tau_min) in "
-                             f"(1, {params.tau_peak / params.tau_min:.4f})") from None
-    if not math.isfinite(val):
-        raise ParameterError(f"tau-d={text!r} is invalid: must be finite, in "
-                             f"(1, {params.tau_peak / params.tau_min:.4f})")
+        raise ParameterError(f"{option}={text!r} is invalid: must be a number (tau_d/tau_min) in "
+                             f"(1, {hi:.4f})") from None
+    if not (math.isfinite(val) and 1.0 < val < hi):
+        raise ParameterError(f"{option}={text!r} is invalid: must be a finite number "
+                             f"(tau_d/tau_min) in (1, {hi:.4f})")
     return val
 
 
@@ -77,9 +79,7 @@ def cmd_solve(args) -> int:
     params.check_tau_d(tau_d_ratio * params.tau_min)
     _check_solve_range(tau_d_ratio)
     check_points(args.points)
-    if not (math.isfinite(args.tol) and args.tol > 0):
-        raise ParameterError(f"tol={args.tol!r} is invalid: must be a finite number > 0 "
-                             "(max |residual| target)")
+    check_tol(args.tol)
     out = args.out or os.path.join("runs", "steady", f"{pulse_label(tau_d_ratio)}.h5")
     _check_out(out)
     params = params_for_output(args, out)
@@ -97,6 +97,11 @@ def cmd_solve(args) -> int:
               file=sys.stderr)
         return 1
     pulse = sol.to_pulse()
+    if pulse.converged and not pulse.max_residual <= args.tol:
+        pulse.converged = False              # the solver stopped above the target: not converged
+        pulse.extra["status"] = "failed"
+        pulse.extra["message"] = (f"max|residual| {pulse.max_residual:.3g} above --tol "
+                                  f"{args.tol:g}")
     if not pulse.converged and before:
         print(summary_line(pulse, params))
         print(f"slippulse: solver did not converge: {sol.stats.message}; the converged pulse "
@@ -247,7 +252,7 @@ def cmd_family(args) -> int:
     from ..steady.continuation import run_family
     out = args.out or os.path.join("runs", "steady", "family.h5")
     params = params_for_output(args, out)
-    start, stop = _ratio(args.from_, params), _ratio(args.to, params)
+    start, stop = _ratio(args.from_, params, "from"), _ratio(args.to, params, "to")
     if not (math.isfinite(args.step) and args.step > 0):
         raise ParameterError(f"step={args.step} is invalid: must be a number > 0")
     _check_targets(start, stop, args.step)

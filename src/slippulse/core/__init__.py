@@ -1,5 +1,6 @@
 """core: what every layer shares — the parameters and their checks, the rate-and-state friction law,
-the HDF5 schema of the pulse files (writing, reading, format versions) and the input errors."""
+the HDF5 schema of the pulse files and its validating reader, the one locked and journaled way to
+write a file, and the input errors."""
 from .errors import UsageError
 from .params import DEFAULT, ParameterError, Parameters
 from .friction import RateStateFriction

@@ -20,14 +20,17 @@ schema does not name (e.g. a ``spectrum`` subgroup of a pulse group) are left al
 The helpers :func:`coordinate`, :func:`dimension` and :func:`describe` give the other writers
 (dynamics.runfile, timedomain.verify, timedomain.scan, steady analysis) the same conventions.
 
-Every write goes to a temporary file in the same directory that replaces the target with
-``os.replace`` only once complete, so an interrupted write never leaves a corrupt file.
+Every access holds the file's lock (:mod:`.locking`). An update of an existing file
+(:func:`atomic_update`) is built in memory and committed through a journal (:mod:`.journal`),
+costing the bytes it changes; a file written whole is built in memory and replaces the target
+with ``os.replace`` (:mod:`.atomic`). HDF5 never writes to the disk itself, so a full disk is an
+ordinary ``OSError`` and leaves the previous file intact.
 """
 from __future__ import annotations
 
 import datetime as _dt
+import io
 import os
-import shutil
 import tempfile
 from dataclasses import dataclass, field
 
@@ -35,7 +38,11 @@ import h5py
 import numpy as np
 
 from .. import __version__
-from .atomic import replacing
+from . import validate
+from .atomic import named_errors, read_only, remove_stale_temporaries, replacing
+from .errors import SchemaError
+from .journal import JournaledFile, recover
+from .locking import file_lock
 from .params import Parameters
 
 #: Version of the file layouts written by this code (root attribute ``format_version``).
@@ -50,10 +57,6 @@ ATTRS = {
     "L_tilde": "1", "v_stick": "m/s", "v_max": "m/s", "max_residual": "1", "converged": "bool",
     "n_points": "1", "wall_time": "s", "mode": "str",
 }
-
-
-class SchemaError(ValueError):
-    """A file or group that does not follow the slippulse pulse schema."""
 
 
 class UnconvergedPulseError(SchemaError):
@@ -156,9 +159,10 @@ def upgrade_steady(h5) -> None:
 
 
 #: Order of the steady state integrator: the steady solver's default, and the order of every pulse
-#: written since issue 11 (stored as the pulse attribute ``state_order``).
+#: written with the fourth-order integrator (stored as the pulse attribute ``state_order``).
 STATE_ORDER = 4
-#: Order of a stored pulse whose file has no ``state_order`` attribute (written before issue 11).
+#: Order of a stored pulse whose file has no ``state_order`` attribute (written by the earlier
+#: second-order integrator).
 UNSTORED_STATE_ORDER = 2
 
 
@@ -189,7 +193,7 @@ SAME_PULSE_RATIO = 1e-9
 def unique_label(tau_d_ratio: float, taken: dict) -> str:
     """Label of a new pulse at ``tau_d_ratio`` in a file whose labels are ``taken`` (label → τ_d/τ_min
     of the pulse stored there): :func:`pulse_label` unless a pulse at another τ_d holds it (deep
-    steps closer than 1e-6, issue 18), then the fewest decimals beyond 6 that are free or hold
+    steps closer than 1e-6), then the fewest decimals beyond 6 that are free or hold
     the same τ_d (within :data:`SAME_PULSE_RATIO`). ValueError when none up to
     :data:`MAX_LABEL_DECIMALS` is."""
     def free(lab):
@@ -262,11 +266,15 @@ class Pulse:
 
 
 def atomic_update(path: str, fill, replace: bool = False) -> None:
-    """Copy `path` (if it exists) to a temporary file, apply `fill(h5file)`, then replace `path`.
+    """Apply ``fill(h5file)`` to `path` under its lock: the one way a slippulse HDF5 file is
+    written.
 
-    ``replace``: start from an empty file instead (the writer replaces the whole content). An
-    existing `path` that is not a readable HDF5 file is refused (:class:`SchemaError` naming it)
-    unless ``replace``.
+    An existing file is updated in place through a journal (:mod:`.journal`): the cost is the
+    bytes changed, and a kill or a full disk leaves it as it was or completes the update on the
+    next open. ``replace`` (or a new file): the content is built in memory and replaces `path`
+    atomically. An existing `path` that is not a readable HDF5 file is refused
+    (:class:`SchemaError` naming it) unless ``replace``; a read-only one is refused
+    (``PermissionError`` naming it) before anything is written.
     """
     shown = path
     path = os.path.abspath(path)
@@ -274,21 +282,32 @@ def atomic_update(path: str, fill, replace: bool = False) -> None:
     if os.path.exists(d) and not os.path.isdir(d):
         raise SchemaError(f"{shown}: cannot write there, {d} is a file, not a directory")
     os.makedirs(d, exist_ok=True)
-    if os.path.exists(path) and not replace:
-        with open_h5(shown, "output"):         # an existing target must be a readable HDF5 file
-            pass
-    with replacing(path, suffix=".h5") as tmp:
-        if os.path.exists(path) and not replace:
-            shutil.copyfile(path, tmp)
-            mode = "r+"
-        else:
-            mode = "w"
-        with h5py.File(tmp, mode) as h5:
-            if mode == "w":
-                h5.attrs["slippulse_version"] = __version__
-                h5.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat()
+    with named_errors(shown), file_lock(path):
+        recover(path)
+        remove_stale_temporaries(path)
+        exists = os.path.exists(path)
+        if exists and read_only(path):
+            raise PermissionError(13, "file is not writable (read-only)", shown)
+        if exists and not replace:
+            with open_h5(shown, "output"):     # an existing target must be a readable HDF5 file
+                pass
+            jf = JournaledFile(path)
+            try:
+                with h5py.File(jf, "r+") as h5:
+                    fill(h5)
+            except BaseException:
+                jf.close()
+                raise
+            jf.commit()
+            return
+        buf = io.BytesIO()
+        with h5py.File(buf, "w") as h5:
+            h5.attrs["slippulse_version"] = __version__
+            h5.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat()
             fill(h5)
-            h5.flush()
+        with replacing(path, suffix=".h5") as tmp:
+            with open(tmp, "wb") as fh:
+                fh.write(buf.getbuffer())
 
 
 def write_parameters(h5: h5py.File, params: Parameters) -> None:
@@ -298,17 +317,15 @@ def write_parameters(h5: h5py.File, params: Parameters) -> None:
         grp.attrs[f"{name}_units"] = Parameters.UNITS[name]
 
 
-def read_parameters(h5: h5py.File) -> Parameters:
-    if "parameters" not in h5:
-        raise SchemaError("file has no 'parameters' group")
-    grp = h5["parameters"]
-    missing = [n for n in PARAM_NAMES if n not in grp.attrs]
-    if missing:
-        raise SchemaError(f"'parameters' group lacks attributes {missing}")
+def read_parameters(h5: h5py.File, path: str = "") -> Parameters:
+    """The Table-I parameters of an open file, checked (real, finite, in range, N-shaped law)."""
+    path = path or h5.filename
+    grp = validate.member(h5, "parameters", path, h5py.Group)
+    vals = {n: validate.number(grp, n, path) for n in PARAM_NAMES}
     try:
-        return Parameters(**{n: float(np.asarray(grp.attrs[n]).item()) for n in PARAM_NAMES})
+        return Parameters(**vals)
     except (TypeError, ValueError) as exc:          # ParameterError included
-        raise SchemaError(f"'parameters' group: {exc}") from None
+        raise SchemaError(f"{path}: /parameters: {exc}") from None
 
 
 def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = True) -> None:
@@ -322,16 +339,18 @@ def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = T
     def fill(h5):
         format_version(h5, path)
         if "parameters" in h5:
-            old = read_parameters(h5)
+            old = read_parameters(h5, path)
             if old != params:
                 from .params import describe_difference
                 raise SchemaError(f"{path}: stored parameters differ from this run's: "
                                   + describe_difference(old, params, "stored", "this run"))
         else:
             write_parameters(h5, params)
+        if h5.get("pulses", getlink=True) is not None:
+            _labels(h5, path)                  # refuse to add to a file whose pulses are broken
         pulses = h5.require_group("pulses")
         if pulse.label in pulses:
-            if not pulse.converged and pulse_converged(pulses[pulse.label]):
+            if not pulse.converged and pulse_converged(pulses[pulse.label], path):
                 raise PulseExistsError(f"{path}: pulse {pulse.label} is stored converged; an "
                                        "unconverged solve never replaces it (kept unchanged)")
             if not overwrite:
@@ -355,54 +374,117 @@ def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = T
     atomic_update(path, fill)
 
 
-def _group_to_pulse(grp) -> Pulse:
-    missing = ([n for n in DATASETS if not isinstance(grp.get(n), h5py.Dataset)]
-               + [n for n in ATTRS if n not in grp.attrs])
-    if missing:
-        raise SchemaError(f"group {grp.name} is not a slippulse pulse: missing {missing}")
-    try:
-        arrays = {name: np.asarray(grp[name][...], dtype=float) for name in DATASETS}
-    except (TypeError, ValueError) as exc:
-        raise SchemaError(f"group {grp.name}: datasets must be real numbers ({exc})") from None
+#: Fewest grid points a stored pulse may have (a resolved pulse has hundreds; fewer is a
+#: truncated or foreign file, on which the readers' interpolation and seeding would fail).
+MIN_PULSE_POINTS = 16
+#: Relative agreement required between τ_d and τ_d_ratio·τ_min of a stored pulse.
+TAU_D_RTOL = 1e-6
+#: Attribute ranges of a pulse: (low, high), open at both ends; None: unbounded.
+_ATTR_RANGES = {"tau_d_ratio": (0.0, None), "tau_d": (0.0, None), "tau_min": (0.0, None),
+                "beta": (0.0, 1.0), "c_p": (0.0, None), "L": (0.0, None),
+                "L_tilde": (0.0, None), "v_stick": (0.0, None), "v_max": (0.0, None),
+                "max_residual": (None, None), "wall_time": (None, None)}
+
+
+def _group_to_pulse(grp, path: str = "") -> Pulse:
+    """The validating reader of one pulse group: every check of :mod:`.validate` (datasets of
+    finite reals, v > 0 and φ > 0, ξ ascending, at least :data:`MIN_PULSE_POINTS` points;
+    attributes of the right type and range, 0 < β < 1, ``converged`` a stored boolean, the
+    label agreeing with τ_d/τ_min, τ_d = τ_d_ratio·τ_min). One :class:`SchemaError` naming the
+    file and the group otherwise."""
+    path = path or grp.file.filename
+    here = validate.where(grp, path)
+    arrays = {}
+    for name in DATASETS:
+        ds = validate.member(grp, name, path, h5py.Dataset)
+        arrays[name] = validate.real_array(ds, path, min_len=MIN_PULSE_POINTS,
+                                           positive=name in ("v", "phi"))
     xi = arrays["xi"]
     n = xi.size
     if any(a.shape != (n,) for a in arrays.values()):
-        raise SchemaError(f"group {grp.name}: datasets must be 1-D of equal length")
-    if n < 2 or np.any(np.diff(xi) <= 0):
-        raise SchemaError(f"group {grp.name}: xi must be strictly ascending")
-    kw = {name: grp.attrs[name] for name in ATTRS}
-    try:
-        kw["converged"] = bool(kw["converged"])
-        kw["n_points"] = int(kw["n_points"])
-        kw["mode"] = str(kw["mode"])
-        for name in ATTRS:
-            if name not in ("converged", "n_points", "mode"):
-                kw[name] = float(kw[name])
-    except (TypeError, ValueError) as exc:
-        raise SchemaError(f"group {grp.name}: attribute of the wrong type ({exc})") from None
+        raise SchemaError(f"{here}: datasets must be 1-D of equal length "
+                          f"({ {k: a.shape[0] for k, a in arrays.items()} })")
+    if np.any(np.diff(xi) <= 0):
+        raise SchemaError(f"{here}: xi must be strictly ascending")
+    kw = {}
+    for name, (lo, hi) in _ATTR_RANGES.items():
+        kw[name] = validate.number(grp, name, path, lo=lo, hi=hi,
+                                   allow_nan=name in ("wall_time", "max_residual"))
+    kw["converged"] = validate.boolean(grp, "converged", path)
+    kw["n_points"] = validate.integer(grp, "n_points", path, lo=0)
+    kw["mode"] = validate.text(grp, "mode", path, choices=("III", "II"))
+    label = grp.name.rsplit("/", 1)[-1]
+    q = label_ratio(label)
+    tol = 0.5 * 10.0 ** -label_decimals(label) + 5e-7
+    if not abs(q - kw["tau_d_ratio"]) <= tol:
+        raise SchemaError(f"{here}: the label says tau_d/tau_min={q:g} but the attribute "
+                          f"tau_d_ratio={kw['tau_d_ratio']!r}")
+    if not abs(kw["tau_d"] - kw["tau_d_ratio"] * kw["tau_min"]) <= TAU_D_RTOL * kw["tau_d"]:
+        raise SchemaError(f"{here}: tau_d={kw['tau_d']!r} Pa disagrees with tau_d_ratio*tau_min="
+                          f"{kw['tau_d_ratio'] * kw['tau_min']!r} Pa")
     extra = {k: grp.attrs[k] for k in grp.attrs if k not in ATTRS}
-    return Pulse(**arrays, **kw, extra=extra, name=grp.name.rsplit("/", 1)[-1])
+    return Pulse(**arrays, **kw, extra=extra, name=label)
+
+
+class LockedFile(h5py.File):
+    """An HDF5 file opened read-only that holds its lock (:mod:`.locking`) until closed."""
+
+    _release = None
+
+    def close(self):
+        try:
+            if self.id.valid:
+                super().close()
+        finally:
+            rel, self._release = self._release, None
+            if rel is not None:
+                rel.__exit__(None, None, None)
 
 
 def open_h5(path: str, what: str = "file") -> h5py.File:
-    """Open ``path`` read-only; a missing, empty, truncated or non-HDF5 file raises
-    :class:`SchemaError` naming it (``what``: the parameter it came from, for the message)."""
+    """Open ``path`` read-only, holding its lock until the file is closed (first completing or
+    discarding an update a kill interrupted, :func:`.journal.recover`); a missing, empty,
+    truncated or non-HDF5 file raises :class:`SchemaError` naming it (``what``: the parameter
+    it came from, for the message)."""
+    if os.path.isdir(path):
+        raise SchemaError(f"{what}={path!r} is a directory, not a file")
     if not os.path.isfile(path):
         raise SchemaError(f"{what}={path!r}: no such file")
-    if os.path.getsize(path) == 0:
-        raise SchemaError(f"{what}={path!r}: empty file (0 bytes), not HDF5")
+    if not os.access(path, os.R_OK):
+        raise SchemaError(f"{what}={path!r}: not readable (permission denied)")
+    cm = file_lock(path, required=False)
+    cm.__enter__()
     try:
-        return h5py.File(path, "r")
-    except OSError as exc:
-        reason = str(exc).split("(")[0].strip().rstrip(",")
-        raise SchemaError(f"{what}={path!r}: not a readable HDF5 file ({reason}; truncated, "
-                          "or not HDF5)") from None
+        recover(path)
+        if os.path.getsize(path) == 0:
+            raise SchemaError(f"{what}={path!r}: empty file (0 bytes), not HDF5")
+        try:
+            h5 = LockedFile(path, "r")
+        except OSError as exc:
+            text = str(exc)
+            if "lock" in text.lower():
+                raise SchemaError(f"{what}={path!r}: open for writing by another program "
+                                  "(HDF5 file lock); retry when it has finished") from None
+            reason = text.split("(")[0].strip().rstrip(",")
+            raise SchemaError(f"{what}={path!r}: not a readable HDF5 file ({reason}; "
+                              "truncated, or not HDF5)") from None
+    except BaseException:
+        cm.__exit__(None, None, None)
+        raise
+    h5._release = cm
+    return h5
 
 
 def check_writable(path: str, what: str = "out") -> None:
     """Refuse (:class:`SchemaError`), before any work is done, an output path that could not be
     written: its nearest existing parent is not a directory, or no file can be created there (a
-    trial file is created and removed), or it names an existing directory or read-only file."""
+    trial file is created and removed), or it names an existing directory or read-only file,
+    or it is empty or ends in a path separator (a directory meant, not a file)."""
+    if not isinstance(path, str) or not path.strip():
+        raise SchemaError(f"{what}={path!r} is empty; give a file name")
+    if path.endswith((os.sep, "/")) or (os.altsep and path.endswith(os.altsep)):
+        raise SchemaError(f"{what}={path!r} ends in a path separator; give a file name "
+                          f"(e.g. {os.path.join(path, 'out.h5')})")
     full = os.path.abspath(path)
     d = os.path.dirname(full)
     while not os.path.exists(d):
@@ -411,7 +493,7 @@ def check_writable(path: str, what: str = "out") -> None:
         raise SchemaError(f"{what}={path!r}: cannot write there, {d} is a file, not a directory")
     if os.path.isdir(full):
         raise SchemaError(f"{what}={path!r} is a directory; give a file name")
-    if os.path.exists(full) and not os.access(full, os.W_OK):
+    if os.path.exists(full) and read_only(full):
         raise SchemaError(f"{what}={path!r}: the existing file is not writable")
     try:
         fd, trial = tempfile.mkstemp(prefix=".tmp-probe-", dir=d)
@@ -422,18 +504,43 @@ def check_writable(path: str, what: str = "out") -> None:
 
 
 def _labels(h5, path: str) -> list[str]:
-    """Pulse labels of an open file, sorted by decreasing τ_d; anything else in ``pulses`` is an
-    error naming it."""
+    """Pulse labels of an open file, sorted by decreasing τ_d; anything else in ``pulses`` (a
+    name that is not tdX.XXXX, a dataset, a dangling or external link) is an error naming it."""
     format_version(h5, path)
-    if "pulses" not in h5 or not isinstance(h5["pulses"], h5py.Group):
+    if h5.get("pulses", getlink=True) is None:
         raise SchemaError(f"{path}: no 'pulses' group (not a slippulse steady/family file)")
-    labels = list(h5["pulses"].keys())
+    pulses = validate.member(h5, "pulses", path, h5py.Group)
+    labels = list(pulses.keys())
     ratios = []
     for lab in labels:
         ratios.append(label_ratio(lab))
-        if not (np.isfinite(ratios[-1]) and isinstance(h5["pulses"][lab], h5py.Group)):
-            raise SchemaError(f"{path}: pulses/{lab} is not a pulse group (expected tdX.XXXX)")
+        if not np.isfinite(ratios[-1]):
+            raise SchemaError(f"{path}: /pulses/{lab} is not a pulse label (expected tdX.XXXX)")
+        validate.member(pulses, lab, path, h5py.Group)
     return [lab for _, lab in sorted(zip(ratios, labels), key=lambda p: -p[0])]
+
+
+def labels_in(h5, path: str) -> list[str]:
+    """Pulse labels of an open file by decreasing τ_d, each a group that resolves inside the
+    file (the public name of the check every reader of a family makes)."""
+    return _labels(h5, path)
+
+
+def check_pulse_group(grp, path: str) -> Pulse:
+    """The validating reader of one open pulse group (:func:`read_pulse` without opening)."""
+    return _group_to_pulse(grp, path)
+
+
+def check_pulses(path: str, what: str = "FILE") -> list[str]:
+    """Validate a whole steady/family file before a command works on it: its parameters and
+    every pulse group (:func:`check_pulse_group`). Returns the labels (decreasing τ_d); the first
+    problem raises :class:`SchemaError` naming the file and the group."""
+    with open_h5(path, what) as h5:
+        labels = _labels(h5, path)
+        read_parameters(h5, path)
+        for lab in labels:
+            _group_to_pulse(h5["pulses"][lab], path)
+    return labels
 
 
 def list_pulses(path: str) -> list[str]:
@@ -450,7 +557,7 @@ def read_pulse(path: str, label: str | None = None) -> tuple[Pulse, Parameters]:
     """
     with open_h5(path) as h5:
         labels = _labels(h5, path)
-        params = read_parameters(h5)
+        params = read_parameters(h5, path)
         if label is None:
             if len(labels) != 1:
                 raise SchemaError(f"{path}: holds {len(labels)} pulses, name one with --label "
@@ -458,15 +565,13 @@ def read_pulse(path: str, label: str | None = None) -> tuple[Pulse, Parameters]:
             label = labels[0]
         if label not in labels:
             raise SchemaError(f"{path}: no pulse label={label!r}; present: {labels}")
-        return _group_to_pulse(h5["pulses"][label]), params
+        return _group_to_pulse(h5["pulses"][label], path), params
 
 
-def pulse_converged(grp) -> bool:
-    """The ``converged`` attribute of a pulse group (absent or unreadable: False)."""
-    try:
-        return bool(np.asarray(grp.attrs.get("converged", False)).item())
-    except (TypeError, ValueError):
-        return False
+def pulse_converged(grp, path: str = "") -> bool:
+    """The ``converged`` attribute of a pulse group: a stored boolean, else :class:`SchemaError`
+    (a string "False" is not False, and is not taken as True either)."""
+    return validate.boolean(grp, "converged", path or grp.file.filename)
 
 
 def stored_converged(path: str, label: str) -> bool | None:
@@ -477,7 +582,7 @@ def stored_converged(path: str, label: str) -> bool | None:
     with open_h5(path) as h5:
         if label not in _labels(h5, path):
             return None
-        return pulse_converged(h5["pulses"][label])
+        return pulse_converged(h5["pulses"][label], path)
 
 
 def require_converged(path: str, labels=None, *, allow: bool = False, hint: str = "") -> list[str]:
@@ -507,7 +612,7 @@ def require_converged(path: str, labels=None, *, allow: bool = False, hint: str 
     with open_h5(path) as h5:
         present = _labels(h5, path)
         wanted = present if labels is None else [lab for lab in labels if lab in present]
-        bad = [lab for lab in wanted if not pulse_converged(h5["pulses"][lab])]
+        bad = [lab for lab in wanted if not pulse_converged(h5["pulses"][lab], path)]
     if bad and not allow:
         names = ", ".join(bad[:4]) + (f" and {len(bad) - 4} more" if len(bad) > 4 else "")
         msg = (f"{path}: pulse{'s' if len(bad) > 1 else ''} {names} "

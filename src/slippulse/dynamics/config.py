@@ -129,6 +129,7 @@ def build_stepper(cfg: dict):
     from .stepper import RateStateInterface, TimeStepRule, make_stepper
 
     params = Parameters(**cfg["params"])
+    check_ranges(cfg, params)
     tau_d = cfg["load"]["tau_d_ratio"] * params.tau_min
     law = RateStateInterface(params, tau_d)
     tm = cfg["time"]
@@ -160,6 +161,56 @@ def build_stepper(cfg: dict):
         raise ParameterError(f"time.t_end={cfg['time']['t_end']!r} must be finite and > 0 (s) and "
                              f"time.max_steps={cfg['time']['max_steps']!r} >= 0 (0 = no limit)")
     return st
+
+
+#: Grid spacing λ/n a run may use, in elasto-frictional lengths L0 = π μ D/(σ(f0 b − α)): finer
+#: than 1e-6 L0 the time step (CFL) underflows any useful t_end; coarser than 10 L0 the grid
+#: resolves no pulse or nucleus (the smallest dynamic length is a fraction of L0).
+DX_RANGE_L0 = (1e-6, 10.0)
+#: Most nodes of the sum-of-exponentials history (ln(x_max/x_min)/h): each holds one complex
+#: array of n values.
+MAX_SOE_NODES = 2000
+
+
+def check_ranges(cfg: dict, params: Parameters) -> None:
+    """Ranges the stepper can handle, checked before anything is allocated (ParameterError
+    naming the key and the valid range): grid spacing (:data:`DX_RANGE_L0`), the history
+    settings, the load."""
+    from ..core.params import ParameterError
+
+    from .stepper import MAX_GRID_POINTS
+    n, length = cfg["grid"]["n"], cfg["grid"]["length"]
+    if not (isinstance(n, int) and 4 <= n <= MAX_GRID_POINTS and n % 2 == 0):
+        raise ParameterError(f"grid.n={n!r} is invalid: must be an even integer in [4, "
+                             f"{MAX_GRID_POINTS}]")
+    lo, hi = (f * params.L0 for f in DX_RANGE_L0)
+    if not (isinstance(n, int) and n > 0 and 0 < length < math.inf and lo <= length / n <= hi):
+        raise ParameterError(f"grid.length={length!r} is invalid: with grid.n={n!r} the spacing "
+                             f"must lie in [{lo:.3g}, {hi:.3g}] m ({DX_RANGE_L0[0]:g} to "
+                             f"{DX_RANGE_L0[1]:g} L0), i.e. length in [{lo * n:.3g}, "
+                             f"{hi * n:.3g}] m")
+    h = cfg["history"]
+    x_min, x_max, step = h["soe_x_min"], h["soe_x_max"], h["soe_h"]
+    if not 0 < x_min < x_max < math.inf:
+        raise ParameterError(f"history.soe_x_min={x_min!r} and soe_x_max={x_max!r} are invalid: "
+                             "need 0 < soe_x_min < soe_x_max (finite)")
+    if not 0 < step <= 2:
+        raise ParameterError(f"history.soe_h={step!r} is invalid: must be in (0, 2]")
+    nodes = math.log(x_max / x_min) / step
+    if nodes > MAX_SOE_NODES:
+        raise ParameterError(f"history.soe_h={step!r} with soe_x_min={x_min:g}, soe_x_max="
+                             f"{x_max:g} gives {nodes:.3g} nodes; at most {MAX_SOE_NODES}")
+    if not 0 < h["window_periods"] <= 1e3:
+        raise ParameterError(f"history.window_periods={h['window_periods']!r} is invalid: must "
+                             "be in (0, 1000]")
+    if not 1 <= h["window_max_steps"] <= 10**7:
+        raise ParameterError(f"history.window_max_steps={h['window_max_steps']!r} is invalid: "
+                             "must be in [1, 1e7]")
+    ratio = cfg["load"]["tau_d_ratio"]
+    hi_ratio = params.tau_peak / params.tau_min
+    if not 0 < ratio < hi_ratio:
+        raise ParameterError(f"load.tau_d_ratio={ratio!r} is invalid: must be in (0, "
+                             f"{hi_ratio:.4f}) (below the peak of tau_ss)")
 
 
 #: Most FFTW threads a run may ask for.

@@ -20,7 +20,10 @@ Every dataset has ``units`` and ``long_name``. Version 1 files (no ``format_vers
 continues. Files of a newer version are refused with a message naming it.
 
 Crash safety (a kill at any moment leaves FILE complete as of the last checkpoint): the run writes
-into ``FILE.partial``. At a checkpoint that file is closed and renamed over ``FILE`` (``os.replace``
+into ``FILE.partial``, which it owns for its whole life (an exclusive lock: a second run or resume
+of FILE is refused), through :class:`~slippulse.core.guarded.GuardedFile` (a full disk stops the
+run at the next snapshot or checkpoint with one error naming the file, FILE left at its last
+checkpoint, the work file removed; HDF5 never sees the failed write). Publishing holds FILE's lock. At a checkpoint that file is closed and renamed over ``FILE`` (``os.replace``
 is atomic); the previous ``FILE`` (kept by a hard link) becomes the next ``FILE.partial`` and is
 brought up to date by appending what it lacks — the snapshot and scalar rows of the last interval,
 read back from ``FILE``, and the checkpoint state. A checkpoint therefore costs the data of one
@@ -35,13 +38,17 @@ import datetime as _dt
 import json
 import os
 import shutil
-import signal
 
 import h5py
 import numpy as np
 
 from .. import __version__
-from ..core.h5io import SchemaError, atomic_update, coordinate, describe, dimension, format_version, stamp_format
+from ..core.atomic import read_only
+from ..core.guarded import GuardedFile
+from ..core.killpoint import kill_point as _kill_point
+from ..core.h5io import (SchemaError, atomic_update, coordinate, describe, dimension,
+                         format_version, open_h5, stamp_format)
+from ..core.locking import file_lock, hold_exclusive
 from ..core.params import Parameters
 
 SNAP_FIELDS = {"V": "m/s", "phi": "s", "tau": "Pa", "delta": "m"}
@@ -57,24 +64,9 @@ _STATE_UNITS = {"t": "s", "dt_prev": "s", "delta": "m", "V": "m/s", "phi": "s", 
 
 
 #: Points of :meth:`RunFile.checkpoint` (and of the catch-up it calls) where the test hook
-#: ``SLIPPULSE_KILL_AT=POINT:N`` kills the process with SIGKILL the N-th time it gets there
-#: (tests/test_kill_safety.py: kills at defined moments instead of after random delays).
+#: ``SLIPPULSE_KILL_AT=POINT:N`` (:mod:`slippulse.core.killpoint`) kills the process the N-th
+#: time it gets there (tests/test_kill_safety.py: kills at defined moments, not random delays).
 KILL_POINTS = ("state_written", "closed", "linked", "published", "rows_caught_up", "reopened")
-_kill_counts: dict = {}
-
-
-def _kill_point(name: str) -> None:
-    """The test hook (see :data:`KILL_POINTS`); does nothing unless SLIPPULSE_KILL_AT names
-    ``name``."""
-    spec = os.environ.get("SLIPPULSE_KILL_AT")
-    if not spec:
-        return
-    point, _, n = spec.partition(":")
-    if point != name:
-        return
-    _kill_counts[name] = _kill_counts.get(name, 0) + 1
-    if _kill_counts[name] == int(n or 1):
-        os.kill(os.getpid(), signal.SIGKILL)
 
 
 def _create_series(h5, n: int) -> None:
@@ -175,17 +167,39 @@ def _write_checkpoint(h5, state: dict, history_policy) -> None:
 class RunFile:
     """Writer of one dynamic run (see module docstring)."""
 
-    def __init__(self, path: str, h5: h5py.File):
+    def __init__(self, path: str, raw: GuardedFile, h5: h5py.File, lock):
         self.path = path
         self.work = path + ".partial"
         self.h5 = h5
+        self._raw = raw
+        self._lock = lock
         self._buf = {k: [] for k in ("step", *SCALARS)}
 
     # ------------------------------------------------------------------ creation / resume
+    @staticmethod
+    def _own(path: str):
+        """The run's lock on its work file; a stale work file (a killed run's) is removed."""
+        work = path + ".partial"
+        lock = hold_exclusive(work, "another dynamic run")
+        try:
+            if os.path.lexists(work):
+                os.remove(work)
+        except OSError:
+            lock.release()
+            raise
+        return lock
+
     @classmethod
     def create(cls, path: str, cfg: dict, params: Parameters, stepper) -> "RunFile":
         work = path + ".partial"
-        h5 = h5py.File(work, "w")
+        lock = cls._own(path)
+        try:
+            raw = GuardedFile(work, "w+b")
+            h5 = h5py.File(raw, "w")
+        except BaseException:
+            _remove(work)
+            lock.release()
+            raise
         h5.attrs["slippulse_version"] = __version__
         h5.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
         h5.attrs["kind"] = "dynamic"
@@ -203,35 +217,60 @@ class RunFile:
                 gc.attrs[f"{section}.{key}"] = val
         coordinate(h5, "x", stepper.x, units="m", long_name=LONG_NAMES["x"])
         _create_series(h5, stepper.n)
-        return cls(path, h5)
+        return cls(path, raw, h5, lock)
 
     @classmethod
     def open_resume(cls, path: str) -> tuple["RunFile", dict, dict]:
         """Reopen FILE for appending; returns (writer, stored config, checkpoint state).
 
         Raises FileNotFoundError (no FILE) or ValueError (not a run file with a checkpoint,
-        unreadable, or of a newer format version), with a message naming FILE.
+        unreadable, of a newer format version, read-only, or already being run), with a message
+        naming FILE. Nothing is written before FILE is known to be writable and valid.
         """
         if not os.path.exists(path):
             raise FileNotFoundError(f"--resume: output file {path} does not exist")
         try:
-            with h5py.File(path, "r") as h5:
+            with open_h5(path, "--resume") as h5:
                 ok = h5.attrs.get("kind") == "dynamic" and "checkpoint" in h5
                 format_version(h5, path)
-        except OSError:
-            raise ValueError(f"--resume: {path} is not a readable HDF5 file (truncated or not "
-                             "HDF5)") from None
+                if ok:
+                    read_checkpoint(h5, path)
         except SchemaError as exc:
-            raise ValueError(f"--resume: {exc}") from None
+            raise ValueError(str(exc) if str(exc).startswith("--resume") else
+                             f"--resume: {exc}") from None
         if not ok:
             raise ValueError(f"{path} is not a slippulse dynamic run with a checkpoint")
+        if read_only(path):
+            raise ValueError(f"--resume: {path} is read-only; a resume would modify it (make it "
+                             "writable, or copy it and resume the copy)")
         work = path + ".partial"
-        shutil.copyfile(path, work)
-        h5 = h5py.File(work, "r+")
-        upgrade_v1(h5)
-        cfg = json.loads(h5["config"].attrs["json"])
-        st = read_checkpoint(h5)
-        return cls(path, h5), cfg, st
+        try:
+            lock = cls._own(path)
+        except SchemaError as exc:
+            raise ValueError(f"--resume: {exc}") from None
+        h5 = None
+        try:
+            shutil.copyfile(path, work)
+            raw = GuardedFile(work, "r+b")
+            h5 = h5py.File(raw, "r+")
+            upgrade_v1(h5)
+            cfg = _stored_config(h5, path)
+            st = read_checkpoint(h5, path)
+            raw.check()
+        except BaseException as exc:
+            try:
+                if h5 is not None:
+                    h5.close()
+            except Exception:                    # noqa: BLE001 (discarded with the work file)
+                pass
+            _remove(work)
+            lock.release()
+            if isinstance(exc, OSError):
+                raise OSError(exc.errno, exc.strerror or str(exc), work) from None
+            if isinstance(exc, (KeyError, TypeError, AttributeError)):
+                raise ValueError(f"--resume: {path}: not a complete run file ({exc})") from None
+            raise
+        return cls(path, raw, h5, lock), cfg, st
 
     def update_config(self, cfg: dict):
         """Store the resolved config of a resumed run (only RESUME_MUTABLE keys may differ)."""
@@ -259,7 +298,13 @@ class RunFile:
             g[name][n0:] = np.asarray(vals)
             vals.clear()
 
+    def check(self) -> None:
+        """Raise the first write failure of the work file (a full disk) as an OSError naming
+        it (:class:`~slippulse.core.guarded.GuardedFile`)."""
+        self._raw.check()
+
     def snapshot(self, stepper):
+        self.check()
         g = self.h5["snapshots"]
         n0 = g["step"].shape[0]
         for name in ("step", "t"):
@@ -284,29 +329,38 @@ class RunFile:
         self.h5.attrs["message"] = message
         _kill_point("state_written")
         self.h5.close()
+        self._raw.sync()
+        self._raw.close()
+        self._raw.check()                        # a full disk: FILE stays at its last checkpoint
         _kill_point("closed")
         prev = self.path + ".prev"
-        if os.path.exists(prev):
-            os.remove(prev)
-        have_prev = False
-        if os.path.exists(self.path):
-            try:
-                os.link(self.path, prev)
-                have_prev = True
-            except OSError:                      # no hard links here: copy after publishing
-                pass
-        _kill_point("linked")
-        os.replace(self.work, self.path)         # the commit point: FILE is the new checkpoint
-        _kill_point("published")
+        with file_lock(self.path):
+            if os.path.exists(prev):
+                os.remove(prev)
+            have_prev = False
+            if os.path.exists(self.path):
+                try:
+                    os.link(self.path, prev)
+                    have_prev = True
+                except OSError:                  # no hard links here: copy after publishing
+                    pass
+            _kill_point("linked")
+            os.replace(self.work, self.path)     # the commit point: FILE is the new checkpoint
+            _kill_point("published")
         if have_prev:
             os.replace(prev, self.work)
-            self.h5 = h5py.File(self.work, "r+")
+            self._raw = GuardedFile(self.work, "r+b")
+            self.h5 = h5py.File(self._raw, "r+")
             if _catch_up(self.h5, self.path, state, stepper.history_name):
                 _kill_point("reopened")
+                self.check()
                 return
             self.h5.close()                      # previous FILE in another layout (resumed v1)
+            self._raw.close()
         shutil.copyfile(self.path, self.work)
-        self.h5 = h5py.File(self.work, "r+")
+        self._raw = GuardedFile(self.work, "r+b")
+        self.h5 = h5py.File(self._raw, "r+")
+        self.check()
 
     def mark(self, status: str, message: str) -> None:
         """Record ``status`` and ``message`` in FILE after :meth:`close`, leaving its checkpoint
@@ -317,9 +371,37 @@ class RunFile:
         atomic_update(self.path, fill)
 
     def close(self, remove_work=True):
-        self.h5.close()
-        if remove_work and os.path.exists(self.work):
-            os.remove(self.work)
+        """Close the work file (removing it with ``remove_work``) and release the run's lock.
+        After a write failure the HDF5 objects are closed without flushing what cannot be
+        written; nothing of the work file is used afterwards."""
+        try:
+            if self.h5.id.valid:
+                self.h5.close()
+        except Exception:                        # noqa: BLE001 (a failed disk: discarded below)
+            if self._raw.error is None:
+                raise
+        finally:
+            self._raw.close()
+            if (remove_work or self._raw.error is not None) and os.path.exists(self.work):
+                os.remove(self.work)
+            if self._lock is not None:
+                self._lock.release()
+                self._lock = None
+
+
+def _stored_config(h5, path: str) -> dict:
+    """The resolved config stored in a run file (``/config`` attribute ``json``), checked: a
+    table of tables (:class:`SchemaError` naming the file otherwise)."""
+    from ..core import validate
+    g = validate.member(h5, "config", path, h5py.Group)
+    text = validate.text(g, "json", path)
+    try:
+        cfg = json.loads(text)
+    except ValueError as exc:
+        raise SchemaError(f"{path}: /config json is not valid JSON ({exc})") from None
+    if not (isinstance(cfg, dict) and all(isinstance(v, dict) for v in cfg.values())):
+        raise SchemaError(f"{path}: /config json is not a table of [section] tables")
+    return cfg
 
 
 def _store_config(h5, cfg: dict) -> None:
@@ -335,8 +417,8 @@ def _catch_up(work, path: str, state: dict, history_policy) -> bool:
     scalar rows it lacks (read from FILE), rewrite the checkpoint from ``state``, copy the root
     status and the config. Returns False (work untouched) when the two are not in the same
     layout version (the caller then copies FILE)."""
-    with h5py.File(path, "r") as src:
-        if format_version(work) != format_version(src) or "x" not in work:
+    with open_h5(path) as src:
+        if format_version(work, path) != format_version(src) or "x" not in work:
             return False
         for gname in ("snapshots", "scalars"):
             gs, gw = src[gname], work[gname]
@@ -356,14 +438,30 @@ def _catch_up(work, path: str, state: dict, history_policy) -> bool:
     return True
 
 
-def read_checkpoint(h5: h5py.File) -> dict:
+def read_checkpoint(h5: h5py.File, path: str = "") -> dict:
     """The checkpoint state dict (as written by PredictorCorrector.state()); dimension scales
-    are not part of it."""
-    g = h5["checkpoint"]
+    are not part of it. Validated: no external or dangling link, finite numbers only
+    (:class:`SchemaError` naming the file and the dataset)."""
+    from ..core import validate
+    path = path or h5.filename
+    g = validate.member(h5, "checkpoint", path, h5py.Group)
     st = {}
-
-    def visit(name, obj):
+    names = []
+    g.visit_links(names.append) if hasattr(g, "visit_links") else g.visit(names.append)
+    for name in names:
+        parent, _, leaf = name.rpartition("/")
+        obj = validate.member(g[parent] if parent else g, leaf, path)
         if isinstance(obj, h5py.Dataset) and not obj.is_scale:
-            st[name] = obj[()]
-    g.visititems(visit)
+            if obj.dtype.kind == "b":
+                st[name] = obj[()]
+            else:
+                validate.real_array(obj, path, ndim=None, complex_ok=True)
+                st[name] = obj[()]
     return st
+
+
+def _remove(p: str) -> None:
+    try:
+        os.remove(p)
+    except FileNotFoundError:
+        pass

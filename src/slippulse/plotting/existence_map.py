@@ -8,6 +8,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
 from .metadata import params_metadata
+from ..core.atomic import save_figure
 from ..steady.existence_map import ABOVE_PEAK, FAILED, FOUND, NO_N_SHAPE, NOT_TRIED
 
 _COLORS = {NO_N_SHAPE: "#9e9e9e", ABOVE_PEAK: "#d9d9d9", FAILED: "#f4a582", FOUND: "#92c5de",
@@ -72,5 +73,5 @@ def plot_existence_map(m, path: str, dpi: int = 150) -> str:
     fig.suptitle(f"Steady pulses at τ_d/τ_min = {m.tau_d_ratio:g} over (b, α), other parameters "
                  f"Table I, N = {m.n_points} (square: Table I)", fontsize=10)
     fig.subplots_adjust(bottom=0.2, top=0.9, wspace=0.05)
-    fig.savefig(path, dpi=dpi, metadata=params_metadata(m.base, path))
+    save_figure(fig, path, dpi=dpi, metadata=params_metadata(m.base, path))
     return path

@@ -9,6 +9,8 @@ import numpy as np  # noqa: E402
 
 from .metadata import params_metadata  # noqa: E402
 
+from ..core.atomic import save_figure
+
 
 def plot_pulse(pulse, params, path):
     """Slip rate and shear stress of a steady pulse vs ξ/L0, near field and whole domain."""
@@ -41,6 +43,6 @@ def plot_pulse(pulse, params, path):
                  r"max$|\Delta|$ = %.1e, N = %d" % (pulse.tau_d_ratio, pulse.beta, pulse.L,
                                                   pulse.max_residual, pulse.n_points))
     fig.tight_layout()
-    fig.savefig(path, dpi=110, metadata=params_metadata(params, path))
+    save_figure(fig, path, dpi=110, metadata=params_metadata(params, path))
     plt.close(fig)
     return path

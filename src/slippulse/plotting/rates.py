@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.atomic import save_figure
+
 
 def _loglog(a, xv, yv, ev, m, fit, var, color, label, xlabel, ylabel):
     """One log–log panel: the points m of (xv, yv ± ev), bars clipped above 0, and the fit."""
@@ -67,6 +69,6 @@ def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
                 "R ± err", "pulse length L (m)", "R = s L/c_p / |dτ_d/d ln L|  (τ_d in τ_min)")
         ax[3].set_title("(d) growth rate per unit slope of the family")
     fig.tight_layout()
-    fig.savefig(out, dpi=dpi)
+    save_figure(fig, out, dpi=dpi)
     plt.close(fig)
     return out

@@ -1,15 +1,17 @@
 """Figures of the stability spectrum: s(τ_d) over a family, the spectrum, the leading modes."""
 from __future__ import annotations
 
-import h5py
 import numpy as np
+
+from ..core.atomic import save_figure
 
 
 def family_spectra(path):
     """Stored spectra of a file, by decreasing τ_d: list of dicts (see spectrum.read_spectrum)."""
     from ..spectrum.pulse import read_spectrum
-    with h5py.File(path, "r") as h5:
-        labels = [k for k in h5["pulses"] if "spectrum" in h5["pulses"][k]]
+    from ..core.h5io import labels_in, open_h5
+    with open_h5(path) as h5:
+        labels = [k for k in labels_in(h5, path) if "spectrum" in h5["pulses"][k]]
     out = []
     for lab in labels:
         o = read_spectrum(path, lab)
@@ -114,6 +116,6 @@ def plot_family_spectrum(path, out, mode_labels=None):
     a.legend(fontsize=8)
     fig.suptitle(f"Linear stability spectrum of the steady pulses ({path})", fontsize=10)
     fig.tight_layout()
-    fig.savefig(out, dpi=120)
+    save_figure(fig, out, dpi=120)
     plt.close(fig)
     return out

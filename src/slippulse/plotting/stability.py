@@ -7,6 +7,7 @@ import os
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..core.atomic import save_figure
 from ..steady.measures import pulse_length
 from ..timedomain.perturbation import (pair_table, read_series, smoothed_c_p, steady_curve,
                                       write_pair_table)
@@ -63,7 +64,7 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_stead
     ax.legend(fontsize=7)
     fig.tight_layout()
     written.append(os.path.join(out_dir, f"{prefix}deviation.png"))
-    fig.savefig(written[-1], dpi=dpi)
+    save_figure(fig, written[-1], dpi=dpi)
 
     fig = Figure(figsize=(6.4, 4.6))
     ax = fig.add_subplot()
@@ -91,7 +92,7 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_stead
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     written.append(os.path.join(out_dir, f"{prefix}trajectories.png"))
-    fig.savefig(written[-1], dpi=dpi)
+    save_figure(fig, written[-1], dpi=dpi)
 
     modes = [p for p in pairs if p["_growth"].get("mode") is not None]
     if modes:
@@ -112,7 +113,7 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_stead
         axes[0].set_ylabel("δ ln(v/v*+1) per unit δv_max/v_max")
         fig.tight_layout()
         written.append(os.path.join(out_dir, f"{prefix}modes.png"))
-        fig.savefig(written[-1], dpi=dpi)
+        save_figure(fig, written[-1], dpi=dpi)
     return written
 
 
@@ -191,7 +192,7 @@ def plot_verify_result(path_png: str, res: VerifyResult, pulse, params) -> None:
                  f"c_p err {e['c_p_error']:.1e}, v_max err {e['v_max_error']:.1e}\n"
                  + _wrap(text, 95), fontsize=9)
     fig.tight_layout()
-    fig.savefig(path_png, dpi=110, metadata=params_metadata(params, path_png))
+    save_figure(fig, path_png, dpi=110, metadata=params_metadata(params, path_png))
     plt.close(fig)
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..core.atomic import save_figure
 from ..steady import analysis as an
 from ..core import h5io
 from ..steady import modeii
@@ -447,7 +448,7 @@ def save_all(data, outdir, formats=("png", "pdf"), dpi=150):
         fig = _FUNCS[name](data)
         for ext in formats:
             out = os.path.join(outdir, f"{name}.{ext}")
-            fig.savefig(out, dpi=dpi, metadata=params_metadata(data.params, out))
+            save_figure(fig, out, dpi=dpi, metadata=params_metadata(data.params, out))
             written.append(out)
     return written
 

@@ -14,13 +14,12 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..core.errors import UsageError
 from ..core.executor import ExecutorSettings, TaskPool
-from ..core.h5io import label_ratio
 from ..steady.grid import GridMap
 from .count import count_unstable
 from .pulse import (MIN_RE, NEWTON_TOL, PulseSpectrum, order4_pulse, pulse_spectrum,
@@ -44,31 +43,20 @@ class SpectrumReport:
     wall_time: float = 0.0
 
 
-def _by_decreasing_ratio(label):
-    """Sort key of pulse labels by decreasing τ_d (names that are no pulse label: 0)."""
-    r = label_ratio(label)
-    return -r if np.isfinite(r) and r >= 0 else 0.0
-
-
 def check_family_file(path, labels=None):
     """Labels to analyse (decreasing τ_d), after checking the file: readable HDF5 with slippulse
     parameters and converged mode-III pulses. Raises SchemaError naming the problem."""
-    import h5py
-
-    from ..core.h5io import SchemaError, pulse_converged, read_parameters, require_converged
-    try:
-        h5 = h5py.File(path, "r")
-    except (OSError, FileNotFoundError) as exc:
-        raise SchemaError(f"{path}: not a readable HDF5 file ({exc})") from None
-    with h5:
+    from ..core.h5io import (SchemaError, check_pulse_group, labels_in, open_h5,
+                             pulse_converged, read_parameters, require_converged)
+    with open_h5(path) as h5:
         try:
-            params = read_parameters(h5)
+            params = read_parameters(h5, path)
         except SchemaError as exc:
             raise SchemaError(f"{path}: not a slippulse pulse file ({exc})") from None
-        if "pulses" not in h5 or len(h5["pulses"]) == 0:
+        present = labels_in(h5, path)
+        if not present:
             raise SchemaError(f"{path}: holds no pulses")
         grp = h5["pulses"]
-        present = sorted(grp.keys(), key=_by_decreasing_ratio)
         if labels:
             missing = [lab for lab in labels if lab not in grp]
             if missing:
@@ -80,7 +68,8 @@ def check_family_file(path, labels=None):
         good = []
         for lab in chosen:
             a = grp[lab].attrs
-            if not pulse_converged(grp[lab]):
+            check_pulse_group(grp[lab], path)
+            if not pulse_converged(grp[lab], path):
                 if labels:
                     require_converged(path, [lab], hint="its spectrum would be meaningless")
                 continue
@@ -688,6 +677,6 @@ def run_spectrum(path, settings: SpectrumSettings | None = None, labels=None, ov
 
 def _own_points(path, label):
     """The number of points of a pulse's own grid in its file."""
-    import h5py
-    with h5py.File(path, "r") as h5:
-        return int(h5["pulses"][label].attrs["n_points"])
+    from ..core.h5io import check_pulse_group, open_h5
+    with open_h5(path) as h5:
+        return check_pulse_group(h5["pulses"][label], path).n_points

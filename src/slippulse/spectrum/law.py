@@ -118,13 +118,15 @@ def windowed_exponents(x, y, err, width=EXPONENT_WINDOW, min_points=3):
 def _first_groups(paths, keep):
     """(label, pulse group) of one or several family files for which ``keep(group)`` holds; a
     label kept in several files: the first file's. Yields inside the open file."""
-    import h5py
+    from ..core.h5io import check_pulse_group, labels_in, open_h5
     seen = set()
     for path in ([paths] if isinstance(paths, (str, bytes)) or hasattr(paths, "__fspath__")
                  else paths):
-        with h5py.File(path, "r") as h5:
-            for lab, grp in h5["pulses"].items():
+        with open_h5(path) as h5:
+            for lab in labels_in(h5, path):
+                grp = h5["pulses"][lab]
                 if lab not in seen and keep(grp):
+                    check_pulse_group(grp, path)
                     seen.add(lab)
                     yield lab, grp
 

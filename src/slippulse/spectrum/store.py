@@ -125,10 +125,12 @@ def write_spectrum(path, res, settings: dict, extra_attrs: dict | None = None):
 
 def read_spectrum(path, label):
     """The stored spectrum of a pulse as a dict (attrs + arrays), or None if there is none."""
-    import h5py
-    with h5py.File(path, "r") as h5:
-        grp = h5["pulses"].get(label)
-        if grp is None or SPECTRUM_GROUP not in grp:
+    from ..core.h5io import labels_in, open_h5
+    with open_h5(path) as h5:
+        if label not in labels_in(h5, path):
+            return None
+        grp = h5["pulses"][label]
+        if SPECTRUM_GROUP not in grp:
             return None
         g = grp[SPECTRUM_GROUP]
         out = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()}

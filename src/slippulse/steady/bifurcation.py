@@ -374,8 +374,8 @@ def _stored_count(path, label):
     spectrum (datasets sigma_real, sigma_imag of its 'spectrum' group; real: |Im| ≤ 1e-9 |Re|),
     or None where no spectrum is stored. Only the eigenvalues the spectrum search found are
     counted (the argument-principle count, attribute 'count', is over a complex box)."""
-    import h5py
-    with h5py.File(path, "r") as h5:
+    from ..core.h5io import open_h5
+    with open_h5(path) as h5:
         grp = h5["pulses"][label]
         if "spectrum" not in grp or "sigma_real" not in grp["spectrum"]:
             return None

@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from ..core.atomic import replacing, replacing_open
+from ..core.atomic import replacing_open
 from ..core.params import ParameterError
 
 #: Keys of a scan case (run_case) with their defaults and meaning.
@@ -70,6 +70,17 @@ def check_case(case: dict) -> dict:
         raise ParameterError(f"unknown case key(s) {unknown}; valid: {sorted(CASE_DEFAULTS)}")
     c = dict(CASE_DEFAULTS)
     c.update(case)
+    for key, default in CASE_DEFAULTS.items():      # numbers where numbers belong, named
+        if isinstance(default, (int, float)) and not isinstance(default, bool):
+            val = c[key]
+            if isinstance(val, bool) or not isinstance(val, (int, float)) \
+                    or not math.isfinite(val):
+                raise ParameterError(f"case key {key}={val!r} must be a finite number")
+    if not (isinstance(c["samples_per_L"], int) and 2 <= c["samples_per_L"] <= 10_000):
+        raise ParameterError(f"samples_per_L={c['samples_per_L']!r} must be an integer in "
+                             "[2, 10000]")
+    if not (isinstance(c["threads"], int) and 1 <= c["threads"] <= 1024):
+        raise ParameterError(f"threads={c['threads']!r} must be an integer in [1, 1024]")
     for key in ("steady", "label"):
         if not isinstance(c[key], str) or not c[key]:
             raise ParameterError(f"case key {key!r} is required (a string)")
@@ -679,8 +690,7 @@ def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
     L, c_p, v_max, slip, the deviation field, snapshots) plus the analysis of :func:`analyse` as
     root attributes, ``case_json`` and ``complete = True``. Returns the summary row.
     """
-    import h5py
-
+    from ..core.h5io import atomic_update
     from .verify import write_result
     from .scan import case_json
 
@@ -689,15 +699,16 @@ def run_case(case: dict, out_path: str, progress: bool = False) -> dict:
     pulse, params, res, row = run_perturbation(c, progress=progress)
     row["file"] = os.path.abspath(out_path)
     os.makedirs(os.path.dirname(os.path.abspath(out_path)), exist_ok=True)
-    with replacing(out_path, suffix=".h5") as tmp:
-        write_result(tmp, res, params, source=os.path.abspath(c["steady"]), label=c["label"])
-        with h5py.File(tmp, "a") as h5:
-            for k, v in row.items():
-                h5.attrs[k] = v
-            h5.attrs["case_json"] = case_json(case)
-            h5.attrs["case_resolved_json"] = case_json(c)
-            h5.attrs["run_wall_time"] = time.perf_counter() - wall0
-            h5.attrs["complete"] = True
+    write_result(out_path, res, params, source=os.path.abspath(c["steady"]), label=c["label"])
+
+    def fill(h5):                     # a second commit: until it lands the case is incomplete
+        for k, v in row.items():
+            h5.attrs[k] = v
+        h5.attrs["case_json"] = case_json(case)
+        h5.attrs["case_resolved_json"] = case_json(c)
+        h5.attrs["run_wall_time"] = time.perf_counter() - wall0
+        h5.attrs["complete"] = True
+    atomic_update(out_path, fill)
     return row
 
 

@@ -398,10 +398,10 @@ def case_state(path: str, case: Case) -> str:
     unreadable: rerun) or ``"other"`` (holds another case)."""
     if not os.path.exists(path):
         return "missing"
-    import h5py
+    from ..core.h5io import open_h5
 
     try:
-        with h5py.File(path, "r") as h5:
+        with open_h5(path) as h5:
             complete = h5.attrs.get("complete", False)
             stored = h5.attrs.get("case_json", None)
     except Exception:                                          # noqa: BLE001 - corrupt: rerun
@@ -539,9 +539,9 @@ def write_summary_h5(path: str, rows: list[dict], scan: Scan) -> None:
 
 def read_summary_h5(path: str) -> list[dict]:
     """Rows of a ``summary.h5`` (the inverse of :func:`write_summary_h5`; NaN/"" kept as such)."""
-    import h5py
+    from ..core.h5io import open_h5
 
-    with h5py.File(path, "r") as h5:
+    with open_h5(path) as h5:
         cols = [c.decode() if isinstance(c, bytes) else str(c) for c in h5.attrs["columns"]]
         data = {}
         for c in cols:
