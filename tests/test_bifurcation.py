@@ -146,7 +146,9 @@ def _fake_pulse(q, beta, slip, params):
     c = beta * params.c_s
     v = np.where((xi > -1.0) & (xi < 0.0), v_st + slip * c, v_st)
     z = np.zeros_like(xi)
-    return Pulse(xi=xi, v=v, phi=z, tau=z, residual=z, tau_d_ratio=q, tau_d=q, tau_min=1.0,
+    tm = params.tau_min
+    return Pulse(xi=xi, v=v, phi=np.full_like(xi, 1e-3), tau=np.full_like(xi, q * tm),
+                 residual=z, tau_d_ratio=q, tau_d=q * tm, tau_min=tm,
                  beta=beta, c_p=c, L=1.0, L_tilde=1.0, v_stick=v_st, v_max=float(v.max()),
                  max_residual=0.0, converged=True, n_points=xi.size, wall_time=0.0)
 
