@@ -795,3 +795,6 @@ def register(sub) -> None:
                         "they are named in the output")
     add_params_args(p)
     p.set_defaults(func=cmd_analyse)
+
+    from . import motion as cli_motion             # ``steady motion`` (cli/motion.py)
+    cli_motion.register(ss)
