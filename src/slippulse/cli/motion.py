@@ -6,12 +6,12 @@ import math
 import os
 
 from ..core.errors import UsageError
-from ..core.h5io import check_writable, open_h5
+from ..core.h5io import check_writable
 from .checks import finite
 
 
 def _default_out(args) -> str:
-    base = os.path.splitext(os.path.basename(args.file))[0]
+    base = os.path.splitext(os.path.basename(args.file[0]))[0]
     return os.path.join("runs", "motion", f"{base}_td{args.tau_d:.4f}_L{args.length:.4g}.h5")
 
 
@@ -27,8 +27,6 @@ def cmd_motion(args) -> int:
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"--out={out!r} exists; give --overwrite to replace it")
     check_writable(out, "--out")
-    with open_h5(args.file, "FILE"):
-        pass
     line = SteadyLine.from_family(args.file)
     duration = args.duration
     if duration is None:                       # ten e-folds of the steady pulse at tau_d
@@ -62,7 +60,9 @@ def register(ss) -> None:
                                   "and two interpolants (cubic spline, PCHIP). Stops when L leaves "
                                   "the family. Writes L(t), c_p(t) and their band to HDF5 "
                                   "(xarray-readable; docs/motion.md).")
-    p.add_argument("file", metavar="FILE", help="HDF5 family file with stored spectra")
+    p.add_argument("file", metavar="FILE", nargs="+",
+                   help="HDF5 family file(s) with stored spectra (several: their pulses taken "
+                        "together, e.g. the branch above 1.2 tau_min and the family below)")
     p.add_argument("--tau-d", type=float, required=True,
                    help="uniform load tau_d/tau_min, within the family's rated pulses")
     p.add_argument("--length", type=float, required=True,

@@ -68,20 +68,30 @@ class SteadyLine:
         return cls(L, tau, c, Ls, s, se, **kw)
 
     @classmethod
-    def from_family(cls, path) -> "SteadyLine":
+    def from_family(cls, paths) -> "SteadyLine":
         """The converged pulses and the stored rates of record (spectrum attributes ``s``,
-        ``s_err``) of a family file."""
+        ``s_err``) of one or several family files taken together (e.g. the branch above 1.2 and
+        the family below it; a label in several files: the first file's)."""
         from ..core.h5io import open_h5, read_parameters
         from .law import family_curve, family_rates
-        with open_h5(str(path), "family") as h5:
-            params = read_parameters(h5)
-            tau_min = next((float(g.attrs["tau_min"]) for g in h5.get("pulses", {}).values()
-                            if "tau_min" in g.attrs), float("nan"))
-        curve = family_curve(path)
-        rates = family_rates(path)
-        return cls.from_arrays(curve["L"], curve["tau_d_ratio"], curve["beta"] * params.c_s,
+        paths = [str(paths)] if isinstance(paths, (str, bytes)) or hasattr(paths, "__fspath__") \
+            else [str(p) for p in paths]
+        tau_min = float("nan")
+        for i, path in enumerate(paths):
+            with open_h5(path, "FILE") as h5:
+                params = read_parameters(h5)
+                if i == 0:
+                    first = params
+                    tau_min = next((float(g.attrs["tau_min"]) for g in
+                                    h5.get("pulses", {}).values() if "tau_min" in g.attrs),
+                                   float("nan"))
+                elif params != first:
+                    raise MotionInputError(f"{path}: its parameters differ from {paths[0]}'s")
+        curve = family_curve(paths)
+        rates = family_rates(paths)
+        return cls.from_arrays(curve["L"], curve["tau_d_ratio"], curve["beta"] * first.c_s,
                                rates["L"], rates["s"], rates["s_err"], tau_min=tau_min,
-                               c_s=params.c_s, source=str(path))
+                               c_s=first.c_s, source=", ".join(paths))
 
     @property
     def L_range(self) -> tuple[float, float]:

@@ -1,0 +1,135 @@
+"""The fate of an eigenmode-seeded pulse under a uniform load: run until it is decided
+(docs/motion.md §3).
+
+A run is the verification run of ``verify.verify_pulse`` (frame following the pulse, the pulse
+seeded with ε × its unstable mode and the mode's growing past) with two choices of its own:
+
+* the load is the uniform τ_d (``far_field="none"``): the isolated steady pulse's far field is
+  not added, because it is the far field of the *steady* pulse and would hold a perturbed pulse
+  to it. What is left of the period is the images of the pulse; doubling the domain measures it.
+* the run stops at its fate (:class:`FateRule`), not at a distance.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+#: Fates, in the order they are checked at each sample.
+FATES = ("arrested", "grew x3", "near c_s", "crack-like", "undecided")
+
+
+@dataclass(frozen=True)
+class FateRule:
+    """When a run's fate is decided, checked at every sample (L, v_max from the FWHM of
+    ln(v/v*+1) and its parabolic peak; c_p from the front's travel over the last ``smooth``
+    samples):
+
+    * ``arrested``: v_max < v_max⁰/arrest (the slip rate falls toward creep);
+    * ``grew x3``: L > growth·L⁰;
+    * ``near c_s``: c_p > (1 − near_cs)·c_s;
+    * ``crack-like``: the FWHM no longer closes behind the peak with v_max > v_max⁰ (the slip
+      rate behind the front stays above half the peak's ln: an expanding rupture), or
+      max V > lost·v_max⁰ (the verify run's own stop; set far above the others);
+    * ``undecided``: the distance limit came first.
+    """
+
+    arrest: float = 10.0
+    growth: float = 3.0
+    near_cs: float = 0.01
+    smooth: int = 5
+    lost: float = 1e3
+
+    def check(self, rows, L0: float, v_max0: float, c_s: float) -> str | None:
+        """The fate decided by the measured rows (t, X, L, v_max, ...), or None."""
+        t, X, L, vmax = (np.asarray([r[i] for r in rows], float) for i in range(4))
+        if vmax[-1] < v_max0 / self.arrest:
+            return "arrested"
+        if L[-1] > self.growth * L0:
+            return "grew x3"
+        k = min(self.smooth, t.size - 1)
+        if k >= 1 and (X[-1] - X[-1 - k]) / (t[-1] - t[-1 - k]) > (1 - self.near_cs) * c_s:
+            return "near c_s"
+        return None
+
+
+@dataclass
+class FateResult:
+    """The verify run (trajectory in ``run.series``), its fate and the time and distance to it."""
+
+    run: object                   # verify.VerifyResult
+    fate: str
+    t_fate: float                 # s (nan: undecided)
+    distance_fate: float          # L⁰ travelled (nan: undecided)
+    rule: FateRule
+
+
+def fate_of(status: str) -> str:
+    """The fate named by a verify run's status: a FateRule stop, the run's own stops (crack-like
+    for a pulse that grew past measure, arrested for one that faded), or undecided."""
+    m = re.match(r"stopped: (.*)$", status)
+    if m and m.group(1) in FATES:
+        return m.group(1)
+    if status.startswith("pulse lost: grew"):
+        return "crack-like"
+    if status.startswith("pulse lost: arrested"):
+        return "arrested"
+    if status == "finished":
+        return "undecided"
+    return f"failed ({status})"
+
+
+def run_fate(pulse, params, eigen, eps: float, spec, distance: float,
+             rule: FateRule = FateRule(), samples_per_L: int = 200, progress: bool = True,
+             device: str = "cpu") -> FateResult:
+    """Seed ``pulse`` + ε × ``eigen`` (its unstable mode) under the uniform τ_d and run until its
+    fate or ``distance`` pulse lengths (``verify.verify_pulse``, adaptive Δt, SOE history)."""
+    from .verify import verify_pulse
+    from ..dynamics.stepper import TimeStepRule
+
+    def stop(rows):
+        return rule.check(rows, pulse.L, pulse.v_max, params.c_s)
+
+    n = max(2, int(math.ceil(samples_per_L * distance)))
+    res = verify_pulse(pulse, params, distance, spec, rule=TimeStepRule(kind="adaptive"),
+                       far_field="none", n_samples=n, progress=progress, eigen=eigen,
+                       perturbation=("mode", float(eps)), stop_check=stop,
+                       lost_factor=rule.lost, device=device)
+    fate = fate_of(res.info["status"])
+    decided = fate not in ("undecided",) and not fate.startswith("failed")
+    t_f = float(res.info["t_end"]) if decided else float("nan")
+    d_f = float(res.info["travelled"]) if decided else float("nan")
+    return FateResult(res, fate, t_f, d_f, rule)
+
+
+def write_fate(path: str, fr: FateResult, params, source: str = "", label: str = "") -> None:
+    """The verify file layout (``verify.write_result``) with the fate, its time and distance and
+    the rule as root attributes."""
+    from ..core.h5io import atomic_update
+    from .verify import write_result
+    write_result(path, fr.run, params, source=source, label=label)
+
+    def fill(h5):
+        h5.attrs["fate"] = fr.fate
+        h5.attrs["t_fate"] = fr.t_fate
+        h5.attrs["t_fate_units"] = "s"
+        h5.attrs["distance_fate"] = fr.distance_fate
+        h5.attrs["distance_fate_units"] = "L0"
+        for k, v in asdict(fr.rule).items():
+            h5.attrs[f"fate_rule_{k}"] = v
+    atomic_update(path, fill)
+
+
+def summary(fr: FateResult) -> str:
+    """One line: the fate, when, and where L and c_p went."""
+    s = fr.run.series
+    inf = fr.run.info
+    L, cp = np.asarray(s["L"]), np.asarray(s["c_p"])
+    when = (f" after {fr.distance_fate:.3g} L0 ({fr.t_fate:.4g} s)"
+            if math.isfinite(fr.t_fate) else f" within {inf['travelled']:.3g} L0")
+    return (f"fate of td{inf['tau_d_ratio']:.4f} eps={inf['eps']:+.3g} ({inf['n']} points, "
+            f"{inf['ahead']:g}+{inf['behind']:g} L, uniform load): {fr.fate}{when}; "
+            f"L {L[0]:.4g} -> {L[-1]:.4g} m, c_p {np.nanmin(cp[1:2]) if cp.size > 1 else np.nan:.4g}"
+            f" -> {cp[-1]:.4g} m/s; {inf['n_steps']} steps, wall={inf['wall_time']:.0f} s")
