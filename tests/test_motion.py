@@ -182,3 +182,20 @@ def test_command_refuses_a_family_without_a_spectrum(tmp_path):
     r = cli(["steady", "motion", fam, "--tau-d", "1.05", "--length", "4", "--out", out])
     assert r.returncode == 2 and "spectrum" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_compare_finds_no_split_for_the_exact_dynamics_and_one_for_a_pulse_off_the_line():
+    from slippulse.stability.motion import compare
+    line = synthetic_line(60)
+    tau_d = float(tau0(4.0))
+    dur = 3.0 / float(-gamma(4.0) * dtau0(4.0))
+    t = np.linspace(0, dur, 301)
+    L = exact_trajectory(tau_d, 4.4, t)
+    cp = c0(L)
+    x = np.r_[0.0, np.cumsum(0.5 * (cp[1:] + cp[:-1]) * np.diff(t))]
+    c = compare(line, tau_d, t, x, L, skip=0)
+    assert math.isnan(c.t_split)
+    assert np.nanmax(np.abs(c.line_distance[2:-2])) < 1e-3
+    # the same lengths at a speed 10 % above the line: they split at once
+    c = compare(line, tau_d, t, 1.1 * x, L, skip=0)
+    assert c.t_split == t[0] and np.nanmedian(c.line_distance) == pytest.approx(0.1, abs=2e-3)

@@ -133,3 +133,17 @@ def summary(fr: FateResult) -> str:
             f"{inf['ahead']:g}+{inf['behind']:g} L, uniform load): {fr.fate}{when}; "
             f"L {L[0]:.4g} -> {L[-1]:.4g} m, c_p {np.nanmin(cp[1:2]) if cp.size > 1 else np.nan:.4g}"
             f" -> {cp[-1]:.4g} m/s; {inf['n_steps']} steps, wall={inf['wall_time']:.0f} s")
+
+
+def read_fate(path: str) -> dict:
+    """A fate (or verify) file's trajectory and description: arrays t (s), x_front (m), L (m),
+    v_max (m/s) and the root attributes (tau_d_ratio, eps, fate, distance_fate, ahead, behind,
+    n, ...)."""
+    from ..core.h5io import open_h5
+    with open_h5(path, "fate file") as h5:
+        s = h5["series"]
+        out = {k: np.asarray(s[k][...], float) for k in ("t", "x_front", "L", "v_max")}
+        out.update({k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()})
+    out.setdefault("fate", fate_of(str(out.get("status", ""))))
+    out["path"] = path
+    return out

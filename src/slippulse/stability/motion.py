@@ -279,3 +279,64 @@ def write_trajectory(path: str, traj: Trajectory, line: SteadyLine) -> None:
         h5.attrs["s_equilibrium_units"] = "1/s"
         h5.attrs["duration_units"] = "s"
     atomic_update(path, fill, replace=True)
+
+
+@dataclass
+class Comparison:
+    """A measured trajectory against the model started from its first state."""
+
+    t: np.ndarray                 # s, the measurement times
+    L: np.ndarray                 # m, measured
+    c_p: np.ndarray               # m/s, measured (smoothed)
+    x: np.ndarray                 # m, measured distance travelled
+    model: Trajectory             # on the same times
+    t_split: float                # s: first time L or c_p differ by more than tol (nan: never)
+    distance_split: float         # L0 travelled by then (nan: never)
+    line_distance: np.ndarray     # c_p/c_p⁰(L) − 1 of the measurement (nan off the family)
+    tol: float
+
+
+def smoothed_speed(t, x, k: int = 5):
+    """c_p from the front positions: the slope over ±k//2 samples (central, one-sided at the
+    ends), as the fate runs' front moves by whole cells between samples."""
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    h = max(1, k // 2)
+    i = np.arange(t.size)
+    a, b = np.clip(i - h, 0, t.size - 1), np.clip(i + h, 0, t.size - 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (x[b] - x[a]) / (t[b] - t[a])
+
+
+def compare(line: SteadyLine, tau_d_ratio: float, t, x_front, L, tol: float = 0.05,
+            skip: int = 1) -> Comparison:
+    """The model from the measured L at sample ``skip`` (the first samples of an SBI run carry the
+    seed's start-up), on the measured times; the first time at which |L_model/L − 1| or
+    |c_p,model/c_p − 1| exceeds ``tol``, and how far the measured pulse had travelled by then (in
+    its first length)."""
+    t, x_front, L = (np.asarray(a, float) for a in (t, x_front, L))
+    cp = smoothed_speed(t, x_front)
+    t0 = t[skip]
+    tr = integrate(line, tau_d_ratio, float(L[skip]), float(t[-1] - t0), n_out=400)
+    tm = tr.t + t0
+    Lm = np.interp(t, tm, tr.L, left=np.nan, right=np.nan)
+    cm = np.interp(t, tm, tr.c_p, left=np.nan, right=np.nan)
+    with np.errstate(invalid="ignore"):
+        bad = (np.abs(Lm / L - 1) > tol) | (np.abs(cm / cp - 1) > tol)
+    bad[:skip] = False
+    # where the model has left the family but the measurement goes on, they differ too
+    bad |= (t > t0) & ~np.isfinite(Lm) & np.isfinite(L)
+    k = np.flatnonzero(bad)
+    t_split = float(t[k[0]]) if k.size else float("nan")
+    d_split = float((x_front[k[0]] - x_front[0]) / L[0]) if k.size else float("nan")
+    lo, hi = line.L_range
+    fns = line.functions()
+    on = (L >= lo) & (L <= hi)
+    dist = np.full(t.size, np.nan)
+    dist[on] = cp[on] / fns[2](L[on]) - 1.0
+    model = Trajectory(t, Lm, np.interp(t, tm, tr.L_lo, left=np.nan, right=np.nan),
+                       np.interp(t, tm, tr.L_hi, left=np.nan, right=np.nan), cm,
+                       np.interp(t, tm, tr.c_p_lo, left=np.nan, right=np.nan),
+                       np.interp(t, tm, tr.c_p_hi, left=np.nan, right=np.nan),
+                       np.interp(t, tm, tr.x, left=np.nan, right=np.nan), tr.fate,
+                       tr.t_fate + t0 if np.isfinite(tr.t_fate) else tr.t_fate, tr.info)
+    return Comparison(t, L, cp, x_front - x_front[0], model, t_split, d_split, dist, tol)

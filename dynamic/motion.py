@@ -1,0 +1,45 @@
+"""Fate runs against the equation of motion (docs/motion.md §3-4): the table and the (L, c_p)
+figure.
+
+    python dynamic/motion.py FIGURE.png --family FAMILY.h5 [MORE.h5] --runs FATE.h5 [...]
+"""
+import argparse
+import math
+
+import numpy as np
+
+from slippulse.plotting.motion import motion_figure
+from slippulse.stability.fate import read_fate
+from slippulse.stability.motion import SteadyLine, compare
+
+ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+ap.add_argument("figure")
+ap.add_argument("--family", nargs="+", required=True)
+ap.add_argument("--runs", nargs="+", required=True)
+ap.add_argument("--skip", type=int, default=1, help="samples before the model starts (1)")
+a = ap.parse_args()
+line = SteadyLine.from_family(a.family)
+cmps = {}
+print("| tau_d/tau_min | eps | domain (ahead+behind L) | SBI fate | after (L0) | L range (m) | "
+      "c_p/c_s range | model fate | 5 % split after (L0) | median abs(c_p/c_p0(L) - 1) |")
+print("|---|---|---|---|---|---|---|---|---|---|")
+for p in a.runs:
+    r = read_fate(p)
+    try:
+        c = compare(line, float(r["tau_d_ratio"]), r["t"], r["x_front"], r["L"], skip=a.skip)
+    except ValueError as exc:
+        print(f"| {r['tau_d_ratio']:.4g} | {r['eps']:+.0e} | – | {r['fate']} | – | – | – | "
+              f"model not run: {exc} | – | – |")
+        continue
+    lab = f"{r['tau_d_ratio']:.2f} eps={r['eps']:+.0e} ({r['ahead']:g}+{r['behind']:g} L)"
+    cmps[lab] = c
+    cp = c.c_p[np.isfinite(c.c_p)]
+    d = c.line_distance[np.isfinite(c.line_distance)]
+    print(f"| {r['tau_d_ratio']:.4g} | {r['eps']:+.0e} | {r['ahead']:g}+{r['behind']:g} | "
+          f"{r['fate']} | {r.get('distance_fate', math.nan):.3g} | {np.nanmin(c.L):.4g}–"
+          f"{np.nanmax(c.L):.4g} | {cp.min() / line.c_s:.3g}–{cp.max() / line.c_s:.3g} | "
+          f"{c.model.fate} | {c.distance_split:.3g} | "
+          f"{np.median(np.abs(d)) if d.size else math.nan:.3g} |")
+motion_figure(a.figure, line, cmps, title="fate runs (SBI, uniform load) and the equation of "
+                                          "motion from the same L")
+print(f"figure {a.figure}")
