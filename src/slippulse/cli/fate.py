@@ -17,7 +17,7 @@ def cmd_fate(args) -> int:
     from ..stability.eigenmode import SpectrumError, check_eps, leading_mode
     from ..stability.fate import FateRule, run_fate, summary, write_fate
     from ..stability.seeding import DomainSpec, default_dx
-    from .dynamic import MAX_DISTANCE, _check_grid
+    from ..dynamics.stepper import MAX_GRID_POINTS
 
     try:
         pulse, params = read_pulse(args.steady, args.label)
@@ -28,11 +28,16 @@ def cmd_fate(args) -> int:
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"--out={out!r} exists: use --overwrite or another --out")
     check_writable(out, "--out")
-    finite(args.distance, "--distance", 0.0, MAX_DISTANCE, unit="pulse lengths")
+    finite(args.distance, "--distance", 0.0, 1e4, unit="pulse lengths")
     finite(args.growth, "--growth", 1.0)
     finite(args.arrest, "--arrest", 1.0)
     dx = default_dx(params) if args.dx is None else args.dx
-    _check_grid(dx, args.ahead, args.behind, pulse.L)
+    for name, val in (("--dx", dx), ("--ahead", args.ahead), ("--behind", args.behind)):
+        finite(val, name, 0.0)
+    n = (args.ahead + args.behind) * pulse.L / dx
+    if n > MAX_GRID_POINTS:
+        raise UsageError(f"--dx={dx:g} gives {n:.0f} points over {args.ahead:g}+{args.behind:g} "
+                         f"L; at most {MAX_GRID_POINTS}")
     if not 1 <= args.samples_per_L <= 10_000:
         raise UsageError(f"--samples-per-L={args.samples_per_L} must be in [1, 10000]")
     try:
