@@ -50,7 +50,7 @@ def cmd_fate(args) -> int:
         fr = run_fate(pulse, params, eigen, args.eps,
                       DomainSpec(dx=dx, ahead=args.ahead, behind=args.behind), args.distance,
                       rule=rule, samples_per_L=args.samples_per_L,
-                      progress=not args.no_progress)
+                      progress=not args.no_progress, far_field=args.far_field)
     except ParameterError as exc:
         raise UsageError(str(exc))
     write_fate(out, fr, params, source=os.path.abspath(args.steady), label=pulse.label)
@@ -80,6 +80,11 @@ def register(sub) -> None:
                    help="grid spacing, m (default 2.26e-3 L0: 2e-3 for Table I)")
     p.add_argument("--ahead", type=float, default=4.0, help="domain ahead of the front, in L (4)")
     p.add_argument("--behind", type=float, default=4.0, help="domain behind the front, in L (4)")
+    p.add_argument("--far-field", choices=("none", "steady"), default="none",
+                   help="none (default): the uniform tau_d on the periodic domain, the pulse's "
+                        "images uncorrected; steady: the steady pulse's images removed and its "
+                        "tail beyond the window added, static in the frame of the front "
+                        "(docs/dynamic.md section 9)")
     p.add_argument("--growth", type=float, default=3.0, help="grew when L > GROWTH L0 (3)")
     p.add_argument("--arrest", type=float, default=10.0,
                    help="arrested when v_max < v_max0/ARREST (10)")

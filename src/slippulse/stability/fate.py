@@ -83,9 +83,12 @@ def fate_of(status: str) -> str:
 
 def run_fate(pulse, params, eigen, eps: float, spec, distance: float,
              rule: FateRule = FateRule(), samples_per_L: int = 200, progress: bool = True,
-             device: str = "cpu") -> FateResult:
+             device: str = "cpu", far_field: str = "none") -> FateResult:
     """Seed ``pulse`` + ε × ``eigen`` (its unstable mode) under the uniform τ_d and run until its
-    fate or ``distance`` pulse lengths (``verify.verify_pulse``, adaptive Δt, SOE history)."""
+    fate or ``distance`` pulse lengths (``verify.verify_pulse``, adaptive Δt, SOE history).
+    ``far_field``: "none", the periodic train of the pulse and its images under τ_d; "steady",
+    the images of the steady pulse removed (and its tail beyond the window added), a static
+    field in the frame of the front (``seeding.seed_pulse``)."""
     from .verify import verify_pulse
     from ..dynamics.stepper import TimeStepRule
 
@@ -94,7 +97,7 @@ def run_fate(pulse, params, eigen, eps: float, spec, distance: float,
 
     n = max(2, int(math.ceil(samples_per_L * distance)))
     res = verify_pulse(pulse, params, distance, spec, rule=TimeStepRule(kind="adaptive"),
-                       far_field="none", n_samples=n, progress=progress, eigen=eigen,
+                       far_field=far_field, n_samples=n, progress=progress, eigen=eigen,
                        perturbation=("mode", float(eps)), stop_check=stop,
                        lost_factor=rule.lost, device=device)
     fate = fate_of(res.info["status"])
@@ -130,7 +133,7 @@ def summary(fr: FateResult) -> str:
     when = (f" after {fr.distance_fate:.3g} L0 ({fr.t_fate:.4g} s)"
             if math.isfinite(fr.t_fate) else f" within {inf['travelled']:.3g} L0")
     return (f"fate of td{inf['tau_d_ratio']:.4f} eps={inf['eps']:+.3g} ({inf['n']} points, "
-            f"{inf['ahead']:g}+{inf['behind']:g} L, uniform load): {fr.fate}{when}; "
+            f"{inf['ahead']:g}+{inf['behind']:g} L, far field {inf['far_field']}): {fr.fate}{when}; "
             f"L {L[0]:.4g} -> {L[-1]:.4g} m, c_p {np.nanmin(cp[1:2]) if cp.size > 1 else np.nan:.4g}"
             f" -> {cp[-1]:.4g} m/s; {inf['n_steps']} steps, wall={inf['wall_time']:.0f} s")
 
@@ -138,12 +141,13 @@ def summary(fr: FateResult) -> str:
 def read_fate(path: str) -> dict:
     """A fate (or verify) file's trajectory and description: arrays t (s), x_front (m), L (m),
     v_max (m/s) and the root attributes (tau_d_ratio, eps, fate, distance_fate, ahead, behind,
-    n, ...)."""
+    n, ...; the steady pulse's L as L0)."""
     from ..core.h5io import open_h5
     with open_h5(path, "fate file") as h5:
         s = h5["series"]
-        out = {k: np.asarray(s[k][...], float) for k in ("t", "x_front", "L", "v_max")}
-        out.update({k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()})
+        out = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()}
+        out["L0"] = out.get("L")                   # the steady pulse's; the series below
+        out.update({k: np.asarray(s[k][...], float) for k in ("t", "x_front", "L", "v_max")})
     out.setdefault("fate", fate_of(str(out.get("status", ""))))
     out["path"] = path
     return out
