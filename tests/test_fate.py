@@ -30,6 +30,8 @@ def test_the_status_of_a_run_names_its_fate():
     assert fate_of("stopped: arrested") == "arrested"
     assert fate_of("pulse lost: grew: the FWHM ... at t = 1 s") == "crack-like"
     assert fate_of("pulse lost: arrested: max V < v_max0/1000 at t = 1 s") == "arrested"
+    assert fate_of("pulse lost: grew: ln(v/v*+1) does not fall below half its maximum on both "
+                   "sides: domain too short to measure the FWHM at t = 1 s") == "outgrew the domain"
     assert fate_of("finished") == "undecided"
     assert fate_of("failed: overflow").startswith("failed")
 
@@ -53,17 +55,19 @@ def test_command_refuses_a_pulse_without_a_stored_mode(tmp_path, pulse12, params
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("eps, fates", [(1e-2, ("crack-like", "grew x3")), (-1e-2, ("arrested",))])
+@pytest.mark.parametrize("eps, fates", [(1e-2, ("crack-like", "grew x3", "outgrew the domain")), (-1e-2, ("arrested",))])
 def test_the_two_signs_of_the_mode_go_to_opposite_fates(tmp_path, steady12_with_spectrum, eps,
                                                         fates):
-    """1.2 tau_min on a coarse grid: +eps runs away, -eps arrests, within one pulse length."""
+    """1.2 tau_min on a coarse grid, the steady pulse's images removed: +eps runs away, -eps
+    arrests, within two pulse lengths (with the images left in, both arrest on this domain)."""
     import h5py
     out = tmp_path / "f.h5"
     r = cli(["dynamic", "fate", "--steady", steady12_with_spectrum, "--eps", eps, "--dx", "8e-3",
-             "--ahead", "2", "--behind", "3", "--distance", "1", "--samples-per-L", "100",
+             "--ahead", "2", "--behind", "3", "--distance", "2", "--samples-per-L", "100",
+             "--far-field", "steady",
              "--out", out, "--no-progress"])
     assert r.returncode == 0, r.stderr
     with h5py.File(out) as h5:
         assert h5.attrs["fate"] in fates
-        assert 0 < h5.attrs["distance_fate"] < 1
-        assert h5.attrs["far_field"] == "none"
+        assert 0 < h5.attrs["distance_fate"] < 2
+        assert h5.attrs["far_field"] == "steady"

@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 #: Fates, in the order they are checked at each sample.
-FATES = ("arrested", "grew x3", "near c_s", "crack-like", "undecided")
+FATES = ("arrested", "grew x3", "near c_s", "crack-like", "outgrew the domain", "undecided")
 
 
 @dataclass(frozen=True)
@@ -33,6 +33,8 @@ class FateRule:
     * ``crack-like``: the FWHM no longer closes behind the peak with v_max > v_max⁰ (the slip
       rate behind the front stays above half the peak's ln: an expanding rupture), or
       max V > lost·v_max⁰ (the verify run's own stop; set far above the others);
+    * ``outgrew the domain``: the slip rate nowhere on the ring falls below half the peak's ln
+      (the pulse, or rupture, is longer than the domain: a bigger domain decides);
     * ``undecided``: the distance limit came first.
     """
 
@@ -73,7 +75,9 @@ def fate_of(status: str) -> str:
     if m and m.group(1) in FATES:
         return m.group(1)
     if status.startswith("pulse lost: grew"):
-        return "crack-like"
+        # the FWHM found no fall below half the maximum anywhere on the ring: the pulse is longer
+        # than the domain can show, which says nothing about its shape
+        return "outgrew the domain" if "domain too short" in status else "crack-like"
     if status.startswith("pulse lost: arrested"):
         return "arrested"
     if status == "finished":
@@ -148,6 +152,26 @@ def read_fate(path: str) -> dict:
         out = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()}
         out["L0"] = out.get("L")                   # the steady pulse's; the series below
         out.update({k: np.asarray(s[k][...], float) for k in ("t", "x_front", "L", "v_max")})
-    out.setdefault("fate", fate_of(str(out.get("status", ""))))
+    if "status" in out:                     # the fate as this version names it
+        out["fate"] = fate_of(str(out["status"]))
     out["path"] = path
     return out
+
+
+def domain_difference(a: dict, b: dict, upto: float = 1.0) -> dict:
+    """Two runs of one pulse and ε on different domains (:func:`read_fate` dicts): the largest
+    |L_b/L_a − 1| and |c_p,b/c_p,a − 1| over the times both ran, up to the fraction ``upto`` of
+    the earlier end (L_b, c_p,b interpolated linearly in t onto a's samples), and the relative
+    difference of their fate times."""
+    from .motion import smoothed_speed
+    t_end = upto * min(a["t"][-1], b["t"][-1])
+    k = a["t"] <= t_end
+    Lb = np.interp(a["t"][k], b["t"], b["L"])
+    ca, cb = smoothed_speed(a["t"], a["x_front"]), smoothed_speed(b["t"], b["x_front"])
+    cbi = np.interp(a["t"][k], b["t"], cb)
+    with np.errstate(invalid="ignore"):
+        dL = np.nanmax(np.abs(Lb / a["L"][k] - 1.0))
+        dc = np.nanmax(np.abs(cbi / ca[k] - 1.0))
+    ta, tb = float(a.get("t_fate", np.nan)), float(b.get("t_fate", np.nan))
+    return {"dL": float(dL), "dc": float(dc), "t_end": float(t_end),
+            "dt_fate": (tb / ta - 1.0) if np.isfinite(ta) and np.isfinite(tb) else float("nan")}
