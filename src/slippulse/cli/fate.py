@@ -63,7 +63,7 @@ def register(sub) -> None:
     p = sub.add_parser("fate", help="run an eigenmode-seeded pulse under uniform load to its fate",
                        description="Seed the steady pulse LABEL of FILE with eps x its stored "
                                    "unstable eigenmode (and the mode's growing past), load it "
-                                   "with the uniform tau_d (no steady far field), follow it and "
+                                   "with tau_d at infinity, follow it and "
                                    "stop at its fate: arrested (v_max < v_max0/ARREST), grew x3 "
                                    "(L > GROWTH L0), near c_s (c_p > 0.99 c_s), crack-like (the "
                                    "FWHM no longer closes behind a growing peak), or undecided "
@@ -80,11 +80,12 @@ def register(sub) -> None:
                    help="grid spacing, m (default 2.26e-3 L0: 2e-3 for Table I)")
     p.add_argument("--ahead", type=float, default=4.0, help="domain ahead of the front, in L (4)")
     p.add_argument("--behind", type=float, default=4.0, help="domain behind the front, in L (4)")
-    p.add_argument("--far-field", choices=("none", "steady"), default="none",
-                   help="none (default): the uniform tau_d on the periodic domain, the pulse's "
-                        "images uncorrected; steady: the steady pulse's images removed and its "
-                        "tail beyond the window added, static in the frame of the front "
-                        "(docs/dynamic.md section 9)")
+    p.add_argument("--far-field", choices=("steady", "none"), default="steady",
+                   help="steady (default): the steady pulse's images on the period removed and "
+                        "its tail beyond the window added, static in the frame of the front "
+                        "(docs/dynamic.md section 9); none: the uniform tau_d on the periodic "
+                        "domain, the pulse's images left in (at 1.2 tau_min they decide the "
+                        "fate on a 5-10 L period: docs/motion.md)")
     p.add_argument("--growth", type=float, default=3.0, help="grew when L > GROWTH L0 (3)")
     p.add_argument("--arrest", type=float, default=10.0,
                    help="arrested when v_max < v_max0/ARREST (10)")

@@ -2,12 +2,12 @@
 (docs/motion.md §3).
 
 A run is the verification run of ``verify.verify_pulse`` (frame following the pulse, the pulse
-seeded with ε × its unstable mode and the mode's growing past) with two choices of its own:
-
-* the load is the uniform τ_d (``far_field="none"``): the isolated steady pulse's far field is
-  not added, because it is the far field of the *steady* pulse and would hold a perturbed pulse
-  to it. What is left of the period is the images of the pulse; doubling the domain measures it.
-* the run stops at its fate (:class:`FateRule`), not at a distance.
+seeded with ε × its unstable mode and the mode's growing past) that stops at its fate
+(:class:`FateRule`), not at a distance. The load at infinity is τ_d. On the periodic domain the
+pulse has images; ``far_field="steady"`` (default) removes those of the steady pulse (a static
+field in the frame of the front), which leaves the images of the deviation only: at 1.2 τ_min the
+fate times on 5 L and 10 L domains agree to 0.3 %, where with the images left in
+(``far_field="none"``) L differs by 6 % within half the run and both signs of ε arrest.
 """
 from __future__ import annotations
 
@@ -87,12 +87,12 @@ def fate_of(status: str) -> str:
 
 def run_fate(pulse, params, eigen, eps: float, spec, distance: float,
              rule: FateRule = FateRule(), samples_per_L: int = 200, progress: bool = True,
-             device: str = "cpu", far_field: str = "none") -> FateResult:
+             device: str = "cpu", far_field: str = "steady") -> FateResult:
     """Seed ``pulse`` + ε × ``eigen`` (its unstable mode) under the uniform τ_d and run until its
     fate or ``distance`` pulse lengths (``verify.verify_pulse``, adaptive Δt, SOE history).
-    ``far_field``: "none", the periodic train of the pulse and its images under τ_d; "steady",
-    the images of the steady pulse removed (and its tail beyond the window added), a static
-    field in the frame of the front (``seeding.seed_pulse``)."""
+    ``far_field``: "steady", the images of the steady pulse removed (and its tail beyond the
+    window added), a static field in the frame of the front (``seeding.seed_pulse``); "none", the
+    periodic train of the pulse and its images under τ_d."""
     from .verify import verify_pulse
     from ..dynamics.stepper import TimeStepRule
 
