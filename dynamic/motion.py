@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from slippulse.plotting.motion import motion_figure
-from slippulse.stability.fate import read_fate
+from slippulse.stability.fate import read_fate, time_law
 from slippulse.stability.motion import SteadyLine, compare
 
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -17,6 +17,8 @@ ap.add_argument("figure")
 ap.add_argument("--family", nargs="+", required=True)
 ap.add_argument("--runs", nargs="+", required=True)
 ap.add_argument("--skip", type=int, default=1, help="samples before the model starts (1)")
+ap.add_argument("--law", nargs="+", default=(),
+                help="runs of one pulse at several eps: fit t_fate = a + b ln|eps| (b vs -1/s)")
 a = ap.parse_args()
 line = SteadyLine.from_family(a.family)
 cmps = {}
@@ -40,6 +42,14 @@ for p in a.runs:
           f"{np.nanmax(c.L):.4g} | {cp.min() / line.c_s:.3g}–{cp.max() / line.c_s:.3g} | "
           f"{c.model.fate} | {c.distance_split:.3g} | "
           f"{np.median(np.abs(d)) if d.size else math.nan:.3g} |")
+if a.law:
+    rs = [read_fate(p) for p in a.law]
+    A, B, E = time_law([r["eps"] for r in rs], [r["t_fate"] for r in rs])
+    s = float(line.functions()[3](line.equilibrium(float(rs[0]["tau_d_ratio"]))))
+    print(f"time to fate ({', '.join(sorted(set(r['fate'] for r in rs)))}) at "
+          f"{rs[0]['tau_d_ratio']:.4g} tau_min, eps = {', '.join(format(r['eps'], '+.0e') for r in rs)}: "
+          f"t = {A:.4g} + ({B:.4g} ± {E:.1g}) ln|eps| s; -1/s = {-1 / s:.4g} s "
+          f"(b s = {-B * s:.3f})")
 motion_figure(a.figure, line, cmps, title="fate runs (SBI, uniform load) and the equation of "
                                           "motion from the same L")
 print(f"figure {a.figure}")

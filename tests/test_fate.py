@@ -71,3 +71,10 @@ def test_the_two_signs_of_the_mode_go_to_opposite_fates(tmp_path, steady12_with_
         assert h5.attrs["fate"] in fates
         assert 0 < h5.attrs["distance_fate"] < 2
         assert h5.attrs["far_field"] == "steady"
+
+
+def test_time_law_recovers_minus_one_over_s():
+    from slippulse.stability.fate import time_law
+    eps = np.array([1e-2, 3e-3, 1e-3, 3e-4])
+    a, b, e = time_law(eps, 0.01 - np.log(eps) / 400.0)
+    assert b == pytest.approx(-1 / 400.0, rel=1e-10) and e < 1e-12

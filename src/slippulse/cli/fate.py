@@ -50,7 +50,8 @@ def cmd_fate(args) -> int:
         fr = run_fate(pulse, params, eigen, args.eps,
                       DomainSpec(dx=dx, ahead=args.ahead, behind=args.behind), args.distance,
                       rule=rule, samples_per_L=args.samples_per_L,
-                      progress=not args.no_progress, far_field=args.far_field)
+                      progress=not args.no_progress, far_field=args.far_field,
+                      frame=args.frame)
     except ParameterError as exc:
         raise UsageError(str(exc))
     write_fate(out, fr, params, source=os.path.abspath(args.steady), label=pulse.label)
@@ -86,6 +87,11 @@ def register(sub) -> None:
                         "(docs/dynamic.md section 9); none: the uniform tau_d on the periodic "
                         "domain, the pulse's images left in (at 1.2 tau_min they decide the "
                         "fate on a 5-10 L period: docs/motion.md)")
+    p.add_argument("--frame", choices=("front", "lab"), default="front",
+                   help="front (default): eps is the mode's largest change of ln(v/v*+1) in the "
+                        "frame of the front (perturbation mode_front); lab: at fixed xi (mode), "
+                        "where the front's displacement takes eps and the body gets far less "
+                        "(docs/stability.md section 10.2)")
     p.add_argument("--growth", type=float, default=3.0, help="grew when L > GROWTH L0 (3)")
     p.add_argument("--arrest", type=float, default=10.0,
                    help="arrested when v_max < v_max0/ARREST (10)")

@@ -87,12 +87,18 @@ def fate_of(status: str) -> str:
 
 def run_fate(pulse, params, eigen, eps: float, spec, distance: float,
              rule: FateRule = FateRule(), samples_per_L: int = 200, progress: bool = True,
-             device: str = "cpu", far_field: str = "steady") -> FateResult:
+             device: str = "cpu", far_field: str = "steady", frame: str = "front") -> FateResult:
     """Seed ``pulse`` + ε × ``eigen`` (its unstable mode) under the uniform τ_d and run until its
     fate or ``distance`` pulse lengths (``verify.verify_pulse``, adaptive Δt, SOE history).
     ``far_field``: "steady", the images of the steady pulse removed (and its tail beyond the
     window added), a static field in the frame of the front (``seeding.seed_pulse``); "none", the
-    periodic train of the pulse and its images under τ_d."""
+    periodic train of the pulse and its images under τ_d. ``frame``: "front" (default), ε is
+    the mode's largest change of ln(v/v*+1) in the frame of the front, the front's displacement
+    carried exactly (``perturbation="mode_front"``); "lab", at fixed ξ (``"mode"``), where the
+    mode's front displacement takes ε, leaving the pulse body ε × 5e-3 at 1.1 τ_min
+    (docs/stability.md §10.2): too little over the seed's own error there."""
+    if frame not in ("front", "lab"):
+        raise ValueError(f"frame={frame!r} must be 'front' or 'lab'")
     from .verify import verify_pulse
     from ..dynamics.stepper import TimeStepRule
 
@@ -102,7 +108,8 @@ def run_fate(pulse, params, eigen, eps: float, spec, distance: float,
     n = max(2, int(math.ceil(samples_per_L * distance)))
     res = verify_pulse(pulse, params, distance, spec, rule=TimeStepRule(kind="adaptive"),
                        far_field=far_field, n_samples=n, progress=progress, eigen=eigen,
-                       perturbation=("mode", float(eps)), stop_check=stop,
+                       perturbation=("mode_front" if frame == "front" else "mode", float(eps)),
+                       stop_check=stop,
                        lost_factor=rule.lost, device=device)
     fate = fate_of(res.info["status"])
     decided = fate not in ("undecided",) and not fate.startswith("failed")
@@ -175,3 +182,16 @@ def domain_difference(a: dict, b: dict, upto: float = 1.0) -> dict:
     ta, tb = float(a.get("t_fate", np.nan)), float(b.get("t_fate", np.nan))
     return {"dL": float(dL), "dc": float(dc), "t_end": float(t_end),
             "dt_fate": (tb / ta - 1.0) if np.isfinite(ta) and np.isfinite(tb) else float("nan")}
+
+
+def time_law(eps, t_fate):
+    """t_fate = a + b ln|ε| by least squares (≥ 3 runs): (a, b, b's standard error). A linear
+    instability of rate s followed by an ε-independent nonlinear stage gives b = −1/s."""
+    x, y = np.log(np.abs(np.asarray(eps, float))), np.asarray(t_fate, float)
+    if x.size < 3:
+        raise ValueError(f"a time law needs at least 3 runs; got {x.size}")
+    A = np.column_stack([np.ones_like(x), x])
+    coef, res, *_ = np.linalg.lstsq(A, y, rcond=None)
+    r = y - A @ coef
+    cov = np.linalg.inv(A.T @ A) * (r @ r) / max(x.size - 2, 1)
+    return float(coef[0]), float(coef[1]), float(np.sqrt(cov[1, 1]))
