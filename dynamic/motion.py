@@ -16,31 +16,35 @@ ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("figure")
 ap.add_argument("--family", nargs="+", required=True)
 ap.add_argument("--runs", nargs="+", required=True)
-ap.add_argument("--skip", type=int, default=1, help="samples before the model starts (1)")
+ap.add_argument("--start", type=float, default=0.01,
+                help="start the model where L first departs from L* by this (0.01)")
 ap.add_argument("--law", nargs="+", default=(),
                 help="runs of one pulse at several eps: fit t_fate = a + b ln|eps| (b vs -1/s)")
 a = ap.parse_args()
 line = SteadyLine.from_family(a.family)
 cmps = {}
-print("| tau_d/tau_min | eps | domain (ahead+behind L) | SBI fate | after (L0) | L range (m) | "
-      "c_p/c_s range | model fate | 5 % split after (L0) | median abs(c_p/c_p0(L) - 1) |")
-print("|---|---|---|---|---|---|---|---|---|---|")
+print("| tau_d/tau_min | eps | seed | domain (L) | far field | SBI fate | after (L0) | L range (m) | "
+      "c_p/c_s range | model from (L0) | model fate | 5 % split after (L0) | "
+      "median abs(c_p/c_p0(L) - 1) |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for p in a.runs:
     r = read_fate(p)
     try:
-        c = compare(line, float(r["tau_d_ratio"]), r["t"], r["x_front"], r["L"], skip=a.skip)
+        c = compare(line, float(r["tau_d_ratio"]), r["t"], r["x_front"], r["L"], start=a.start)
     except ValueError as exc:
-        print(f"| {r['tau_d_ratio']:.4g} | {r['eps']:+.0e} | – | {r['fate']} | – | – | – | "
-              f"model not run: {exc} | – | – |")
+        print(f"| {r['tau_d_ratio']:.4g} | {r['eps']:+.0e} | {r['perturbation']} | "
+              f"{r['ahead']:g}+{r['behind']:g} | {r['far_field']} | {r['fate']} | "
+              f"{r.get('distance_fate', math.nan):.3g} | – | – | – | model not run: {exc} | – | – |")
         continue
-    lab = f"{r['tau_d_ratio']:.2f} eps={r['eps']:+.0e} ({r['ahead']:g}+{r['behind']:g} L)"
+    lab = (f"{r['tau_d_ratio']:.2f} eps={r['eps']:+.0e} {r['perturbation']} "
+           f"({r['ahead']:g}+{r['behind']:g} L, {r['far_field']})")
     cmps[lab] = c
     cp = c.c_p[np.isfinite(c.c_p)]
     d = c.line_distance[np.isfinite(c.line_distance)]
-    print(f"| {r['tau_d_ratio']:.4g} | {r['eps']:+.0e} | {r['ahead']:g}+{r['behind']:g} | "
-          f"{r['fate']} | {r.get('distance_fate', math.nan):.3g} | {np.nanmin(c.L):.4g}–"
+    print(f"| {r['tau_d_ratio']:.4g} | {r['eps']:+.0e} | {r['perturbation']} | "
+          f"{r['ahead']:g}+{r['behind']:g} | {r['far_field']} | {r['fate']} | {r.get('distance_fate', math.nan):.3g} | {np.nanmin(c.L):.4g}–"
           f"{np.nanmax(c.L):.4g} | {cp.min() / line.c_s:.3g}–{cp.max() / line.c_s:.3g} | "
-          f"{c.model.fate} | {c.distance_split:.3g} | "
+          f"{c.x[c.skip] / c.L[0]:.3g} | {c.model.fate} | {c.distance_split:.3g} | "
           f"{np.median(np.abs(d)) if d.size else math.nan:.3g} |")
 if a.law:
     rs = [read_fate(p) for p in a.law]

@@ -25,6 +25,7 @@ def motion_figure(path: str, line, comparisons: dict, title: str = "") -> None:
         m = cmp_.model
         a.plot(cmp_.L, cmp_.c_p / cs, "-", color=col, lw=1.2, label=f"SBI {lab}")
         a.plot(m.L, m.c_p / cs, "--", color=col, lw=1.2)
+        a.plot(cmp_.L[cmp_.skip], cmp_.c_p[cmp_.skip] / cs, "o", color=col, ms=4)
         d = cmp_.x / cmp_.L[0]
         b.plot(d, cmp_.L, "-", color=col, lw=1.2, label=f"SBI {lab}")
         b.plot(d, m.L, "--", color=col, lw=1.2)
@@ -41,8 +42,8 @@ def motion_figure(path: str, line, comparisons: dict, title: str = "") -> None:
     b.set_xlabel("distance travelled / L(0)")
     b.set_ylabel("L (m)")
     b.set_yscale("log")
-    b.set_title("L against distance; x: first 5 % difference; band: s ± s_err, interpolation",
-                fontsize=8)
+    b.set_title("L against distance (model from the dot: L 1 % from L*); x: first 5 % "
+                "difference; band: s ± s_err, interpolation", fontsize=7)
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()

@@ -294,6 +294,7 @@ class Comparison:
     distance_split: float         # L0 travelled by then (nan: never)
     line_distance: np.ndarray     # c_p/c_p⁰(L) − 1 of the measurement (nan off the family)
     tol: float
+    skip: int                     # the sample the model starts from
 
 
 def smoothed_speed(t, x, k: int = 5):
@@ -308,13 +309,23 @@ def smoothed_speed(t, x, k: int = 5):
 
 
 def compare(line: SteadyLine, tau_d_ratio: float, t, x_front, L, tol: float = 0.05,
-            skip: int = 1) -> Comparison:
-    """The model from the measured L at sample ``skip`` (the first samples of an SBI run carry the
-    seed's start-up), on the measured times; the first time at which |L_model/L − 1| or
-    |c_p,model/c_p − 1| exceeds ``tol``, and how far the measured pulse had travelled by then (in
-    its first length)."""
+            skip: int | None = None, start: float = 0.01) -> Comparison:
+    """The model from the measured L at sample ``skip``, on the measured times; the first time
+    after it at which |L_model/L − 1| or |c_p,model/c_p − 1| exceeds ``tol``, and how far the
+    measured pulse had travelled by then (in its first length).
+
+    Default ``skip``: the first sample whose L departs from the steady L* at τ_d by ``start``
+    (relative). A seeded pulse starts ε·(mode) away from L*, a departure of 1e-4 L* or less, which
+    the FWHM on the SBI grid does not resolve: started there, the model follows the sign of the
+    grid's error. ValueError if L never departs by ``start``."""
     t, x_front, L = (np.asarray(a, float) for a in (t, x_front, L))
     cp = smoothed_speed(t, x_front)
+    if skip is None:
+        L_eq = line.equilibrium(tau_d_ratio)
+        far = np.flatnonzero(np.abs(L / L_eq - 1.0) >= start)
+        if far.size == 0:
+            raise ValueError(f"L never departs from L* = {L_eq:.5g} m by {start:g}")
+        skip = int(far[0])
     t0 = t[skip]
     tr = integrate(line, tau_d_ratio, float(L[skip]), float(t[-1] - t0), n_out=400)
     tm = tr.t + t0
@@ -339,4 +350,4 @@ def compare(line: SteadyLine, tau_d_ratio: float, t, x_front, L, tol: float = 0.
                        np.interp(t, tm, tr.c_p_hi, left=np.nan, right=np.nan),
                        np.interp(t, tm, tr.x, left=np.nan, right=np.nan), tr.fate,
                        tr.t_fate + t0 if np.isfinite(tr.t_fate) else tr.t_fate, tr.info)
-    return Comparison(t, L, cp, x_front - x_front[0], model, t_split, d_split, dist, tol)
+    return Comparison(t, L, cp, x_front - x_front[0], model, t_split, d_split, dist, tol, skip)
