@@ -24,7 +24,7 @@ a = ap.parse_args()
 line = SteadyLine.from_family(a.family)
 cmps = {}
 print("| tau_d/tau_min | eps | seed | domain (L) | far field | SBI fate | after (L0) | L range (m) | "
-      "c_p/c_s range | model from (L0) | model fate | 5 % split after (L0) | "
+      "c_p/c_s range | model from (L0) | model fate | 5 % split after (L0): L, c_p | "
       "median abs(c_p/c_p0(L) - 1) |")
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for p in a.runs:
@@ -44,7 +44,8 @@ for p in a.runs:
     print(f"| {r['tau_d_ratio']:.4g} | {r['eps']:+.0e} | {r['perturbation']} | "
           f"{r['ahead']:g}+{r['behind']:g} | {r['far_field']} | {r['fate']} | {r.get('distance_fate', math.nan):.3g} | {np.nanmin(c.L):.4g}–"
           f"{np.nanmax(c.L):.4g} | {cp.min() / line.c_s:.3g}–{cp.max() / line.c_s:.3g} | "
-          f"{c.x[c.skip] / c.L[0]:.3g} | {c.model.fate} | {c.distance_split:.3g} | "
+          f"{c.x[c.skip] / c.L[0]:.3g} | {c.model.fate} | {c.distance_split_L:.3g}, "
+          f"{c.distance_split_c:.3g} | "
           f"{np.median(np.abs(d)) if d.size else math.nan:.3g} |")
 if a.law:
     rs = [read_fate(p) for p in a.law]

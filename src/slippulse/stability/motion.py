@@ -295,6 +295,8 @@ class Comparison:
     line_distance: np.ndarray     # c_p/c_p⁰(L) − 1 of the measurement (nan off the family)
     tol: float
     skip: int                     # the sample the model starts from
+    distance_split_L: float = float("nan")   # L0 travelled when L alone first differs by tol
+    distance_split_c: float = float("nan")   # ... c_p alone
 
 
 def smoothed_speed(t, x, k: int = 5):
@@ -331,14 +333,18 @@ def compare(line: SteadyLine, tau_d_ratio: float, t, x_front, L, tol: float = 0.
     tm = tr.t + t0
     Lm = np.interp(t, tm, tr.L, left=np.nan, right=np.nan)
     cm = np.interp(t, tm, tr.c_p, left=np.nan, right=np.nan)
+    gone = (t > t0) & ~np.isfinite(Lm) & np.isfinite(L)   # the model left the family, not the pulse
     with np.errstate(invalid="ignore"):
-        bad = (np.abs(Lm / L - 1) > tol) | (np.abs(cm / cp - 1) > tol)
-    bad[:skip] = False
-    # where the model has left the family but the measurement goes on, they differ too
-    bad |= (t > t0) & ~np.isfinite(Lm) & np.isfinite(L)
-    k = np.flatnonzero(bad)
-    t_split = float(t[k[0]]) if k.size else float("nan")
-    d_split = float((x_front[k[0]] - x_front[0]) / L[0]) if k.size else float("nan")
+        bad_L = (np.abs(Lm / L - 1) > tol) | gone
+        bad_c = (np.abs(cm / cp - 1) > tol) | gone
+    bad_L[:skip] = bad_c[:skip] = False
+
+    def first(bad):
+        k = np.flatnonzero(bad)
+        return (float(t[k[0]]), float((x_front[k[0]] - x_front[0]) / L[0])) if k.size else \
+            (float("nan"), float("nan"))
+    t_split, d_split = first(bad_L | bad_c)
+    d_L, d_c = first(bad_L)[1], first(bad_c)[1]
     lo, hi = line.L_range
     fns = line.functions()
     on = (L >= lo) & (L <= hi)
@@ -350,4 +356,5 @@ def compare(line: SteadyLine, tau_d_ratio: float, t, x_front, L, tol: float = 0.
                        np.interp(t, tm, tr.c_p_hi, left=np.nan, right=np.nan),
                        np.interp(t, tm, tr.x, left=np.nan, right=np.nan), tr.fate,
                        tr.t_fate + t0 if np.isfinite(tr.t_fate) else tr.t_fate, tr.info)
-    return Comparison(t, L, cp, x_front - x_front[0], model, t_split, d_split, dist, tol, skip)
+    return Comparison(t, L, cp, x_front - x_front[0], model, t_split, d_split, dist, tol, skip,
+                      d_L, d_c)
