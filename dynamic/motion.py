@@ -55,6 +55,6 @@ if a.law:
           f"{rs[0]['tau_d_ratio']:.4g} tau_min, eps = {', '.join(format(r['eps'], '+.0e') for r in rs)}: "
           f"t = {A:.4g} + ({B:.4g} ± {E:.1g}) ln|eps| s; -1/s = {-1 / s:.4g} s "
           f"(b s = {-B * s:.3f})")
-motion_figure(a.figure, line, cmps, title="fate runs (SBI, uniform load) and the equation of "
-                                          "motion from the same L")
+motion_figure(a.figure, line, cmps, title="fate runs (SBI, load tau_d at infinity) and the "
+                                          "equation of motion from the same L")
 print(f"figure {a.figure}")

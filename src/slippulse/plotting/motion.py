@@ -42,8 +42,9 @@ def motion_figure(path: str, line, comparisons: dict, title: str = "") -> None:
     b.set_xlabel("distance travelled / L(0)")
     b.set_ylabel("L (m)")
     b.set_yscale("log")
-    b.set_title("L against distance (model from the dot: L 1 % from L*); x: first 5 % "
-                "difference; band: s ± s_err, interpolation", fontsize=7)
+    b.set_title("L against distance; model (dashed) from the dot (L 1 % from L*),\n"
+                "band s ± s_err and interpolation; x: first 5 % difference in L or c_p",
+                fontsize=8)
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
