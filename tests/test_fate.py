@@ -54,7 +54,6 @@ def test_command_refuses_a_pulse_without_a_stored_mode(tmp_path, pulse12, params
     assert not out.exists()
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("eps, fates", [(1e-2, ("crack-like", "grew x3", "outgrew the domain")), (-1e-2, ("arrested",))])
 def test_the_two_signs_of_the_mode_go_to_opposite_fates(tmp_path, steady12_with_spectrum, eps,
                                                         fates):
