@@ -109,6 +109,8 @@ def register(subparsers) -> None:
             raise
     else:
         cli_scan.register(sub)
+    from . import fate as cli_fate         # ``dynamic fate`` (cli/fate.py)
+    cli_fate.register(sub)
 
 
 def _mode_args(p) -> None:

@@ -824,3 +824,6 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_analyse)
     from .branches import register_steady
     register_steady(ss)
+
+    from . import motion as cli_motion             # ``steady motion`` (cli/motion.py)
+    cli_motion.register(ss)

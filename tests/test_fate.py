@@ -1,0 +1,79 @@
+"""Fate runs of eigenmode-seeded pulses under the uniform load (timedomain.fate,
+``slippulse dynamic fate``; docs/motion.md)."""
+import numpy as np
+import pytest
+
+from cli_inproc import run as cli
+from slippulse.timedomain.fate import FateRule, fate_of
+
+
+def _rows(L, vmax, X=None, t=None):
+    n = len(L)
+    t = np.arange(n, dtype=float) if t is None else t
+    X = np.zeros(n) if X is None else X
+    return [(t[i], X[i], L[i], vmax[i], 0.0, 0.0) for i in range(n)]
+
+
+def test_the_rule_names_each_fate_at_its_threshold():
+    r = FateRule()
+    assert r.check(_rows([1, 1], [1.0, 0.11]), 1.0, 1.0, 10.0) is None
+    assert r.check(_rows([1, 1], [1.0, 0.09]), 1.0, 1.0, 10.0) == "arrested"
+    assert r.check(_rows([1, 2.9], [1, 1]), 1.0, 1.0, 10.0) is None
+    assert r.check(_rows([1, 3.1], [1, 1]), 1.0, 1.0, 10.0) == "grew x3"
+    X = 9.95 * np.arange(8.0)                      # c_p = 9.95 > 0.99 c_s
+    assert r.check(_rows([1] * 8, [1] * 8, X=X), 1.0, 1.0, 10.0) == "near c_s"
+    assert r.check(_rows([1] * 8, [1] * 8, X=9.85 * np.arange(8.0)), 1.0, 1.0, 10.0) is None
+
+
+def test_the_status_of_a_run_names_its_fate():
+    assert fate_of("stopped: grew x3") == "grew x3"
+    assert fate_of("stopped: arrested") == "arrested"
+    assert fate_of("pulse lost: grew: the FWHM ... at t = 1 s") == "crack-like"
+    assert fate_of("pulse lost: arrested: max V < v_max0/1000 at t = 1 s") == "arrested"
+    assert fate_of("pulse lost: grew: ln(v/v*+1) does not fall below half its maximum on both "
+                   "sides: domain too short to measure the FWHM at t = 1 s") == "outgrew the domain"
+    assert fate_of("finished") == "undecided"
+    assert fate_of("failed: overflow").startswith("failed")
+
+
+def test_command_refuses_eps_beyond_the_linear_bound(tmp_path, steady12_with_spectrum):
+    out = tmp_path / "f.h5"
+    r = cli(["dynamic", "fate", "--steady", steady12_with_spectrum, "--eps", "0.05",
+             "--out", out, "--no-progress"])
+    assert r.returncode == 2 and "eps" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_command_refuses_a_pulse_without_a_stored_mode(tmp_path, pulse12, params):
+    from slippulse.core.h5io import write_pulse
+    src = str(tmp_path / "bare.h5")
+    write_pulse(src, pulse12.to_pulse(), params)
+    out = tmp_path / "f.h5"
+    r = cli(["dynamic", "fate", "--steady", src, "--eps", "0.01", "--out", out, "--no-progress"])
+    assert r.returncode == 2 and "spectrum" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("eps, fates", [(1e-2, ("crack-like", "grew x3", "outgrew the domain")), (-1e-2, ("arrested",))])
+def test_the_two_signs_of_the_mode_go_to_opposite_fates(tmp_path, steady12_with_spectrum, eps,
+                                                        fates):
+    """1.2 tau_min on a coarse grid, the steady pulse's images removed: +eps runs away, -eps
+    arrests, within two pulse lengths (with the images left in, both arrest on this domain)."""
+    import h5py
+    out = tmp_path / "f.h5"
+    r = cli(["dynamic", "fate", "--steady", steady12_with_spectrum, "--eps", eps, "--dx", "8e-3",
+             "--ahead", "2", "--behind", "3", "--distance", "2", "--samples-per-L", "100",
+             "--far-field", "steady",
+             "--out", out, "--no-progress"])
+    assert r.returncode == 0, r.stderr
+    with h5py.File(out) as h5:
+        assert h5.attrs["fate"] in fates
+        assert 0 < h5.attrs["distance_fate"] < 2
+        assert h5.attrs["far_field"] == "steady"
+
+
+def test_time_law_recovers_minus_one_over_s():
+    from slippulse.timedomain.fate import time_law
+    eps = np.array([1e-2, 3e-3, 1e-3, 3e-4])
+    a, b, e = time_law(eps, 0.01 - np.log(eps) / 400.0)
+    assert b == pytest.approx(-1 / 400.0, rel=1e-10) and e < 1e-12

@@ -1,0 +1,212 @@
+"""The one-degree-of-freedom equation of motion along the steady line (timedomain.motion,
+``slippulse steady motion``; docs/motion.md).
+
+The references are independent of the model's formula: a synthetic family whose dynamics is
+dL/dt = γ(L)(τ_d − τ⁰(L)) by construction, integrated directly from that law, and the linear
+solution e^{st} about the family's own pulses."""
+import math
+
+import h5py
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from cli_inproc import run as cli
+from slippulse.core.h5io import Pulse, pulse_label, write_pulse
+from slippulse.core.params import DEFAULT
+from slippulse.timedomain.motion import MotionInputError, SteadyLine, integrate
+
+C_S = 2739.0
+
+
+def tau0(L):                      # a steady line falling with L, as the family's does
+    return 1.02 + 0.18 / L ** 0.8
+
+
+def dtau0(L):
+    return -0.8 * 0.18 / L ** 1.8
+
+
+def c0(L):
+    return C_S * (1.0 - np.exp(-L / 6.0))
+
+
+def gamma(L):                     # dL/dt = gamma (tau_d - tau0): a longer pulse grows
+    return 400.0 * c0(L) / L
+
+
+def exact_rate(L, tau_d):
+    return gamma(L) * (tau_d - tau0(L))
+
+
+def synthetic_line(n, s_err_rel=0.0, lo=1.0, hi=15.0):
+    """The family sampled at n pulses (geometric in L); s = ∂_L F on the line = −γ τ⁰′."""
+    L = np.geomspace(lo, hi, n)
+    s = -gamma(L) * dtau0(L)
+    return SteadyLine.from_arrays(L, tau0(L), c0(L), L, s, s_err_rel * s, tau_min=3.4e5,
+                                  c_s=C_S, source="synthetic")
+
+
+def exact_trajectory(tau_d, L0, t):
+    sol = solve_ivp(lambda _, y: [exact_rate(y[0], tau_d)], (0, t[-1]), [L0], t_eval=t,
+                    method="DOP853", rtol=1e-13, atol=1e-14)
+    return sol.y[0]
+
+
+@pytest.mark.parametrize("L_star, L0", [(4.0, 3.0), (4.0, 5.5), (2.0, 2.05)])
+def test_exact_for_a_family_whose_dynamics_is_one_dimensional(L_star, L0):
+    """The model is exact when the true dynamics is linear in τ_d at fixed L: only the
+    interpolation of the family is left, and it converges with the number of pulses."""
+    tau_d = float(tau0(L_star))
+    dur = 10.0 / float(-gamma(L_star) * dtau0(L_star))
+    errs = []
+    for n in (15, 30, 60):
+        line = synthetic_line(n)
+        tr = integrate(line, tau_d, L0, duration=dur, n_out=400)
+        ok = np.isfinite(tr.L)
+        assert ok.sum() > 20
+        ref = exact_trajectory(tau_d, L0, tr.t[ok])
+        errs.append(np.max(np.abs(tr.L[ok] / ref[:ok.sum()] - 1.0)))
+        cref = c0(ref[:ok.sum()])
+        assert np.max(np.abs(tr.c_p[ok] / cref - 1.0)) < 20 * errs[-1] + 1e-9
+    assert errs[-1] < 1e-5, errs
+    assert errs[0] > 2 * errs[-1], errs          # the interpolation error falls with n
+
+
+def test_exact_model_leaves_the_family_where_the_true_dynamics_does():
+    tau_d = float(tau0(4.0))
+    line = synthetic_line(40)
+    tr = integrate(line, tau_d, 5.0, duration=0.1)
+    assert tr.fate == "left the family (long end)"
+    sol = solve_ivp(lambda _, y: [exact_rate(y[0], tau_d)], (0, 0.1), [5.0], rtol=1e-12,
+                    atol=1e-14, events=lambda _, y: y[0] - 15.0)
+    assert tr.t_fate == pytest.approx(sol.t_events[0][0], rel=1e-4)
+    tr = integrate(line, tau_d, 3.0, duration=0.1)
+    assert tr.fate == "left the family (short end)"
+
+
+@pytest.mark.parametrize("i", [3, 10, 20])
+@pytest.mark.parametrize("sign", [1, -1])
+def test_small_departures_at_the_family_pulses_grow_as_exp_st(i, sign):
+    """L − L* = δ e^{s t} for δ ≪ L* at the family's own pulses (τ_d = τ⁰(L_i), s = s_i)."""
+    line = synthetic_line(25)
+    Li, si, taui = line.L[i], line.s[i], line.tau_ratio[i]
+    d = sign * 1e-7 * Li
+    tr = integrate(line, taui, Li + d, duration=4.0 / si, n_out=100)
+    ratio = (tr.L - Li) / d
+    assert np.allclose(ratio, np.exp(si * tr.t), rtol=2e-4)
+
+
+def test_the_band_holds_the_trajectory_and_grows_with_s_err():
+    tau_d = float(tau0(4.0))
+    dur = 2.0 / float(-gamma(4.0) * dtau0(4.0))
+    t0 = integrate(synthetic_line(20), tau_d, 4.3, duration=dur)
+    t1 = integrate(synthetic_line(20, s_err_rel=0.05), tau_d, 4.3, duration=dur)
+    ok = np.isfinite(t1.L)
+    assert ok.sum() > 100
+    assert np.all(t1.L_lo[ok] <= t1.L[ok]) and np.all(t1.L[ok] <= t1.L_hi[ok])
+    w0, w1 = t0.L_hi[-1] - t0.L_lo[-1], t1.L_hi[-1] - t1.L_lo[-1]
+    assert w1 > 10 * w0
+    # s·(1 ± r) everywhere is time rescaled by 1 ± r: the band's edge is the trajectory at t(1 + r)
+    hi = integrate(synthetic_line(20), tau_d, 4.3, duration=dur * 1.05)
+    assert t1.L_hi[-1] == pytest.approx(max(hi.L[-1], hi.L_hi[-1]), rel=1e-6)
+
+
+def test_refuses_what_it_cannot_model():
+    line = synthetic_line(20)
+    with pytest.raises(MotionInputError, match="tau-d"):
+        integrate(line, 1.5, 4.0, 1.0)
+    with pytest.raises(MotionInputError, match="length"):
+        integrate(line, float(tau0(4.0)), 20.0, 1.0)
+    L = np.geomspace(1, 15, 10)
+    with pytest.raises(MotionInputError, match="growth rate"):
+        SteadyLine.from_arrays(L, tau0(L), c0(L), L[:2], [1.0, 1.0], [0.0, 0.0])
+
+
+# ------------------------------------------------------------------ the command
+def _record(ratio, L):
+    """A valid pulse record (the validating reader's checks) on the synthetic steady line:
+    the line's L and c_p, a box of slip rate L long; not a solution of the steady equation."""
+    P = DEFAULT
+    xi = np.linspace(-3.0 * L, L, 200)
+    v_st = 1e-7
+    v = np.where((xi > -L) & (xi < 0.0), 1e-3, v_st)
+    tau = np.full_like(xi, ratio * P.tau_min)
+    return Pulse(xi=xi, v=v, phi=np.full_like(xi, 1e-3), tau=tau, residual=np.zeros_like(xi),
+                 tau_d_ratio=ratio, tau_d=ratio * P.tau_min, tau_min=P.tau_min,
+                 beta=c0(L) / P.c_s, c_p=c0(L), L=L, L_tilde=L / P.L_Gc, v_stick=v_st,
+                 v_max=1e-3, max_residual=0.0, converged=True, n_points=xi.size, wall_time=0.0)
+
+
+def _family_file(path, n=12, rated=True):
+    L = np.geomspace(1.0, 15.0, n)
+    s = -gamma(L) * dtau0(L)
+    for Li in L:
+        write_pulse(str(path), _record(float(tau0(Li)), Li), DEFAULT)
+    with h5py.File(path, "a") as h5:
+        for Li, si in zip(L, s):
+            g = h5["pulses"][pulse_label(float(tau0(Li)))]
+            if rated:
+                sp = g.create_group("spectrum")
+                sp.attrs.update({"status": "converged", "s": si, "s_err": 1e-3 * si,
+                                 "s_per_L": si * Li / c0(Li), "s_err_per_L": 1e-3 * si * Li / c0(Li),
+                                 "sign_resolved": 1})
+    return path
+
+
+def test_command_writes_an_xarray_trajectory(tmp_path):
+    xr = pytest.importorskip("xarray")
+    fam = _family_file(tmp_path / "fam.h5")
+    out = tmp_path / "m.h5"
+    r = cli(["steady", "motion", fam, "--tau-d", f"{tau0(4.0):.10f}", "--length", "3.9",
+             "--duration", "0.05", "--out", out])
+    assert r.returncode == 0, r.stderr
+    assert "left the family (short end)" in r.stdout
+    ds = xr.open_dataset(out, engine="h5netcdf")
+    assert ds["L"].attrs["units"] == "m" and ds["t"].attrs["units"] == "s"
+    assert ds.attrs["tau_d_ratio"] == pytest.approx(tau0(4.0))
+    assert ds["L"].values[0] == pytest.approx(3.9)
+    assert np.nanmax(ds["L"].values) <= 3.9 + 1e-12          # it shrinks
+    assert np.all(ds["L_lo"].values[np.isfinite(ds["L"].values)] <= ds["L"].values[
+        np.isfinite(ds["L"].values)])
+
+
+@pytest.mark.parametrize("args, word", [
+    (["--tau-d", "1.5", "--length", "4"], "tau-d"),
+    (["--tau-d", "1.05", "--length", "40"], "length"),
+    (["--tau-d", "nan", "--length", "4"], "tau-d"),
+    (["--tau-d", "1.05", "--length", "4", "--duration", "-1"], "duration"),
+])
+def test_command_refuses_bad_input_with_one_line_and_no_file(tmp_path, args, word):
+    fam = _family_file(tmp_path / "fam.h5")
+    out = tmp_path / "m.h5"
+    r = cli(["steady", "motion", fam, *args, "--out", out])
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and word in lines[0], r.stderr
+    assert not out.exists()
+
+
+def test_command_refuses_a_family_without_a_spectrum(tmp_path):
+    fam = _family_file(tmp_path / "fam.h5", rated=False)
+    out = tmp_path / "m.h5"
+    r = cli(["steady", "motion", fam, "--tau-d", "1.05", "--length", "4", "--out", out])
+    assert r.returncode == 2 and "spectrum" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_compare_finds_no_split_for_the_exact_dynamics_and_one_for_a_pulse_off_the_line():
+    from slippulse.timedomain.motion import compare
+    line = synthetic_line(60)
+    tau_d = float(tau0(4.0))
+    dur = 3.0 / float(-gamma(4.0) * dtau0(4.0))
+    t = np.linspace(0, dur, 301)
+    L = exact_trajectory(tau_d, 4.4, t)
+    cp = c0(L)
+    x = np.r_[0.0, np.cumsum(0.5 * (cp[1:] + cp[:-1]) * np.diff(t))]
+    c = compare(line, tau_d, t, x, L, skip=0)
+    assert math.isnan(c.t_split)
+    assert np.nanmax(np.abs(c.line_distance[2:-2])) < 1e-3
+    # the same lengths at a speed 10 % above the line: they split at once
+    c = compare(line, tau_d, t, 1.1 * x, L, skip=0)
+    assert c.t_split == t[0] and np.nanmedian(c.line_distance) == pytest.approx(0.1, abs=2e-3)
