@@ -1,4 +1,4 @@
-"""Speed–accuracy and failure map of the seeded-pulse verification (docs/dynamic.md §9–10).
+"""Speed–accuracy and failure map of the seeded-pulse verification (docs/dynamic.md §3–4).
 
 Usage (from the repository root; needs the steady family runs/family_stab.h5, which
 ``python dynamic/stability.py family`` computes in ~1 min)::

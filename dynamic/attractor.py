@@ -1,4 +1,4 @@
-"""The attractor claim mode by mode (docs/stability.md §10.4).
+"""The attractor claim mode by mode (docs/stability.md §4).
 
     python dynamic/attractor.py overlap FAMILY.h5 [--csv OUT.csv] [--figure PNG] [--sbi SCAN_DIR ...]
     python dynamic/attractor.py pairs SCAN_DIR ...
@@ -8,7 +8,7 @@ stability FAMILY.h5``), the overlap of the unstable eigenmode with the family ta
 both in the frame of the front (``eigenmode.pulse_overlap``), and the mode's direction in the
 (ln L, ln c_p) plane against the steady line's: the predicted departure fraction
 f = 1 − (d ln c/d ln L)_line / (d ln c/d ln L)_mode (0: along the line). The figure draws both
-against τ_d with the measured departures of the SBI (§6 and the mode-seeded pairs given by --sbi).
+against τ_d with the measured departures of the SBI (docs/results.md §3 and the mode-seeded pairs given by --sbi).
 
 ``pairs``: for each eigenmode-seeded ±ε pair of a scan directory, the growth rate against the
 eigenvalue and the measured front displacement and length change per unit v_max change against
@@ -29,7 +29,7 @@ from slippulse.core.h5io import read_pulse
 from slippulse.timedomain.eigenmode import family_overlaps, front_response, leading_mode
 from slippulse.timedomain.perturbation import read_series
 
-#: docs/stability.md §6 (generic ±ε pairs, the whole trajectory to the fate): median of
+#: docs/results.md §3 (generic ±ε pairs, the whole trajectory to the fate): median of
 #: |c_p/c_p⁰(L) − 1| of the + and − runs.
 SECTION6 = {1.2: (0.069, 0.28), 1.1: (0.03, 0.021), 1.05: (0.00036, 0.0016)}
 
@@ -149,7 +149,7 @@ def cmd_overlap(path, csv_out=None, figure=None, sbi_dirs=(), local_h=None, labe
             ax[1].plot(sq, sf, "k*", ms=11, label="SBI, eigenmode-seeded ±ε pairs")
         for qq, (mp, mm) in SECTION6.items():
             ax[1].plot([qq, qq], [mp, mm], "rv", ms=6,
-                       label="SBI §6: median |c_p/c_p⁰(L) − 1| (±ε runs)"
+                       label="SBI ±ε runs: median |c_p/c_p⁰(L) − 1| (±ε runs)"
                        if qq == 1.2 else None)
         ax[1].axhline(0, color="0.6", lw=0.6)
         ax[1].set_xlabel("τ_d/τ_min")

@@ -3,7 +3,7 @@
 #
 #   bash dynamic/gpu_runs.sh BUDGET_S SCAN.toml [WORKERS]     (repository root; CuPy and a GPU)
 #
-# e.g. bash dynamic/gpu_runs.sh 215 dynamic/scans/gpu_check_and_pairs.toml 4 (docs/stability.md §10.8; the
+# e.g. bash dynamic/gpu_runs.sh 215 dynamic/scans/gpu_check_and_pairs.toml 4 (docs/stability.md §2.8; the
 # pulses and spectra of runs/steady/fam2000.h5 as in dynamic/scans/gpu_td1.10.toml). The scan is cut
 # at BUDGET_S seconds; finished cases stay (one file per case). Its directory, the case files
 # without their slip-rate snapshots, goes to $OUT/<scan name>.tar.gz (default OUT: runs/gpu).

@@ -1,4 +1,4 @@
-"""Fate runs against the equation of motion (docs/motion.md §3-4): the table and the (L, c_p)
+"""Fate runs against the equation of motion (docs/motion.md §3, docs/results.md §3): the table and the (L, c_p)
 figure.
 
     python dynamic/motion.py FIGURE.png --family FAMILY.h5 [MORE.h5] --runs FATE.h5 [...]

@@ -4,7 +4,7 @@
         [--stretch] [--check] [--max-points M] [--max-length LMAX] [--resolve N]
 
 The product command does the same into the family file, every pulse checked:
-``slippulse steady family --from 1.2 --to 1.009`` (docs/steady.md §8). This script is the study
+``slippulse steady family --from 1.2 --to 1.009`` (docs/steady.md §3). This script is the study
 variant: it starts from pulse LABEL of a family file on its grid (or from LABEL re-solved at its
 τ_d on N adapted points, ``--resolve N``; or resumes from the last OUTDIR/arc_*.npz) and takes up
 to K steps of :class:`slippulse.steady.continuation.DeepMarch` (``--stretch``: the grid deformed
@@ -52,7 +52,7 @@ def load_pulse(source, label=None):
     y = np.log(pu.v)
     k, _ = front_pin(pu.xi, y, math.log(P.v_stick(pu.tau_d_ratio * P.tau_min)))
     return P, rebuild(P, pu.xi, np.concatenate([y, [pu.beta, pu.tau_d_ratio]]), k, float(y[k]),
-                      # a file without the attribute predates issue 11 (order 2), read as the
+                      # a file without the attribute predates the order-4 state (order 2), read as the
                       # other readers do (core.h5io.state_order_of)
                       state_order_of(pu))
 

@@ -4,7 +4,7 @@ of a family file copied into a small seed file, plus a table of every pulse of t
     python steady/deep_seed.py FAMILY.h5 SEED.h5 [--keep 2] [--table TABLE.csv]
 
 The family command resumes below the deepest converged pulse of its --out file, with the secant
-predictor of the pulse above it (docs/steady.md §8), so a file holding only those two pulses is
+predictor of the pulse above it (docs/steady.md §3), so a file holding only those two pulses is
 enough to go on:
 
     cp SEED.h5 runs/deep.h5

@@ -6,7 +6,7 @@
 
 The logic is :func:`slippulse.steady.existence_map.existence_map`; this writes its HDF5 (xarray),
 the chart (plotting/existence_map.py) and prints a summary line and the per-point log. Default
-grid: 7 x 7 around Table I (b = 0.075, α = 0.005), ≈ 100 solves at N = 500 (docs/parameters.md,
+grid: 7 x 7 around Table I (b = 0.075, α = 0.005), ≈ 100 solves at N = 500 (docs/results.md §1,
 cost in BENCHMARKS.md).
 """
 import argparse

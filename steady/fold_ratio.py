@@ -1,9 +1,9 @@
-"""The growth rates of record against the slope of the family (docs/stability.md §9.5).
+"""The growth rates of record against the slope of the family (docs/results.md §2).
 
     python steady/fold_ratio.py FAMILY.h5 [FAMILY2.h5 ...] [--records docs/results/records.toml]
         [--figure docs/figures/fold_ratio.png] [--from-length 100]
 
-A real eigenvalue of a pulse crosses zero only at a fold of the family in τ_d (§9.5); near one,
+A real eigenvalue of a pulse crosses zero only at a fold of the family in τ_d (docs/spectrum.md §1); near one,
 s L/c_p ≈ R |dτ_d/d ln L|. This driver takes the rates of record (the ``[spectrum."LABEL"]``
 entries of the records file: s L/c_p ± err and L) and the family's slope dτ_d/d ln L at each
 record's L from the converged pulses of the family files (:func:`slippulse.spectrum.law.family_slope`;

@@ -1,4 +1,4 @@
-"""Report of the stability spectrum study (docs/stability.md §9): table, fits, comparison figures.
+"""Report of the stability spectrum study (docs/results.md §2): table, fits, comparison figures.
 
     slippulse steady stability runs/steady/family.h5 --levels 1       # s ± s_err of every pulse
     python steady/spectrum_report.py runs/steady/family.h5              # seconds
@@ -152,7 +152,7 @@ def main(argv=None):
             if logy and sv <= 0:
                 continue
             a.errorbar([xf(t)], [sv], yerr=[e], fmt="o", color="C3", ms=6, capsize=2, mfc="none")
-        a.plot([], [], "o", color="C3", mfc="none", label="SBI ±ε pairs (docs §3; periods 5–18 L)")
+        a.plot([], [], "o", color="C3", mfc="none", label="SBI ±ε pairs (docs/stability.md §3; periods 5–18 L)")
         for r in new:
             a.errorbar([xf(r["tau"])], [r["s"]], yerr=[r["err"]], fmt="D", color="C2", ms=4,
                        capsize=2)
@@ -185,7 +185,7 @@ def main(argv=None):
 
 
 def plot_modes(path, sp, modes, out):
-    """SBI mode shapes (antisymmetric deviation of ln(v/v*+1) per unit v_max deviation, docs §4)
+    """SBI mode shapes (antisymmetric deviation of ln(v/v*+1) per unit v_max deviation, docs/stability.md §2)
     with the eigenmode of the same pulse drawn over them, both scaled to unit maximum modulus."""
     import matplotlib.pyplot as plt
 

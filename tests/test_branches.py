@@ -66,7 +66,7 @@ def test_deflated_newton_finds_all_three_roots_from_one_guess():
 
 def test_search_finds_the_family_pulse_and_the_two_hump_pulse(params):
     """At 1.2 τ_min the quick guesses (the built-in one, a two-pulse state 1.4 m apart) reach the
-    family pulse and the bound state of two pulses (docs/steady.md §6), at N = 500."""
+    family pulse and the bound state of two pulses (docs/steady.md §2), at N = 500."""
     from slippulse.steady.branch_search import GUESS_SETS, search
     rep = search(params, 1.2, GUESS_SETS["quick"](), n_points=500, check=False)
     got = sorted((f.pulse.extra["n_humps"], f.pulse.beta, f.pulse.L) for f in rep.found)

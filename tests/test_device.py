@@ -71,7 +71,7 @@ def test_cupy_without_a_gpu_is_a_one_line_error(pulse12, params):
 @pytest.mark.skipif(cupy_unavailable() is not None, reason=str(cupy_unavailable()))
 def test_cupy_kernels_agree_with_the_host(pulse12, params):
     """CUDA friction solve, state update, SOE sums and cuFFT against the host: the same run to
-    rounding (measured on an H100: see docs/dynamic.md §11)."""
+    rounding (measured on an H100: see docs/dynamic.md §5)."""
     pulse = pulse12.to_pulse()
     host = _run(pulse, params, "cpu")
     dev = _run(pulse, params, "cupy")

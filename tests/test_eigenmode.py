@@ -39,7 +39,7 @@ def test_stored_mode_is_read_and_matches_its_pulse(steady12_with_spectrum, pulse
 
 
 def test_mode_seed_past_balances_friction(steady12_with_spectrum, pulse12, params):
-    """The seed's past grew as e^{σt} (docs/stability.md §10.1): the t = 0 stress of the
+    """The seed's past grew as e^{σt} (docs/stability.md §2): the t = 0 stress of the
     perturbation is the mode's K_σ[δ₁], which balances its linearised friction. With the steady
     (σ = 0) past instead, the same fields are out of balance by ~100× more (measured at N = 2000,
     2 mm: 2.3e-4 ε τ_d against 2.3e-2 ε τ_d)."""
@@ -73,7 +73,7 @@ def test_mode_seed_past_balances_friction(steady12_with_spectrum, pulse12, param
 
 def test_front_frame_seed_moves_the_body_and_carries_the_displacement_exactly(
         steady12_with_spectrum, pulse12, params):
-    """frame="front" (docs/stability.md §10.7): at t = 0 the change of y = ln(v/v*+1) is ε times
+    """frame="front" (docs/stability.md §2): at t = 0 the change of y = ln(v/v*+1) is ε times
     the front-frame field, at most ε, with no displacement spike; the slip of the past (the
     pulse on X(t) = ct + a(e^{σt} − 1), a = ε η, plus the growing body) equals the quadrature of
     ∫_{−∞}^0 ΔV_k(t) dt at low k, which checks the series of exponentials independently."""
@@ -219,7 +219,7 @@ def test_overlap_is_one_when_mode_and_tangent_coincide(pulse12, params):
 def test_seeded_mode_grows_at_its_eigenvalue_at_1p1(params, tmp_path):
     """A ±ε pair seeded along the eigenmode at 1.1 τ_min (ε = 1e−2 in the frame of the front)
     grows at the eigenvalue within 1 % over 0.4 L: the frame-free potency rate, least squares
-    from 0.1 L (docs/stability.md §10.7). Steady pulse N = 2000 (continued from 1.2), its
+    from 0.1 L (docs/stability.md §2). Steady pulse N = 2000 (continued from 1.2), its
     spectrum (the pinned ladder, ± 3e−5 per L), 4 mm SBI grid, 8+8 L domain (measured −0.5 %;
     on 4+4 L the mode's periodic images lower the rate by 1.4 %). ~2 min."""
     from slippulse.timedomain.perturbation import mode_pair_growth, read_series, run_case

@@ -42,7 +42,7 @@ def test_map_table_point_found_both_ways():
 @pytest.mark.slow
 def test_continuation_in_params_reaches_b_0_1():
     """From Table I's pulse to b = 0.1 (where the built-in guess at N = 500 does not converge,
-    docs/parameters.md §3) along the geometric path: found, one hump, β of the map (0.0286)."""
+    docs/guide.md, Other parameters) along the geometric path: found, one hump, β of the map (0.0286)."""
     import dataclasses as dc
 
     from slippulse.steady.param_continuation import continue_in_params, judge

@@ -1,4 +1,4 @@
-"""The three exact similarities of the steady equations (docs/parameters.md, physics.md): a solve
+"""The three exact similarities of the steady equations (docs/steady.md §1, physics.md): a solve
 from the built-in guess with scaled parameters gives the same β, and L scaled as the similarity
 says, to 1e-10 relative. Any length, speed, stress or time tuned to Table I in the guess, the grid,
 the solver or its tolerances breaks this (checked: the guess with L = 0.7 m and ℓ_c = 5 mm fixed

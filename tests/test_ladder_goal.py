@@ -1,5 +1,5 @@
 """The spectrum's ladder climbs to an accuracy goal, and its level 0 is clipped (its
-cost: docs/spectrum.md §5). Newton judges the pair it returns."""
+cost: docs/spectrum.md §4). Newton judges the pair it returns."""
 
 import numpy as np
 import pytest

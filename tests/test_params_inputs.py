@@ -191,7 +191,7 @@ def test_verify_attributes_drift_to_the_pulses_eigenvalue_for_any_params():
 
 @pytest.mark.slow
 def test_homotopy_solves_rock_set(tmp_path, capsys):
-    """steady/rock.toml: the built-in guess does not reach it (docs/parameters.md §4); --homotopy
+    """steady/rock.toml: the built-in guess does not reach it (docs/results.md §1); --homotopy
     does, and the file carries the rock parameters."""
     import os
     rock = os.path.join(os.path.dirname(__file__), os.pardir, "steady", "rock.toml")

@@ -1,6 +1,6 @@
 """Translation pinned: the rank-one change that makes v₀′ an exact null vector of M(0),
 the Newton stop on a converged σ with an unconverged vector, the det-sign bracket of real
-eigenvalues, and the Richardson value of the translation eigenvalue (docs/spectrum.md §5)."""
+eigenvalues, and the Richardson value of the translation eigenvalue (docs/spectrum.md §2)."""
 import math
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Short-time evolution of a seeded steady pulse preserves it (docs/dynamic.md §9).
+"""Short-time evolution of a seeded steady pulse preserves it (docs/dynamic.md §3).
 
 Cheap case: τ_d = 1.05 τ_min (β = 0.47, L = 7.3 m), steady pulse from a coarse family (N = 1000,
 continuation 1.2 → 1.05 in steps of 0.025, ~2 s), SBI grid Δx = 4 mm, 2 L ahead + 2 L behind

@@ -1,4 +1,4 @@
-"""Seeding the SBI with a steady pulse (slippulse.timedomain.seeding, docs/dynamic.md §9): the t = 0 state.
+"""Seeding the SBI with a steady pulse (slippulse.timedomain.seeding, docs/dynamic.md §3): the t = 0 state.
 
 Measured at τ_d = 1.2 τ_min, domain 4 L ahead + 4 L behind (λ = 8.6 L), Δx = 2 mm:
 * far field added (default): max|τ_SBI(0) − τ_steady|/τ_d over ξ − ξ_front ∈ [−2 L, 1 L] is

@@ -313,7 +313,7 @@ def _chain_defect(op, params):
 
 
 def test_translation_growing_in_time_is_a_change_of_speed(op12, params):
-    """M′(0) t = −∂F/∂c (docs/stability.md §9.5): a translation that grows linearly in time is a
+    """M′(0) t = −∂F/∂c (docs/spectrum.md §1): a translation that grows linearly in time is a
     pulse at another speed. Hence σ = 0 is a double eigenvalue (with the chain M(0) g = −M′(0) t)
     exactly where a steady pulse at a neighbouring speed exists at the same τ_d: at a fold of
     the family. The identity holds to the discretisation: 1e-3 at N = 700, falling with N."""
@@ -617,7 +617,7 @@ def test_observed_order_and_translation_at_1p05(default_family_to_1p02):
 @pytest.mark.slow
 def test_pinned_translation_gives_the_same_limit_with_a_smaller_error_at_1p05(
         default_family_to_1p02):
-    """Translation pinned (docs/spectrum.md §5): the ladder 1414/2000/2828 at 1.05 τ_min has
+    """Translation pinned (docs/spectrum.md §2): the ladder 1414/2000/2828 at 1.05 τ_min has
     the limit of the unpinned ladder 2000/2828/4000 within 1e-4 per L, and at equal N (2000) an
     error ten times smaller (measured: 9.3e-5 against 1.5e-3, against the unpinned limit)."""
     from slippulse.core.h5io import read_pulse

@@ -49,7 +49,7 @@ def register(subparsers) -> None:
     add_params_args(r, with_set=False)      # --set params.NAME=VALUE is the config's own --set
     r.set_defaults(func=cmd_run)
     v = sub.add_parser("verify", help="propagate a seeded steady pulse and measure its drift",
-                       description="Seed the SBI with a steady pulse (docs/dynamic.md §9), run it "
+                       description="Seed the SBI with a steady pulse (docs/dynamic.md §3), run it "
                                    "over DISTANCE pulse lengths in a frame that follows it and "
                                    "measure c_p, v_max, L and ln v against the steady solution.")
     v.add_argument("--steady", required=True, metavar="FILE", help="steady family file (HDF5 schema)")
@@ -82,7 +82,7 @@ def register(subparsers) -> None:
     v.set_defaults(func=cmd_verify)
     sd = sub.add_parser("seed", help="seed the SBI with a steady pulse and report the t = 0 mismatch",
                         description="Put a steady pulse on the periodic SBI grid with its steady past "
-                                    "(docs/dynamic.md §9), write the t = 0 state (x, V, phi, delta, "
+                                    "(docs/dynamic.md §3), write the t = 0 state (x, V, phi, delta, "
                                     "tau, tau_steady, tau_load) to HDF5 and print how far the SBI "
                                     "stress is from the steady one.")
     sd.add_argument("--steady", required=True, metavar="FILE", help="steady family file (HDF5 schema)")
@@ -117,9 +117,9 @@ def _mode_args(p) -> None:
     """--perturb/--eps/--mode-file: the eigenmode-seeded start (timedomain/eigenmode.py)."""
     p.add_argument("--perturb", choices=("none", "mode", "mode_front"), default="none",
                    help="'mode': add eps x the pulse's unstable eigenmode, with a past that grew "
-                        "as exp(sigma t) (docs/stability.md section 10); 'mode_front': the same "
+                        "as exp(sigma t) (docs/stability.md section 2); 'mode_front': the same "
                         "mode with eps measured in the frame of the front and the front's "
-                        "displacement carried exactly (section 10.7; near tau_min the body then "
+                        "displacement carried exactly (docs/stability.md section 2; near tau_min the body then "
                         "gets eps instead of ~1e-3 eps)")
     p.add_argument("--eps", type=float, default=1e-3,
                    help="mode amplitude: largest change of ln(v/v*+1) (with mode_front: in the "

@@ -83,14 +83,14 @@ def register(sub) -> None:
     p.add_argument("--far-field", choices=("steady", "none"), default="steady",
                    help="steady (default): the steady pulse's images on the period removed and "
                         "its tail beyond the window added, static in the frame of the front "
-                        "(docs/dynamic.md section 9); none: the uniform tau_d on the periodic "
+                        "(docs/dynamic.md section 3); none: the uniform tau_d on the periodic "
                         "domain, the pulse's images left in (at 1.2 tau_min they decide the "
                         "fate on a 5-10 L period: docs/motion.md)")
     p.add_argument("--frame", choices=("front", "lab"), default="front",
                    help="front (default): eps is the mode's largest change of ln(v/v*+1) in the "
                         "frame of the front (perturbation mode_front); lab: at fixed xi (mode), "
                         "where the front's displacement takes eps and the body gets far less "
-                        "(docs/stability.md section 10.2)")
+                        "(docs/stability.md section 2)")
     p.add_argument("--growth", type=float, default=3.0, help="grew when L > GROWTH L0 (3)")
     p.add_argument("--arrest", type=float, default=10.0,
                    help="arrested when v_max < v_max0/ARREST (10)")

@@ -140,7 +140,7 @@ def _solve_any(params, tau_d_ratio, args):
     from ..steady.reach import GUESS_RATIO, reach_pulse, route_targets
 
     if getattr(args, "homotopy", False):
-        # --homotopy (issue 21): the guess is the pulse continued in the parameters from Table I's
+        # --homotopy: the guess is the pulse continued in the parameters from Table I's
         # at this tau_d; then one solve at the target from it
         bar = tqdm(total=3, desc=f"steady {pulse_label(tau_d_ratio)}", unit="pass", disable=args.quiet,
                    file=sys.stderr)
@@ -502,7 +502,7 @@ def cmd_rates(args) -> int:
                          "run `slippulse steady stability FILE` first")
     x, y, e = r["tau_d_ratio"], r["s_per_L"], r["s_err_per_L"]
     # the family's slope at each rated pulse, from all converged pulses of the files, and the
-    # fold ratio R = s L/c_p / |d tau_d/d ln L| (docs/stability.md section 9.5)
+    # fold ratio R = s L/c_p / |d tau_d/d ln L| (docs/results.md section 2)
     curve = family_curve(args.file)
     slope, slope_err = family_slope(curve["tau_d_ratio"], curve["L"], curve["beta"],
                                     at_beta=r["beta"])
@@ -573,7 +573,7 @@ def cmd_rates(args) -> int:
                      f"pulses (beta = {curve['beta'].min():.4g}-{curve['beta'].max():.7g}, L = "
                      f"{curve['L'].min():.4g}-{curve['L'].max():.4g} m), so no real eigenvalue "
                      "crosses zero there")
-    print("family: " + fold_line + " (docs/stability.md section 9.5)")
+    print("family: " + fold_line + " (docs/results.md section 2)")
     mR = win & np.isfinite(R) & (R > 0)
     if np.sum(mR) >= 3:
         fits["R"] = fit_power_law(r["L"][mR], R[mR], R_err[mR])
@@ -717,8 +717,8 @@ def register(sub) -> None:
                       description="Eigenvalues sigma (perturbations ~ exp(sigma t) in the co-moving "
                                   "frame) and modes of each converged pulse, from the steady "
                                   "solution alone (nonlinear eigenproblem on the pulse's grid, "
-                                  "docs/spectrum.md; the rates of record: docs/stability.md "
-                                  "section 9.0). The leading growth rate s comes with an "
+                                  "docs/spectrum.md; the rates of record: docs/results.md "
+                                  "section 2). The leading growth rate s comes with an "
                                   "error s_err measured on a ladder of grids of one smooth map of "
                                   "the pulse's grid (N_0, sqrt(2) N_0, 2 N_0, ...; observed order "
                                   "and Roache's grid convergence index); where |s| < 2 s_err "
@@ -735,7 +735,7 @@ def register(sub) -> None:
                         "smooth map of its grid) for the error of the leading growth rate, at "
                         "least: more are added until --target is met; s is the finest level's; "
                         "s_err the last correction (2 levels) or from the observed order (3 or "
-                        "more) (default 1; 0: no estimate; docs/spectrum.md section 5)")
+                        "more) (default 1; 0: no estimate; docs/spectrum.md section 4)")
     p.add_argument("--min-points", type=int, default=None,
                    help="level 0 has N_0 = N clipped to [MIN_POINTS, MAX_POINTS] (default 1000)")
     p.add_argument("--max-points", type=int, default=None,
@@ -757,7 +757,7 @@ def register(sub) -> None:
                         "rank-one change of the size of the discretisation error that removes "
                         "its coupling to the leading mode, the largest error of s near tau_min; "
                         "--no-pin-translation: M(0) exactly the linearised discrete steady "
-                        "problem; docs/spectrum.md section 5)")
+                        "problem; docs/spectrum.md section 4)")
     p.add_argument("--count", type=float, nargs=3, default=None, metavar=("X0", "X1", "Y1"),
                    help="also count the eigenvalues with X0 <= Re sigma L/c_p <= X1, "
                         "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "
@@ -789,12 +789,12 @@ def register(sub) -> None:
                                   "whether s crosses zero, and fits s L/c_p = A x^n (weighted, "
                                   "in log space; errors Birge-scaled) against x = tau_d/tau_min - "
                                   "tau_star (tau_star fitted too unless given) and against L, on "
-                                  "the pulses with tau_d/tau_min <= --below (docs/stability.md "
-                                  "section 9.0). It also gives the family's slope d tau_d/d ln L "
+                                  "the pulses with tau_d/tau_min <= --below (docs/results.md "
+                                  "section 2). It also gives the family's slope d tau_d/d ln L "
                                   "at each rated pulse (from all converged pulses of the files), "
                                   "the ratio R = s L/c_p / |d tau_d/d ln L| and its law, and "
                                   "whether tau_d(L) folds: a real eigenvalue crosses zero only "
-                                  "at a fold (section 9.5).")
+                                  "at a fold (docs/results.md section 2).")
     p.add_argument("file", metavar="FILE", nargs="+",
                    help="HDF5 family file(s) with stored spectra (several: their pulses are "
                         "taken together, e.g. a family and its deep continuation)")

@@ -29,7 +29,7 @@ the engine's bookkeeping (field sync, frame shifts, Δt cache, loading upload) w
 GPU. The CUDA kernels are the line-by-line counterparts of ``stepper._solve_point``,
 ``friction.state_step`` and ``sbi._soe_past/_soe_commit`` (compiled as C they give the numba
 kernels' results bit for bit); ``tests/test_device.py`` compares a CuPy run with the host where
-a GPU is present (docs/dynamic.md §11).
+a GPU is present (docs/dynamic.md §5).
 
 Scope: the rate-and-state interface with the SOE history (what the seeded runs use).
 """

@@ -496,7 +496,7 @@ class SOEHistory(HistoryPolicy):
         Mode k = 0 (no elastic stress) is left empty.
 
         ``sigma`` (real, ≥ 0, 1/s): the field also grew as e^{σt} in the past, V_k(t) =
-        V̂_k e^{(σ − ikc)t} for t ≤ 0 (an unstable eigenmode, docs/stability.md §10); then
+        V̂_k e^{(σ − ikc)t} for t ≤ 0 (an unstable eigenmode, docs/stability.md §2); then
         ∫_0^∞ e^{zωs} e^{−σs} e^{±ikcs} ds = −1/(zω − σ ± ikc). ``add``: add this past to the
         accumulators (the perturbation over a steady past) instead of replacing them."""
         vhat = np.asarray(vhat_k, dtype=complex)[:, None]

@@ -1,6 +1,6 @@
 """Time stepping of the mode-III SBI interface: predictor–corrector, friction solve, state update.
 
-A step from t_n to t_{n+1} = t_n + Δt (``PredictorCorrector._step_impl``; docs/dynamic.md §4):
+A step from t_n to t_{n+1} = t_n + Δt (``PredictorCorrector._step_impl``; docs/dynamic.md §2):
 
     predict:  V̄ = V^n,  δ* = δ^n + Δt V̄,  φ* = S(φ^n, w(V^n), Δt)
               τ_el* = τ_load + f[δ*, V̄];  solve σ f(V*, φ*) + η V* = τ_el*
@@ -121,7 +121,7 @@ class RateStateInterface:
         return v, tau_el - self.eta * v, it
 
     def stability_dt(self, v, phi, kmax):
-        """Largest Δt for which the explicit elastic coupling stays stable (docs §5):
+        """Largest Δt for which the explicit elastic coupling stays stable (docs/dynamic.md §2):
         Δt ≤ 2 (σ ∂f/∂V + η)/k_s, k_s = μ k_max/2, the stiffest mode."""
         p = self.params
         stiff = p.sigma * fr.df_dv(v, phi, *p.law_args) + self.eta
@@ -168,7 +168,7 @@ class PrescribedInterface:
 
 @dataclass(frozen=True)
 class TimeStepRule:
-    """How Δt is chosen (docs/dynamic.md §5).
+    """How Δt is chosen (docs/dynamic.md §2).
 
     ``fixed``:     Δt = β_cfl Δx/c_s.
     ``adaptive``:  Δt* = min(Δt_max, ξ D/V_max, ξ_s Δt_stab, growth·Δt_prev), with Δt_stab the
@@ -437,7 +437,7 @@ class PredictorCorrector:
         return self.fft.inverse(elastic_functional(self.params.mu, self.kabs, delta_k, H)).copy()
 
     def _step_impl(self, dt):
-        """One step t → t + Δt in four named stages (module docstring, docs/dynamic.md §4)."""
+        """One step t → t + Δt in four named stages (module docstring, docs/dynamic.md §2)."""
         t1 = self.t + dt
         self.history.begin_step(dt)                                  # sum the stored past once
         w_n, phi_star, f_star = self._predict(dt)

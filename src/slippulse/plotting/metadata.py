@@ -1,5 +1,5 @@
 """The parameters a figure was made with, as image metadata (PNG ``Description``, PDF ``Subject``,
-SVG ``Description``): every output carries its parameters (docs/parameters.md)."""
+SVG ``Description``): every output carries its parameters (docs/guide.md, Other parameters)."""
 from __future__ import annotations
 
 import json

@@ -1,5 +1,5 @@
 """The growth rates of record along a family, on log axes, with their power-law fits
-(``slippulse steady rates``; docs/stability.md §9.0)."""
+(``slippulse steady rates``; docs/results.md §2)."""
 from __future__ import annotations
 
 import numpy as np
@@ -28,7 +28,7 @@ def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
     and s L/c_p against τ_d/τ_min (linear, the sign). `rates`: :func:`spectrum.law.family_rates`;
     `fits`: dict name → PowerLaw (keys 'shift', 'one', 'L', 'R') or None. ``tau_star`` None
     (too few rates to fit it): panel (a) is against τ_d/τ_min − 1 with the fit 'one'. ``fold`` = (R, R_err) of
-    :func:`spectrum.law.fold_ratio` adds a fourth panel: R against L (docs/stability.md §9.5)."""
+    :func:`spectrum.law.fold_ratio` adds a fourth panel: R against L (docs/results.md §2)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

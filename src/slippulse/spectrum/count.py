@@ -1,4 +1,4 @@
-"""A count of the unstable eigenvalues of a pulse by the argument principle (docs/spectrum.md §6).
+"""A count of the unstable eigenvalues of a pulse by the argument principle (docs/spectrum.md §5).
 
 M(σ) (:class:`slippulse.spectrum.pulse.StabilityOperator`) is analytic in Re σ > 0, so det M(σ)
 has no poles there and the number of its zeros inside a closed contour C in that half-plane is the

@@ -27,7 +27,7 @@ from .pulse import (MIN_RE, NEWTON_TOL, PulseSpectrum, order4_pulse, pulse_spect
 from .refine import (MAX_LADDER_POINTS, check_refinable, level0_size, level_points,
                      mapped_pulse, refine_leading)
 
-COUNT_EVALS = 400           # default budget of det M evaluations per count (docs/spectrum.md §6)
+COUNT_EVALS = 400           # default budget of det M evaluations per count (docs/spectrum.md §5)
 
 
 def count_checkpoint_path(path, label):
@@ -84,7 +84,7 @@ def check_family_file(path, labels=None):
 
 #: Default smallest N of the spectrum's level 0 (a pulse with fewer points is mapped onto this
 #: many). Pinned, the ladder from N = 1000 is in the asymptotic range at 1.2–1.05 τ_min
-#: (observed order 3.6–4.1, docs/spectrum.md §5).
+#: (observed order 3.6–4.1, docs/spectrum.md §4).
 MIN_SPECTRUM_POINTS = 1000
 #: Default largest N of level 0 (a pulse with more points is mapped onto this many). Measured,
 #: pinned: at 1.008993 τ_min (own N = 3542) level 0 at N = 2828 is 1.2e-5 from the converged
@@ -136,7 +136,7 @@ class SpectrumSettings:
     level0_points : int or None
         Level 0 has exactly this many points (overrides the clip; no fallback).
     pin_translation : bool
-        Solve with translation pinned (docs/spectrum.md §5).
+        Solve with translation pinned (docs/spectrum.md §2).
     extra : bool
         Also seek the eigenvalues beyond the leading one.
     tol : float

@@ -1,8 +1,8 @@
-"""Numerical kernels of the linear stability operator of a steady pulse (docs/stability.md §8).
+"""Numerical kernels of the linear stability operator of a steady pulse (docs/spectrum.md §2).
 
 The elastodynamic operator for a perturbation e^{σt} at fixed ξ = x − c_p t has the symbol
 −λ √((k − iγ)² + κ²), λ = μ√(1−β²)/2, κ = σ/(c_s(1−β²)), γ = βκ. In real space (derivation in
-docs/stability.md §8) it is
+docs/spectrum.md §2) it is
 
     K_σ δ = (λ/π) H[δ′] + (λγ/π) H₀[δ] + λ ∫ δ(z) W̃(ξ − z) dz,
 

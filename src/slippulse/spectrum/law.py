@@ -1,4 +1,4 @@
-"""Power laws of the leading growth rate along a family (docs/stability.md §9.0).
+"""Power laws of the leading growth rate along a family (docs/results.md §2).
 
 Near τ_min the growth rates of record (``s ± s_err`` of each pulse's spectrum group) are fitted
 by y = A x^n against x = τ_d/τ_min − 1, τ_d/τ_min − τ̃* or L, for y = s L/c_p or s, by weighted
@@ -326,7 +326,7 @@ def fold_ratio(s_per_L, s_err_per_L, slope, slope_err):
     """R = (s L/c_p)/|dτ_d/d ln L| and its 1σ error (relative errors added in quadrature).
 
     A real eigenvalue of the pulse operator passes through σ = 0 only at a fold of the family in
-    τ_d (docs/stability.md §9.5): near one, s L/c_p ≈ R |dτ_d/d ln L|. A bounded R along a
+    τ_d (docs/results.md §2): near one, s L/c_p ≈ R |dτ_d/d ln L|. A bounded R along a
     family whose τ_d tends to a limit (|dτ_d/d ln L| → 0) means s L/c_p → 0 there."""
     s, e, g, ge = (np.asarray(a, float) for a in (s_per_L, s_err_per_L, slope, slope_err))
     with np.errstate(divide="ignore", invalid="ignore"):

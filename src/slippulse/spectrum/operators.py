@@ -194,7 +194,7 @@ class StabilityOperator:
         if pin_translation:
             # M̃(σ) = M(σ) − r tᵀ/(tᵀt), r = M(0) t, t = v₀′: translation is an exact null
             # vector of M̃(0) (σ_t = 0 as in the continuum); the change is of the order of the
-            # residual r, i.e. of the discretisation (docs/spectrum.md §5)
+            # residual r, i.e. of the discretisation (docs/spectrum.md §2)
             t = self.S @ self.v0
             r = self.matrices(0.0, deriv=False)[0] @ t
             self.pin = (r, t / float(t @ t))

@@ -172,7 +172,7 @@ def pulse_spectrum(pulse, params, guesses=(), extra=True, tol=NEWTON_TOL, label=
         converges.
     pin_translation : solve the problem with translation pinned (:class:`StabilityOperator`'s
         rank-one change that makes v₀′ an exact null vector of M(0); σ_t is then 0 by
-        construction, not a check; docs/spectrum.md §5).
+        construction, not a check; docs/spectrum.md §2).
     neutral : also compute the neutral pair (translation σ_t and the uniform-slip backward error;
         two more assemblies at σ = 0, an Arnoldi and a dense product). Pinned, σ_t = 0 by
         construction and is stored as nan (not computed); the uniform-slip error is computed.

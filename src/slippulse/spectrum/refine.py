@@ -1,10 +1,10 @@
-"""The leading growth rate with an error estimate it measures itself (docs/spectrum.md §5).
+"""The leading growth rate with an error estimate it measures itself (docs/spectrum.md §4).
 
 The eigenvalue s of a pulse is computed on a ladder of grids sampled from one smooth map of the
 pulse's grid (:class:`slippulse.steady.grid.GridMap`): level k has N_k = N_0 r^k points,
 r = √2, and the steady equations re-solved by Newton on it. Grids of one smooth map give
 discretisation errors that fall as a power of N (measured at 1.05 and 1.02 τ_min: order 3.8 and
-4.3, docs/spectrum.md §5); nested refinement of the adapted grid, which keeps its spacing
+4.3, docs/spectrum.md §4); nested refinement of the adapted grid, which keeps its spacing
 jumps, did not (the sequence was not monotone).
 
 The estimate (three levels or more; Roache's grid convergence index for three grids): with the
@@ -23,7 +23,7 @@ assumes no order:
 
 The same extrapolation is applied to the translation eigenvalue σ_t, whose exact value is 0
 (:func:`richardson`): its extrapolated value, and whether its three-level error bar covers 0,
-check the estimate against a known answer at every pulse (docs/spectrum.md §5).
+check the estimate against a known answer at every pulse (docs/spectrum.md §4).
 """
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ unknowns x = (u, λ), the parameter λ last, J of shape n × (n + 1). For the st
 τ_d/τ_min, the phase condition (the front pin) the last row (:func:`pulse_system`). Then
 
 * A = J[:, :n] is the pinned fixed-τ_d Newton matrix [F_u F_c]: singular at a fold in λ and at a
-  branch point (docs/stability.md §9.5);
+  branch point (docs/branches.md §1);
 * t, the unit null vector of J, is the family's tangent, unique where J has full rank n;
 * B = [J; t^T] is the bordered matrix of pseudo-arclength continuation: regular at a fold,
   singular at a branch point (J rank n − 1).

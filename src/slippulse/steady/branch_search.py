@@ -66,7 +66,7 @@ def _m(metres):
 
 
 def basin_guesses():
-    """The 27 single-pulse guesses of the measured basin (docs/steady.md §5): L ∈ {0.7, 2, 0.25}
+    """The 27 single-pulse guesses of the measured basin (docs/branches.md §2): L ∈ {0.7, 2, 0.25}
     m, β ∈ {0.01, 0.003, 0.03}, ℓ_c ∈ {5, 1.5, 15} mm for Table I (scaled with L0)."""
     return [Guess(_m(L), b, _m(lc)) for L in (0.7, 2.0, 0.25) for b in (0.01, 0.003, 0.03)
             for lc in (5e-3, 1.5e-3, 15e-3)]

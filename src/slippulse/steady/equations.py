@@ -21,7 +21,7 @@ integrators (``SteadyProblem(state_order=...)``):
       x_b = w_i h/2,  E(x) = (1 − e^{−x})/x.
 
 Both are exact at constant v, unconditionally stable and stiff-accurate (φ_i → 1/w_i when
-w h → ∞), so under-resolved Newton iterates do not heal spuriously. See docs/steady.md §3 for the
+w h → ∞), so under-resolved Newton iterates do not heal spuriously. See docs/steady.md §2 for the
 derivation and the Jacobians.
 """
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Fits across a family of steady pulses (Pomyalov et al., PRE 2023): the effective fracture energy
 G_c and cohesive slip δ_c (Figs. 4, S3), the scaling law of Eqs. 3–4 (τ̃*, a_v, a_G), and the
-divergence laws of L and β near τ_min (docs/analysis.md).
+divergence laws of L and β near τ_min (docs/steady.md §4).
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ SCALING_WINDOW = (1.0, 1.05)
 #: Pulses whose Ḡ(δ) curves enter the G_c / δ_c analysis (Fig. 4: τ_d close to τ_*), inclusive.
 GC_WINDOW = (1.0, 1.05)
 #: Local log-slope d ln Ḡ_med/d ln δ that marks the bend of the median Ḡ(δ) curve (δ_c, G_c), and
-#: the two slopes whose bend points bound its uncertainty (docs/analysis.md, "G_c and δ_c").
+#: the two slopes whose bend points bound its uncertainty (docs/steady.md §4).
 GC_SLOPE = 0.5
 GC_SLOPE_BAND = (0.7, 0.3)
 #: The ∝δ head: the slope must first reach this before a bend is looked for.
@@ -278,7 +278,7 @@ def divergence_fit(tau_d_ratio, beta, L, window=(1.0, 1.02), quantities="both"):
         L = A d^(−m_L),        1 − β = B d^(m_β).
 
     The paper's theory (Eqs. 3–4) has, as β → 1, √(1−β²) = β d/(a_v C) ≈ √(2(1−β)), i.e.
-    m_β = 2, and L̃ = a_G √(1−β²)/(π d²) ≈ a_G/(π a_v C d), i.e. m_L = 1 (docs/analysis.md,
+    m_β = 2, and L̃ = a_G √(1−β²)/(π d²) ≈ a_G/(π a_v C d), i.e. m_L = 1 (docs/steady.md §4,
     "The divergence law on the deep family"). Residuals in logarithms (the data span
     decades), equal weights; ``scipy.optimize.least_squares`` with τ̃* bounded below min τ_d/τ_min;
     covariance s² (JᵀJ)⁻¹, s² = RSS/(m − k). The statistical error ignores the correlated

@@ -80,7 +80,7 @@ class GridMap:
     Grids of any size n sampled from one map (``gmap(n)``: ξ at t = 0, 1/(n−1), …, 1) are a
     family whose discretisation errors fall as a power of n, with no spacing jumps: the
     ladder of the spectrum's error estimate (:mod:`slippulse.spectrum.refine`,
-    docs/spectrum.md §5). Nested refinement (midpoints inserted) keeps the jumps of the
+    docs/spectrum.md §4). Nested refinement (midpoints inserted) keeps the jumps of the
     adapted grid's spacing, ratios up to ≈ 1.2 between neighbouring cells, at every level; the
     leading eigenvalue near τ_min then converges erratically.
 

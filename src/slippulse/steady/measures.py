@@ -4,7 +4,7 @@ The length L (FWHM of ln(v/v*+1)), the slip profile δ(ξ), the breakdown energy
 the edge-singularity order ζ (joint fit of v behind and τ − τ_m ahead of the leading edge),
 ln(1 − g) along the pulse, the structure of the edges and the distance between two profiles.
 
-Conventions (see docs/analysis.md): ξ ascending, the pulse travels toward +ξ, so the rest state ahead
+Conventions (see docs/steady.md §4): ξ ascending, the pulse travels toward +ξ, so the rest state ahead
 is at large ξ and the healing tail at small ξ. Every integral is a trapezoid sum on the solver's
 non-uniform grid; every interpolation is local and stated in the function's Notes.
 """

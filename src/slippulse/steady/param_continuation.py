@@ -1,7 +1,7 @@
 """Continuation in the parameters: a pulse of new parameters reached from a solved one.
 
 The built-in guess (:func:`slippulse.steady.solver.default_guess`) is laid out in units of L0 with
-β = 0.01; for laws far from Table I it is outside Newton's basin (docs/parameters.md §3). From a
+β = 0.01; for laws far from Table I it is outside Newton's basin (docs/guide.md, Other parameters). From a
 pulse of parameters p0, :func:`continue_in_params` walks to p1 along p0^(1−s) p1^s (each
 parameter geometrically), each step solved from the previous pulse (its grid re-adapted by
 :func:`solve_pulse`), the step in s grown on success and halved on failure. ``steady solve

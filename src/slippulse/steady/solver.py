@@ -125,7 +125,7 @@ def front_pin(xi, y, y_stick):
 #: Size of the built-in guess in units of the elasto-frictional length L0 = π μ D/(σ(f0 b − α)):
 #: L = 0.7 m and ℓ_c = 5 mm for Table I (L0 = 0.88357 m), where they were chosen (orders of
 #: magnitude from G_c ≈ 0.6 J/m²: π L ≈ μ G_c/Δτ²). Scaling with L0 makes the guess, like the
-#: equations, invariant under the exact similarities (docs/parameters.md).
+#: equations, invariant under the exact similarities (docs/steady.md §1).
 GUESS_L_OVER_L0 = 0.7 / 0.8835729338221293
 GUESS_LC_OVER_L0 = 5e-3 / 0.8835729338221293
 

@@ -9,11 +9,11 @@ largest modulus. This module
   ``slippulse steady stability``) or computes it on the fly (:func:`leading_mode`), and refuses a
   mode that belongs to another pulse (:func:`check_same_pulse`);
 * seeds the SBI with the steady pulse plus ε × mode, with the past of an eternal translation that
-  also grew as e^{σt} (:func:`perturb_along_mode`; derivation in docs/stability.md §10);
+  also grew as e^{σt} (:func:`perturb_along_mode`; derivation in docs/stability.md §2);
 * expresses the mode as the SBI measures it, at fixed distance from the front, with its first-order
   change of the front speed and of the pulse length (:func:`front_response`);
 * compares it with the family tangent d(y, ln φ)/dτ_d in the same front frame
-  (:func:`family_tangent`, :func:`mode_overlap`, :func:`family_overlaps`; docs/stability.md §10.4).
+  (:func:`family_tangent`, :func:`mode_overlap`, :func:`family_overlaps`; docs/stability.md §4).
 
 Import direction: core, steady, dynamics → stability (this module uses ``spectrum`` and
 ``seeding``; ``verify`` and ``perturbation`` use it).
@@ -34,7 +34,7 @@ from ..steady.measures import pulse_length
 #: (≈ the relative change of the peak slip rate). The ±ε growth fit (perturbation.pair_growth)
 #: counts the response as linear while |v_max/v_max⁰ − 1| ≤ 0.03; a seed of |ε| ≤ 0.01 leaves
 #: ≥ ln 3 ≈ 1.1 e-folds of linear growth, and the antisymmetric response of a pair carries the
-#: cubic error O(ε²) ≤ 1e-4 relative (docs/stability.md §10.2).
+#: cubic error O(ε²) ≤ 1e-4 relative (docs/stability.md §2).
 EPS_MAX = 1e-2
 #: |Im σ| / Re σ above which the leading eigenvalue counts as complex (not seedable: the seed
 #: would need the conjugate pair).
@@ -231,7 +231,7 @@ def perturb_along_mode(seed, mode: Eigenmode, eps: float, frame: str = "lab") ->
         v = v₀(ξ) + ε V₁(ξ) e^{σt},  φ = φ₀ + ε φ₁ e^{σt},  δ = δ₀ + ε δ₁ e^{σt},
 
     i.e. in the lab frame a field g(x − ct) e^{σt}, whose Fourier mode k evolves as e^{(σ − ikc)t}.
-    Hence (docs/stability.md §10.1): slip δ̂_k += ΔV̂_k/(σ − ikc) (k = 0 included: ΔV̂₀/σ), and
+    Hence (docs/stability.md §2): slip δ̂_k += ΔV̂_k/(σ − ikc) (k = 0 included: ΔV̂₀/σ), and
     the SOE accumulators get the past ∫₀^∞ e^{zωs} ΔV_k(−s) ds with ΔV_k(−s) = ΔV̂_k e^{−(σ−ikc)s}
     (``SOEHistory.prefill_translating(sigma=σ, add=True)``). The stress at t = 0 is then the
     steady stress plus K_σ[ε δ₁], the elastodynamic stress of the growing mode (the symbol
@@ -241,7 +241,7 @@ def perturb_along_mode(seed, mode: Eigenmode, eps: float, frame: str = "lab") ->
     V = V₀ exp(ε V₁/v₀), φ = φ₀ exp(ε φ₁/φ₀) on the grid (positive for any ε; linear part ε V₁,
     ε φ₁). The far-field load stays the steady pulse's (it is static).
 
-    ``frame="front"`` (docs/stability.md §10.7): ε is the largest change of y in the frame of the
+    ``frame="front"`` (docs/stability.md §2): ε is the largest change of y in the frame of the
     front, max |y₁ᶠ| (``front_response``), not max |y₁|, which near τ_min is the mode's front
     displacement (y₁ ≈ −η_R y₀′, 1850 times the body's change at 1.05 τ_min). The mode is
     split into its body and its displacement, V₁ = V₁ᶠ − η_R v₀′, and the displacement is

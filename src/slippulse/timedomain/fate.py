@@ -96,7 +96,7 @@ def run_fate(pulse, params, eigen, eps: float, spec, distance: float,
     the mode's largest change of ln(v/v*+1) in the frame of the front, the front's displacement
     carried exactly (``perturbation="mode_front"``); "lab", at fixed ξ (``"mode"``), where the
     mode's front displacement takes ε, leaving the pulse body ε × 5e-3 at 1.1 τ_min
-    (docs/stability.md §10.2): too little over the seed's own error there."""
+    (docs/stability.md §2): too little over the seed's own error there."""
     if frame not in ("front", "lab"):
         raise ValueError(f"frame={frame!r} must be 'front' or 'lab'")
     from .verify import VerifySettings, verify_pulse

@@ -47,7 +47,7 @@ CASE_DEFAULTS = {
     "samples_per_L": 50,     # measurements per L⁰ travelled
     "beta_cfl": 0.5,         # adaptive time step: CFL factor
     "xi_stab": 0.5,          # adaptive time step: friction-stability factor
-    "history": "cheap",      # SOE node set: "cheap" (36 nodes) | "fine" (docs/dynamic.md §3)
+    "history": "cheap",      # SOE node set: "cheap" (36 nodes) | "fine" (docs/dynamic.md §2)
     "grow_L": 3.0,           # fate "grew" when L > grow_L·L⁰
     "lost_factor": 10.0,     # fate by max V against v_max⁰ (× or ÷ lost_factor)
     "fit_lo": 1e-3,          # linear regime: |d| from fit_lo ...
@@ -457,7 +457,7 @@ def pair_growth(plus: dict, minus: dict, eps: float, d_max: float = 0.03, tol: f
 
 
 #: Start of the fit of a mode-seeded pair, in pulse lengths travelled: the seed's mismatch
-#: relaxes within ≈ 0.05–0.1 L (measured at 1.1 τ_min, docs/stability.md §10.7).
+#: relaxes within ≈ 0.05–0.1 L (measured at 1.1 τ_min, docs/stability.md §2).
 MODE_FIT_SKIP = 0.1
 
 
@@ -465,7 +465,7 @@ MODE_FIT_SKIP = 0.1
 #: rate, |(F₊ + F₋)/2F̄₀ − 1|. The antisymmetric response is the linearisation about the pair's
 #: mean state; once that has left the steady pulse by |q| (its own discretisation mismatch grows
 #: along the same unstable mode), the rate shifts by O(|q|): measured at 1.04 τ_min on 8 mm,
-#: +3.7 % at |q| = 2.5 % (docs/stability.md §10.9).
+#: +3.7 % at |q| = 2.5 % (docs/stability.md §3).
 MODE_DRIFT_MAX = 0.005
 
 
@@ -490,7 +490,7 @@ def mode_pair_growth(plus: dict, minus: dict, eps: float, observable: str = "pot
     of the potency rate, fitted as A e^{st} + B (:func:`fit_growth_offset`). Integrating divides
     the grid-crossing oscillation (one cell of travel, frequency ω = 2πc_p/Δx) by ω/s relative
     to the growth: ~10⁴ at 1.04 τ_min on 8 mm, where it dominated the potency rate's residual
-    (docs/stability.md §10.9).
+    (docs/stability.md §3).
 
     Returns
     -------
@@ -532,7 +532,7 @@ def pair_rate_at_zero_drift(plus: dict, minus: dict, start: float, d_max: float 
 
     The ±ε response is the linearisation about the pair's mean state, and that state drifts from
     the steady pulse when the SBI's discrete pulse is not exactly the continuum one (its mismatch
-    grows along the unstable mode; docs/stability.md §10.9–10.10), so the rate moves with the
+    grows along the unstable mode; docs/stability.md §3), so the rate moves with the
     mean drift q(t) = (F₊ + F₋)/2F̄₀ − 1 of the potency rate. Model, to first order in q: the
     rate is s₀ + k q(t), i.e.
 

@@ -1,4 +1,4 @@
-"""Seed the SBI time stepper with a steady pulse (docs/dynamic.md §9).
+"""Seed the SBI time stepper with a steady pulse (docs/dynamic.md §3).
 
 A steady pulse is a solution of the dynamic equations only if it has been travelling forever. This
 module puts a steady pulse (any group that follows the HDF5 pulse schema of ``h5io``) on the uniform
@@ -36,7 +36,7 @@ from ..core.params import ParameterError, Parameters
 from ..dynamics.sbi import elastic_functional
 from ..dynamics.stepper import PredictorCorrector, RateStateInterface, TimeStepRule
 
-#: The cheaper SOE node set of docs/dynamic.md §3 (36 nodes, kernel integral error ≤ 2e-5).
+#: The cheaper SOE node set of docs/dynamic.md §2 (36 nodes, kernel integral error ≤ 2e-5).
 SOE_CHEAP = {"x_min": 1e-6, "x_max": 1e6, "h": 0.8}
 
 
@@ -489,7 +489,7 @@ def _place_far_field(seed: SeededPulse, x_front: float) -> None:
 
     s ∈ [0, Δx) after :func:`follow_pulse`; τ_ff(x − s) by linear interpolation between cells
     (τ_ff is smooth near the pulse: the error is O(Δx² τ_ff'') there). The pulse is very sensitive
-    to the stress (docs/dynamic.md §9: a load misplaced by whole cells made v_max drift by 2e-2
+    to the stress (docs/dynamic.md §3: a load misplaced by whole cells made v_max drift by 2e-2
     within 0.1 L at 1.2 τ_min), so the load follows the front continuously.
     """
     if seed.tau_ff is None:

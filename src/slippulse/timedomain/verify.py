@@ -187,7 +187,7 @@ def potency_rate(st) -> float:
     the periodic grid, and there is no interpolation. In a ±ε pair seeded with the mode
     (δ₁, V₁) its antisymmetric part is ε e^{σt} ∫ V₁ dξ + O(ε³) = ε e^{σt} σ ∫ δ₁ dξ: the
     mode's translation part (−η v₀′) drops out (∫ v₀′ dξ = 0), so it measures the pulse body's
-    response (docs/stability.md §10.7). (Σ ln(V/v*+1) Δx was tried too: it weights the creeping
+    response (docs/stability.md §2). (Σ ln(V/v*+1) Δx was tried too: it weights the creeping
     tail, where the frame's reset of the entering cells acts, and was noisier.)"""
     return float(np.sum(st.V) * st.dx)
 
