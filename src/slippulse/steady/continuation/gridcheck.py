@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..equations import SteadyProblem
-from ..newton import newton
+from ..newton import NEWTON_TOL, newton
 from ..measures import pulse_length
 from ..solver import MAX_POINTS, GridSpec, SteadySolution, front_pin, interpolate, regrid_guess
 from .arclength import ArclengthProblem, family_tangent
@@ -85,7 +85,7 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
             xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter, reuse=reuse,
                                   plain=plain)
         else:
-            xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter, reuse=reuse,
+            xs, st = newton(arc, x_start, tol=NEWTON_TOL, max_iter=max_iter, reuse=reuse,
                             keep=warm is not None)
         if st.lu is None:               # the homotopy keeps none: the warm attempt's, if any
             st.lu = lu_warm
@@ -142,7 +142,7 @@ def _warm_solve(arc, x, x_start, warm, max_iter, reuse):
         return None, None
     if lu is not None and lu[0].shape[0] != xw.size:
         lu = None
-    return newton(arc, xw, tol=1e-13, max_iter=max_iter, lu=lu, reuse=reuse, creep=2, keep=True)
+    return newton(arc, xw, tol=NEWTON_TOL, max_iter=max_iter, lu=lu, reuse=reuse, creep=2, keep=True)
 
 
 def _as_both(params, sol: SteadySolution) -> SteadySolution:
