@@ -54,7 +54,7 @@ def load_pulse(source, label=None):
     y = np.log(pu.v)
     k, _ = front_pin(pu.xi, y, math.log(P.v_stick(pu.tau_d_ratio * P.tau_min)))
     return P, rebuild(P, pu.xi, np.concatenate([y, [pu.beta, pu.tau_d_ratio]]), k, float(y[k]),
-                      # a file without the attribute predates issue 11 (order 2), read as the
+                      # a file without the attribute predates the order-4 state (order 2), read as the
                       # other readers do (core.h5io.state_order_of)
                       state_order_of(pu))
 

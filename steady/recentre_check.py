@@ -8,7 +8,7 @@ Prints the offset before and after (``stretch.block_offset``), the re-solve's it
 change at fixed τ_d, the largest |Δ ln v| per cell at the drop before and after, and with --check
 the recentred pulse's ΔL/L and Δβ against 2N − 1 points (to compare with the check stored with
 the pulse). Writes nothing. At N = 6614 (L ≈ 6.8 km): ≈ 30 s for the re-solve on one thread,
-≈ 15 min more for the check (docs/steady.md §8, stop 46).
+≈ 15 min more for the check.
 """
 import argparse
 import math

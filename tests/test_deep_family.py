@@ -250,7 +250,7 @@ def test_family_kill9_then_rerun_resumes_with_file_intact(tmp_path):
 #: change where it goes or what it shows. A new option without an entry here fails the test.
 FAMILY_OPTIONS = {
     "--from": ["1.19"], "--to": ["1.009"], "--step": ["0.0025"], "--points": ["1500"],
-    "--max-points": ["9000"], "--ds-min": ["0.0005"], "--spacing": ["0.01"],
+    "--max-points": ["9000"], "--ds-min": ["0.0005"], "--spacing": ["0.0"],
     "--max-length": ["5000"],
 }
 NOT_THE_RUN = {"-h", "--help", "--out", "-q", "--quiet", "--params", "--set"}
@@ -277,7 +277,7 @@ def test_every_family_option_changes_the_run_or_is_refused(tmp_path, params):
     assert names - NOT_THE_RUN == set(FAMILY_OPTIONS), "an option of steady family is untested"
     base_args = parser.parse_args([])
     base = family_run_args(base_args, params)
-    assert base["strategy"] == AUTO and base["spacing"] == 0.0
+    assert base["strategy"] == AUTO and base["spacing"] == 0.01
     for opt, (val,) in FAMILY_OPTIONS.items():
         got = family_run_args(parser.parse_args([opt, val]), params)
         changed = {k for k in base if got[k] != base[k]}

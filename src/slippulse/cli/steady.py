@@ -16,6 +16,7 @@ from ..steady.newton import SOLVERS
 from ..core.params import DEFAULT, ParameterError
 from .paramargs import add_params_args, check_files, params_for_output
 from ..steady.solver import MAX_POINTS, check_points, solve_pulse
+from ..steady.continuation.family import SPACING
 from ..steady.continuation.strategy import AUTO
 
 
@@ -666,11 +667,11 @@ def register(sub) -> None:
     p.add_argument("--ds-min", type=float, default=AUTO.steps.ds_min,
                    help="smallest arclength step of the deep march before it refines the "
                         f"healing front or stops (default {AUTO.steps.ds_min:g})")
-    p.add_argument("--spacing", type=float, default=0.0,
-                   help="write (and grid-check) a deep-march pulse only once L has grown "
-                        "by this fraction since the last one, e.g. 0.01 (default 0: every "
-                        "arclength step). A checked pulse hands its grid back to the march, so "
-                        "a wide spacing lets the deformed grid drift")
+    p.add_argument("--spacing", type=float, default=SPACING,
+                   help="write (and grid-check) a deep-march pulse once L has grown by this "
+                        f"fraction since the last one (default {SPACING:g}; 0: every arclength "
+                        "step). The march goes on from each checked pulse, so a wide spacing "
+                        "lets the deformed grid drift between checks")
     p.add_argument("--max-length", type=float, default=math.inf,
                    help="stop (exit 0) once the pulse length exceeds this (m; default no limit)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

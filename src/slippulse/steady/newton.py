@@ -69,7 +69,7 @@ def chord(problem, x0, lu, tol=NEWTON_TOL, max_iter=30, rate=0.5, r0=None):
 
 #: A Newton iteration whose line search finds no step that lowers ‖r‖₂ has converged when max|r|
 #: is within this factor of its tolerance: the residual's floor in floating point. Measured on the
-#: deep march at L = 6.77 km (stop 36): an arclength step stopped at max|r| = 1.11e−13 against
+#: deep march at L = 6.77 km: an arclength step stopped at max|r| = 1.11e−13 against
 #: tol = 1e−13, and its failure ended the march (ds halved below ds_min).
 ROUNDOFF = 10.0
 
@@ -111,13 +111,14 @@ def newton(problem, x0, tol=NEWTON_TOL, max_iter=60, max_dy=2.0, callback=None, 
     finer grid starts with the healing front a few cm off; the few equations there, whose
     residual is steep in ln v, made the ‖r‖₂ test cut every step to λ = 1/8 for ten iterations
     of an LU each (measured at L = 3.8 km, N = 5009: 15 iterations with 'residual', 3 with
-    'natural', the same solution; BENCHMARKS.md "Stop 40"). The converged tolerance on max|r|
+    'natural', the same solution). The converged tolerance on max|r|
     is the same.
 
     ``keep=True``: the returned stats carry ``lu``, the last LU factorization used (the one
     passed in when none was formed), and ``jacobian``, the Jacobian at the returned x when it was
     formed there (None after chord iterations converged): a continuation reuses them for the
-    next tangent and the next corrector's chord iterations (:class:`~.continuation.deep.DeepMarch`).
+    next tangent and the next corrector's chord iterations
+    (:class:`~.continuation.driver.Continuation`).
     """
     if line_search not in LINE_SEARCHES:
         raise ValueError(f"line_search={line_search!r}: must be one of {LINE_SEARCHES}")

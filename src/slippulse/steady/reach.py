@@ -36,7 +36,7 @@ GUESS_RATIO = 1.2
 #: continuation's default reaches (1.015; deeper pulses come from ``steady family``), up to
 #: 1.32 (the walk upward stalls at 1.3269: the pulse fades, its length cannot be measured for the
 #: next grid; τ_peak/τ_min = 1.33186; at 1.325 the walk arrives but the final solve cannot lay
-#: its grid, measured in stop 35, so 1.325 is no longer advertised).
+#: its grid, so 1.325 is no longer advertised).
 SOLVE_RANGE = (1.015, 1.32)
 #: Targets this close to GUESS_RATIO are solved from the guess directly.
 DIRECT = 1e-9

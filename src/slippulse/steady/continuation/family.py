@@ -32,7 +32,8 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
                beta_switch: float = 0.85, strategy: Strategy = AUTO,
                tolerance: GridTolerance = GRID_TOLERANCE, n_max: int = MAX_POINTS,
                max_length: float = math.inf, deep_points: int | None = None,
-               spacing: float = 0.0, log=None, monitor=None, check: bool = True) -> FamilyReport:
+               spacing: float | None = None, log=None, monitor=None,
+               check: bool = True) -> FamilyReport:
     """Solve the family from `start` down to `stop` (τ_d/τ_min) into `out`, every pulse
     grid-checked; a rerun resumes from the deepest converged pulse of `out`.
 
@@ -52,7 +53,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     max_length : stop (cleanly, ``rep.limit_reached``) once a pulse is this long (m).
     deep_points : N of the adapted grid the deep driver starts on (default :data:`DEEP_POINTS`).
     spacing : the deep driver writes an accepted pulse once L has grown by this fraction since
-        the last written one (0: every one; the last always).
+        the last written one (0: every one; the last always); default :data:`SPACING`.
     log : callable(str), optional; one line per grid check, relay or recentring.
     monitor : callable(solution, pulse) → dict or None, optional: called on every checked pulse
         just before it is written; the dict's items are stored as the pulse's attributes (a
@@ -62,6 +63,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     """
     check_family_args(params, start, stop, step)
     deep_points = DEEP_POINTS if deep_points is None else deep_points
+    spacing = SPACING if spacing is None else spacing
     _check_args(params, out, tolerance, n_max, deep_points, max_length, spacing, check)
     n_tau, n_deep = FAMILY_POINTS if n_points is None else (n_points, n_points)
     if min_step is None:
@@ -216,6 +218,12 @@ def _attempt(params, tau_d_ratio, rep: FamilyReport, progress, **solve_args):
 #: Above this β the family goes on by the pseudo-arclength driver (τ_d ≈ 1.0125 τ_min, L ≈ 114 m);
 #: below it the β-steps converge.
 DEEP_BETA = 0.99
+#: The deep driver writes (and grid-checks) a pulse once L has grown by this fraction since the
+#: last written one: beyond 2 km a step moves L by 0.2–0.4 %, and a check at 2N − 1 costs several
+#: steps, so checking every step spent about half the march on checks. The march goes on from
+#: each checked pulse, so a wide spacing lets the deformed grid drift between checks (at 0.04 a
+#: check at 2.5 km had to double N); 0.01 is what the family to 10 km was marched with.
+SPACING = 0.01
 #: Points of the adapted grid the deep driver starts on (then deformed with the pulse; the
 #: per-pulse check refines the body or doubles N as needed).
 DEEP_POINTS = 2000

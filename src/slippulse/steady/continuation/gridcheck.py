@@ -172,8 +172,8 @@ def as_both(params, sol: SteadySolution) -> SteadySolution:
 #: The regions of :func:`regions`. The body held most of the N-dependence on the deformed grid
 #: at 600 m (docs/analysis.md: 1.67e-4 of 1.78e-4 at 602 m); beyond 2 km the zone ±0.01 L about
 #: the leading edge, which the deformation keeps while the pulse lengthens, holds the largest part
-#: (stop 32: −1.26e-4 of ≈ −1.7e-4 at 2.43 km, :func:`locate_error`), and within it the band
-#: (−0.01 L, −0.0005 L] behind the edge (stop 35: at 2.06 km −8.6e-5 of the zone's −1.0e-4 from
+#: (−1.26e-4 of ≈ −1.7e-4 at 2.43 km, :func:`locate_error`), and within it the band
+#: (−0.01 L, −0.0005 L] behind the edge (at 2.06 km −8.6e-5 of the zone's −1.0e-4 from
 #: 121 of its 620 cells, the steep edge itself −1.2e-5; at 4.08 km that band alone, 119 cells,
 #: took the check from 9.1e-5 to 2.1e-5, the whole zone, 696 cells, to 7.4e-6).
 AHEAD = "ahead (> +0.01 L)"

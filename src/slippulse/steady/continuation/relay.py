@@ -1,4 +1,4 @@
-"""A new grid where the deformed grid's arclength corrector stalls (issue 18, item 4), for
+"""A new grid where the deformed grid's arclength corrector stalls, for
 :class:`~slippulse.steady.continuation.driver.Continuation`'s fallback (``StretchGrid.relay``).
 
 Measured at the stall of the 271-pulse family (L = 6744 m, N = 3542, docs/analysis.md): the
