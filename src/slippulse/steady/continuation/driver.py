@@ -146,9 +146,12 @@ class Continuation:
             self.ds = min(self.ds, self.cap)
 
     def state_attrs(self) -> dict:
-        """The driver's attributes of a written pulse: its strategy and step control state (what
-        a resumed march restores, :meth:`resume_step`, :meth:`hold`)."""
+        """The driver's attributes of a written pulse: its strategy, the predictor and Newton
+        iterations of the step that produced it, and the step control state (what a resumed march
+        restores, :meth:`resume_step`, :meth:`hold`)."""
         return {"continuation": "arclength", "continuation_strategy": str(self.strategy),
+                "continuation_predictor": self.last_predictor,
+                "continuation_iterations": int(self.sol.stats.iterations),
                 "march_held": bool(self.held), "march_cap": float(self.cap)}
 
     # ---------------------------------------------------------------- the public step
