@@ -43,7 +43,7 @@ def family(src, out, to, max_length, cache):
     """Wall time (s) and return code of one family command with the source under ``src``."""
     env = dict(os.environ, PYTHONPATH=src, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1",
                OPENBLAS_NUM_THREADS="1", NUMBA_CACHE_DIR=cache)
-    args = [sys.executable, "-m", "slippulse", "steady", "family", "--from", "1.2", "--to",
+    args = [sys.executable, "-m", "slippulse.cli", "steady", "family", "--from", "1.2", "--to",
             str(to), "--out", out, "-q"]
     if max_length:
         args += ["--max-length", str(max_length)]

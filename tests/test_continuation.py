@@ -669,3 +669,23 @@ def test_to_refine_keeps_the_refined_check_within_the_largest_grid():
     assert _to_refine(shares, tol, cells=cells, budget=10000) == [HEALING, BODY]
     assert _to_refine(shares, tol, cells=cells, budget=2369) == [HEALING]
     assert _to_refine(shares, tol, cells=cells, budget=100) == [HEALING]   # kept: N doubles next
+
+
+def test_the_monitor_sees_every_written_pulse_and_its_figures_are_stored(params, tmp_path):
+    """``run_family(monitor=...)``: called on every checked pulse just before it is written (the
+    place for a per-pulse computation along the family); its dict is stored with the pulse."""
+    out = str(tmp_path / "fam.h5")
+    seen = []
+
+    def monitor(sol, pulse):
+        seen.append(pulse.tau_d_ratio)
+        return {"test_function": float(sol.beta) ** 2}
+
+    rep = run_family(params, out, start=1.2, stop=1.19, step=0.005, n_points=500,
+                     monitor=monitor)
+    labels = list_pulses(out)
+    assert labels == rep.written == ["td1.2000", "td1.1950", "td1.1900"]
+    assert seen == [read_pulse(out, lab)[0].tau_d_ratio for lab in labels]
+    for lab in labels:
+        p, _ = read_pulse(out, lab)
+        assert p.extra["test_function"] == pytest.approx(p.beta ** 2, rel=1e-15)
