@@ -3,13 +3,12 @@ of a family file copied into a small seed file, plus a table of every pulse of t
 
     python steady/deep_seed.py FAMILY.h5 SEED.h5 [--keep 2] [--table TABLE.csv]
 
-The family command resumes below the deepest converged pulse of its --out file, with the secant
-predictor of the pulse above it (docs/steady.md §3), so a file holding only those two pulses is
-enough to go on:
+The family command resumes below the deepest converged pulse of its --out file, with the pace,
+the secant predictor and the held steps of the pulse above it (docs/steady.md §3), so a file holding only those two
+pulses is enough to go on:
 
     cp SEED.h5 runs/deep.h5
-    slippulse steady family --from 1.2 --to 1.0080 --out runs/deep.h5 --max-length 12000 \
-        --ds-min 0.0002 --spacing 0.04
+    slippulse steady family --from 1.2 --to 1.0080 --out runs/deep.h5 --max-length 12000
 
 The table (label, tau_d_ratio, beta, L in m, N, grid-check figures) keeps the rest of the family
 for the divergence fits (steady/divergence.py reads family files; the table is for the record).

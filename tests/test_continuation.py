@@ -93,48 +93,80 @@ def _inject(monkeypatch, fail):
     import slippulse.steady.newton as nw
     inj = _Injector(nw.newton, fail)
     monkeypatch.setitem(nw.SOLVERS, "newton", inj)
-    for mod in (cont.natural, cont.deep, cont.gridcheck, cont.homotopy):
+    for mod in (cont.natural, cont.gridcheck, cont.homotopy):
         monkeypatch.setattr(mod, "newton", inj)
     return inj
 
 
 def _deep_failures(problem):
     """τ_d steps below 1.1935 fail, and every β-step (τ_d free): the run must stop at 1.195."""
+    if not hasattr(problem, "free"):           # the grid checks' re-solves: never
+        return False
     return problem.free == "tau_d" or problem.tau_d_ratio < 1.1935
 
 
+def _failing_strategy():
+    """The product's strategy with a corrector that fails at once (counted in FAILED), free steps
+    from 0.1 down to 0.02 and no relay: the deep march fails after three attempts."""
+    from slippulse.steady.continuation import (AUTO, FreeSteps, NewtonCorrector, StretchGrid)
+    from slippulse.steady.newton import SolveStats
+
+    class Failing(NewtonCorrector):
+        def solve(self, problem, x0, lu=None, creep=None):
+            FAILED[0] += 1
+            return np.array(x0, float), SolveStats(False, "injected failure", 0, np.inf)
+
+    return AUTO.replace(corrector=Failing(), steps=FreeSteps(ds=0.1, ds_min=0.02),
+                        grid=StretchGrid(relay=0, recentre=0.0))
+
+
+FAILED = [0]
+
+
 def test_family_counts_every_failed_attempt_and_says_why_it_stopped(params, tmp_path, monkeypatch):
+    """τ_d steps below 1.1935 and every β-step fail: the family goes on from 1.195 by the deep
+    march, whose correctors fail too (ds 0.1, 0.05, 0.025, then below ds_min): every failure is
+    counted and the run says where and why it stopped."""
     inj = _inject(monkeypatch, _deep_failures)
+    FAILED[0] = 0
     calls = []
     rep = run_family(params, str(tmp_path / "f.h5"), start=1.2, stop=1.185, step=0.005,
-                     n_points=500, progress=lambda r, p, m: calls.append(p is None))
-    # 1.19 fails, 1.1925 (halved) fails, then two β-steps (shrink 0.92, 0.96) fail: four failures
-    assert inj.injected == 4
-    assert len(rep.failures) == inj.injected and sum(calls) == inj.injected
-    assert rep.attempts == len(calls) == 6
+                     n_points=500, deep_points=500, n_max=4000,
+                     progress=lambda r, p, m: calls.append(p is None), strategy=_failing_strategy())
+    # 1.19 fails, 1.1925 (halved) fails, then two β-steps (shrink 0.92, 0.96) fail: four; the
+    # deep march's three attempts (ds 0.1, 0.05, 0.025; a predictor out of range fails before
+    # its corrector)
+    assert inj.injected == 4 and 1 <= FAILED[0] <= 3
+    assert len(rep.failures) == inj.injected + 3 == sum(calls)
+    assert rep.attempts == len(calls) == 2 + 4 + 1 + 3      # + the deep start's re-solve
     assert rep.written == ["td1.2000", "td1.1950"]
     assert rep.stopped_early and rep.reached == pytest.approx(1.195)
     assert rep.reached_beta == pytest.approx(read_pulse(str(tmp_path / "f.h5"), "td1.1950")[0].beta)
-    assert "beta-steps stopped converging" in rep.stop_reason and "--points" in rep.hint
+    assert "arclength steps stopped converging" in rep.stop_reason and "--ds-min" in rep.hint
     assert any("beta-step" in m for _, m in rep.failures)
 
 
 def test_family_command_final_line_names_where_why_and_how_to_go_further(tmp_path, monkeypatch,
                                                                          capsys):
+    import slippulse.steady.continuation as cont
+    import slippulse.steady.continuation.family as fam
     from slippulse import cli
     inj = _inject(monkeypatch, _deep_failures)
+    FAILED[0] = 0
+    monkeypatch.setattr(cont, "AUTO", _failing_strategy())
+    monkeypatch.setattr(fam, "DEEP_POINTS", 500)
     out = str(tmp_path / "f.h5")
-    rc = cli.main(["steady", "family", "--deep", "beta", "--from", "1.2", "--to", "1.185", "--step", "0.005",
-                   "--points", "500", "--out", out, "-q"])
+    rc = cli.main(["steady", "family", "--from", "1.2", "--to", "1.185", "--step", "0.005",
+                   "--points", "500", "--out", out, "-q", "--ds-min", "0.02"])
     assert rc == 1
     text = capsys.readouterr().out
-    assert f"{inj.injected} failed" in text and inj.injected == 4
+    assert f"{inj.injected + 3} failed" in text and inj.injected == 4
     stop = [ln for ln in text.splitlines() if ln.startswith("STOPPED EARLY")]
     assert len(stop) == 1
     assert "tau_d/tau_min=1.19500" in stop[0] and "1.1850 not reached" in stop[0]
     beta = read_pulse(out, "td1.1950")[0].beta
     assert f"beta={beta:.6f}" in stop[0]
-    assert "beta-steps stopped converging" in stop[0] and "--points 1000" in stop[0]
+    assert "arclength steps stopped converging" in stop[0] and "--ds-min" in stop[0]
 
 
 def test_progress_moves_on_beta_steps_and_counts_failures():
@@ -180,18 +212,26 @@ def test_arclength_row_and_tangent(params):
     assert n[-2] > 0                                     # oriented toward larger β
 
 
+def _plain(ds, stretch=False):
+    """Fixed arclength steps ``ds`` on an adapted (or stretched) grid, 20 Newton iterations."""
+    from slippulse.steady.continuation import (AdaptGrid, FreeSteps, NewtonCorrector, Strategy,
+                                               StretchGrid, TangentPredictor)
+    return Strategy(TangentPredictor(), NewtonCorrector(max_iter=20),
+                    FreeSteps(ds=ds, ds_max=ds, ds_min=ds / 4),
+                    StretchGrid(relay=0, recentre=0.0) if stretch else AdaptGrid())
+
+
 def test_arclength_steps_stay_on_the_family(params):
     """Two pseudo-arclength steps from the 1.2 pulse: each a converged pulse (β and τ_d both
     unknown) that a fixed-τ_d solve at its τ_d reproduces, moving toward τ_min and larger β."""
-    from slippulse.steady.continuation import DeepSettings, march_arclength
+    from slippulse.steady.continuation import Continuation
     from slippulse.steady.solver import solve_pulse
     a = solve_pulse(params, 1.2, n_points=500)
+    m = Continuation(params, (a.xi, a.x[:-1], a.beta, 1.2), _plain(0.004))
     steps = []
-    deep = DeepSettings(ds=0.004, ds_max=0.004, max_iter=20)
-    for sol, _ in march_arclength(params, (a.xi, a.x[:-1], a.beta, 1.2), 500, deep=deep):
-        steps.append(sol)
-        if len(steps) == 2:
-            break
+    for _ in range(2):
+        assert m.step() is None
+        steps.append(m.sol)
     qs = [float(s.x[-1]) for s in steps]
     bs = [s.beta for s in steps]
     assert 1.2 > qs[0] > qs[1] and a.beta < bs[0] < bs[1]
@@ -202,38 +242,6 @@ def test_arclength_steps_stay_on_the_family(params):
         b = solve_pulse(params, float(s.x[-1]), n_points=500, guess=(s.xi, s.x[:-2], s.beta * 1.01),
                         passes=0, adapt_guess=False)
         assert b.stats.converged and b.beta == pytest.approx(s.beta, rel=1e-8)
-
-
-def test_family_arclength_writes_grid_checked_pulses_and_resumes(params, tmp_path):
-    """deep='arclength' from the first pulse on (beta_switch=0): arclength pulses are grid-checked
-    (2N at fixed β, converted to fixed τ_d) and the 2N solutions written with the check's numbers,
-    one per label, at least fine/2 apart; a rerun resumes below the deepest."""
-    from slippulse.steady.continuation import DeepSettings
-    from slippulse.steady.solver import solve_pulse
-    out = str(tmp_path / "arc.h5")
-    deep = DeepSettings(ds=0.001, ds_max=0.001, fine=0.002, tol_beta=1e-4, tol_L=1e-2,
-                        n_max=1000, max_iter=20)
-    rep = run_family(params, out, start=1.2, stop=1.19, step=0.01, n_points=500,
-                     beta_switch=0.0, deep="arclength", deep_settings=deep)
-    assert not rep.stopped_early, rep.stop_reason
-    labels = list_pulses(out)
-    assert labels[0] == "td1.2000" and len(labels) >= 3 and rep.written == labels
-    qs = [read_pulse(out, lab)[0].tau_d_ratio for lab in labels]
-    assert np.all(np.diff(qs) <= -0.5 * deep.fine) and qs[-1] <= 1.19 + 1e-12
-    for lab in labels[1:]:
-        p, _ = read_pulse(out, lab)
-        assert p.converged and p.max_residual <= 1e-13 and p.extra["n_humps"] == 1
-        assert p.n_points == 2 * p.extra["grid_check_n"]
-        assert p.extra["grid_check_dbeta"] <= 1e-4 and p.extra["grid_check_dL_rel"] <= 1e-2
-    # a written pulse is a solution at its own τ_d: a fixed-τ_d solve on its grid returns its β
-    p, _ = read_pulse(out, labels[-1])
-    d = solve_pulse(params, p.tau_d_ratio, n_points=p.n_points, guess=(p.xi, np.log(p.v), p.beta),
-                    passes=0, adapt_guess=False)
-    assert d.beta == pytest.approx(p.beta, rel=1e-9)
-    rep2 = run_family(params, out, start=1.2, stop=1.185, step=0.005, n_points=500,
-                      beta_switch=0.0, deep="arclength", deep_settings=deep)
-    assert rep2.resumed_from == labels[-1] and rep2.written
-    assert all(read_pulse(out, lab)[0].tau_d_ratio < qs[-1] for lab in rep2.written)
 
 
 class _ToyFold:
@@ -524,18 +532,18 @@ def test_checks_start_with_the_homotopy_after_one_needed_it(monkeypatch):
 
 
 def test_stretched_march_and_nested_grid_check(params):
-    """deep.stretch: the grid is deformed with the pulse every step (same N, the nodes ahead of
-    the front kept, the healing front and tail shifted), the steps are converged pulses on the family
+    """StretchGrid: the grid is deformed with the pulse every step (same N, the nodes ahead of the
+    front kept, the healing front and tail shifted), the steps are converged pulses on the family
     (fixed-τ_d solve on the step's grid returns its β); the nested check (2N − 1 nodes, the
-    N-grid's nodes kept) gives small N-vs-2N differences that a handoff carries into the march."""
-    from slippulse.steady.continuation import DeepSettings, check_grid_2n, march_arclength
+    N-grid's nodes kept) gives small N-vs-2N differences, and its pulse replaces the march's."""
+    from slippulse.steady.continuation import Continuation, check_grid_2n
     from slippulse.steady.solver import solve_pulse
     a = solve_pulse(params, 1.2, n_points=500)
-    deep = DeepSettings(ds=0.004, ds_max=0.004, max_iter=20, stretch=True)
-    handoff = {}
+    m = Continuation(params, (a.xi, a.x[:-1], a.beta, 1.2), _plain(0.004, stretch=True))
     steps = []
-    for sol, _ in march_arclength(params, (a.xi, a.x[:-1], a.beta, 1.2), 400, deep=deep,
-                                  handoff=handoff):
+    while len(steps) < 2:
+        assert m.step() is None
+        sol = m.sol
         steps.append(sol)
         if len(steps) == 1:
             fine, db, dl = check_grid_2n(params, sol, 500, nested=True, stages=4)
@@ -554,9 +562,7 @@ def test_stretched_march_and_nested_grid_check(params):
             f3, _, _ = check_grid_2n(params, sol, 500, nested=True, stages=4, cells=body)
             assert f3.stats.converged and f3.problem.n == 500 + int(body.sum())
             assert np.isin(sol.xi, f3.xi).all() and f3.xi[f3.problem.pin_index] == xf
-            handoff["sol"] = fine
-        if len(steps) == 2:
-            break
+            m.replace(fine)
     assert steps[0].problem.n == 500 and steps[1].problem.n == 999
     assert steps[0].xi[-1] == a.xi[-1] and steps[0].xi[0] != a.xi[0]
     qs = [float(s.x[-1]) for s in steps]
@@ -618,15 +624,15 @@ def test_check_pulse_locates_the_error_before_refining(params):
     """locate=True on a marched pulse with a tolerance it misses: the shares of the four inner
     regions add up to about the full nested check's change, and the refined pulse has exactly
     the chosen regions' midpoints inserted (its old nodes kept)."""
-    from slippulse.steady.continuation import DeepSettings, grid_change, march_arclength
+    from slippulse.steady.continuation import Continuation, grid_change
     from slippulse.steady.continuation.gridcheck import (INNER, check_pulse, locate_error,
                                                          regions)
     from slippulse.steady.continuation.tolerance import GridTolerance
     from slippulse.steady.solver import solve_pulse
     a = solve_pulse(params, 1.2, n_points=500)
-    deep = DeepSettings(ds=0.004, ds_max=0.004, max_iter=20, stretch=True)
-    sol = next(iter(march_arclength(params, (a.xi, a.x[:-1], a.beta, 1.2), 400, deep=deep,
-                                    handoff={})))[0]
+    m = Continuation(params, (a.xi, a.x[:-1], a.beta, 1.2), _plain(0.004, stretch=True))
+    assert m.step() is None
+    sol = m.sol
     _, db, dl = grid_change(params, sol, 500, nested=True, stages=4)       # signed
     shares = locate_error(params, sol)
     assert list(shares) == list(INNER)
@@ -663,3 +669,23 @@ def test_to_refine_keeps_the_refined_check_within_the_largest_grid():
     assert _to_refine(shares, tol, cells=cells, budget=10000) == [HEALING, BODY]
     assert _to_refine(shares, tol, cells=cells, budget=2369) == [HEALING]
     assert _to_refine(shares, tol, cells=cells, budget=100) == [HEALING]   # kept: N doubles next
+
+
+def test_the_monitor_sees_every_written_pulse_and_its_figures_are_stored(params, tmp_path):
+    """``run_family(monitor=...)``: called on every checked pulse just before it is written (the
+    place for a per-pulse computation along the family); its dict is stored with the pulse."""
+    out = str(tmp_path / "fam.h5")
+    seen = []
+
+    def monitor(sol, pulse):
+        seen.append(pulse.tau_d_ratio)
+        return {"test_function": float(sol.beta) ** 2}
+
+    rep = run_family(params, out, start=1.2, stop=1.19, step=0.005, n_points=500,
+                     monitor=monitor)
+    labels = list_pulses(out)
+    assert labels == rep.written == ["td1.2000", "td1.1950", "td1.1900"]
+    assert seen == [read_pulse(out, lab)[0].tau_d_ratio for lab in labels]
+    for lab in labels:
+        p, _ = read_pulse(out, lab)
+        assert p.extra["test_function"] == pytest.approx(p.beta ** 2, rel=1e-15)

@@ -1,6 +1,6 @@
-"""The product's family (issue 18): ``slippulse steady family`` with ``--deep auto`` (default) —
-every pulse grid-checked, the deep march as an object (:class:`DeepMarch`), labels at non-round
-τ_d, bad input refused with one line and no file touched, kill -9 and resume."""
+"""The product's family: ``slippulse steady family`` — every pulse grid-checked, the deep march as
+an object (:class:`Continuation` over a :class:`Strategy`), labels at non-round τ_d, every option
+either changing the run or refused with one line and no file touched, kill -9 and resume."""
 import dataclasses
 import hashlib
 import math
@@ -14,8 +14,26 @@ import numpy as np
 import pytest
 
 from slippulse.core.h5io import label_ratio, list_pulses, pulse_label, read_pulse, write_pulse
-from slippulse.steady.continuation import (GRID_TOLERANCE, DeepMarch, DeepSettings, GridTolerance,
-                                           run_family)
+from slippulse.steady.continuation import (AUTO, GRID_TOLERANCE, NEWTON_TOL, AdaptGrid,
+                                           Continuation, FreeSteps, GridTolerance, HeldSteps,
+                                           LengthPredictor, NewtonCorrector, SecantPredictor,
+                                           Strategy, StrategyError, StretchGrid,
+                                           TangentPredictor, run_family)
+
+
+def _strategy(ds=0.1, ds_max=0.4, ds_min=0.004, max_iter=15, stretch=False, predictor="tangent",
+              reuse_lu=True, corrector=None, **held):
+    """A strategy of the tests: free steps (held ones with ``held`` given), adapted or stretched
+    grid without relay or recentring."""
+    pred = {"tangent": TangentPredictor(), "length": LengthPredictor(),
+            "secant": SecantPredictor()}[predictor]
+    if "predictor_ds_max" in held:
+        pred = type(pred)(ds_max=held.pop("predictor_ds_max"))
+    corr = corrector or NewtonCorrector(max_iter=max_iter, reuse_lu=reuse_lu)
+    steps = (HeldSteps(ds=ds, ds_max=ds_max, ds_min=ds_min, **held) if held else
+             FreeSteps(ds=ds, ds_max=ds_max, ds_min=ds_min))
+    grid = StretchGrid(relay=0, recentre=0.0) if stretch else AdaptGrid()
+    return Strategy(pred, corr, steps, grid)
 
 
 def _digest(path):
@@ -72,7 +90,7 @@ def test_close_deep_pulses_get_longer_labels_and_read_back_under_them(tmp_path, 
 
 def test_grid_tolerance_is_the_one_place():
     assert GRID_TOLERANCE == GridTolerance(beta=1e-5, L=1e-4)
-    assert DeepSettings().tol_beta == GRID_TOLERANCE.beta and DeepSettings().tol_L == GRID_TOLERANCE.L
+    assert AUTO.corrector.tol == AUTO.steps.corrector.tol == NEWTON_TOL == 1e-13
     assert GRID_TOLERANCE.passes(9e-6, -9e-5) and not GRID_TOLERANCE.passes(2e-5, 0.0)
     assert not GRID_TOLERANCE.passes(0.0, math.inf) and not GRID_TOLERANCE.passes(math.nan, 0.0)
     with pytest.raises(Exception):
@@ -80,15 +98,14 @@ def test_grid_tolerance_is_the_one_place():
 
 
 def test_deep_march_object_status_and_counters(params):
-    """DeepMarch: step() advances by one accepted pulse; status "finished" at stop, "stopped" at
+    """Continuation: step() advances by one accepted pulse; status "finished" at stop, "stopped" at
     max_length; counters add up; stepping a finished march is an error."""
     from slippulse.steady.solver import solve_pulse
     a = solve_pulse(params, 1.2, n_points=500)
     seen = []
-    m = DeepMarch(params, (a.xi, a.x[:-1], a.beta, 1.2),
-                  settings=DeepSettings(ds=DS, ds_max=DS, ds_min=0.25 * DS, max_iter=20,
-                                        stretch=True),
-                  stop=1.195, on_attempt=lambda r, p, msg: seen.append(p is not None))
+    m = Continuation(params, (a.xi, a.x[:-1], a.beta, 1.2),
+                     _strategy(ds=DS, ds_max=DS, ds_min=0.25 * DS, max_iter=20, stretch=True),
+                     stop=1.195, on_attempt=lambda r, p, msg: seen.append(p is not None))
     assert m.status == "running" and m.n_steps == 0 and m.q == 1.2
     qs = [m.q]
     m_prev_beta = m.beta
@@ -103,20 +120,20 @@ def test_deep_march_object_status_and_counters(params):
     with pytest.raises(RuntimeError):
         m.step()
     # a resumed march goes on at the pace of the last step, measured in its own plane
-    mr = DeepMarch(params, m.sol, settings=DeepSettings(ds=0.1, ds_max=0.4, ds_min=1e-5))
+    mr = Continuation(params, m.sol, _strategy(ds=0.1, ds_max=0.4, ds_min=1e-5))
     ds = mr.resume_step(m_prev_beta, qs[-2])
     assert ds == pytest.approx(math.hypot(math.log((1 - m.beta) / (1 - m_prev_beta)),
                                           (m.q - qs[-2]) / mr.kappa), rel=1e-12)
     assert 1e-5 < ds < 0.1 and mr.ds == ds
     assert mr.resume_step(m.beta, m.q) == ds            # no step: ds left as it was
-    tight = DeepMarch(params, m.sol, settings=DeepSettings(ds=0.1, ds_max=0.4, ds_min=0.05))
+    tight = Continuation(params, m.sol, _strategy(ds=0.1, ds_max=0.4, ds_min=0.05))
     assert tight.resume_step(m_prev_beta, qs[-2]) == 0.05          # clipped to ds_min
-    m2 = DeepMarch(params, m.sol, settings=DeepSettings(ds=0.004, ds_max=0.004, max_iter=20,
-                                                        stretch=True), max_length=m.L * 1.001)
+    m2 = Continuation(params, m.sol, _strategy(ds=0.004, ds_max=0.004, max_iter=20, stretch=True),
+                      max_length=m.L * 1.001)
     m2.step()
     assert m2.status == "stopped" and m2.L >= m.L * 1.001 and "max_length" in m2.message
     # a march that cannot converge fails with the reason
-    m3 = DeepMarch(params, m.sol, settings=DeepSettings(ds=0.004, ds_min=0.0015, max_iter=0))
+    m3 = Continuation(params, m.sol, _strategy(ds=0.4, ds_min=0.15, max_iter=1))
     assert m3.step() is not None and m3.status == "failed" and "ds fell below" in m3.message
     assert m3.n_failed == m3.n_attempts == 2
 
@@ -169,14 +186,14 @@ def test_family_refuses_file_of_other_parameters_or_older_format(params, tmp_pat
 @pytest.mark.slow
 def test_auto_family_goes_deep_checks_every_pulse_and_stops_at_max_length(params, tmp_path,
                                                                           monkeypatch):
-    """deep="auto" with the switch moved to the first pulse (DEEP_BETA = 0): the natural pulse and
+    """The family with the switch moved to the first pulse (DEEP_BETA = 0): the natural pulse and
     the deep march's pulses are all written with their grid check (passed, within the tolerance,
     continuation named), at 6-decimal labels off round τ_d; max_length ends it cleanly."""
     import slippulse.steady.continuation.family as fam
     monkeypatch.setattr(fam, "DEEP_BETA", 0.0)
     tol = GridTolerance(1e-5, 3e-4)
     out = str(tmp_path / "deep.h5")
-    rep = run_family(params, out, start=1.2, stop=1.15, step=0.01, n_points=500, deep="auto",
+    rep = run_family(params, out, start=1.2, stop=1.15, step=0.01, n_points=500,
                      deep_points=500, n_max=4000, tolerance=tol, max_length=1.3)
     assert rep.limit_reached and not rep.stopped_early and rep.deep_steps >= 1
     labels = list_pulses(out)
@@ -191,7 +208,7 @@ def test_auto_family_goes_deep_checks_every_pulse_and_stops_at_max_length(params
     assert all(p.extra["continuation"] == "arclength" and len(p.label) == 10 for p in deep)
     assert deep[-1].L >= 1.3
     # a rerun resumes the deep march from the deepest pulse, on its own grid
-    rep2 = run_family(params, out, start=1.2, stop=1.15, step=0.01, n_points=500, deep="auto",
+    rep2 = run_family(params, out, start=1.2, stop=1.15, step=0.01, n_points=500,
                       deep_points=500, n_max=4000, tolerance=tol, max_length=1.4)
     assert rep2.resumed_from == labels[-1] and rep2.resumed_method == "arclength"
     assert rep2.deep_steps >= 1 and rep2.written and not rep2.stopped_early
@@ -228,33 +245,89 @@ def test_family_kill9_then_rerun_resumes_with_file_intact(tmp_path):
     assert all(read_pulse(out, lab)[0].extra["grid_check_passed"] for lab in labels)
 
 
-def test_ds_min_reaches_the_auto_deep_march(tmp_path, monkeypatch):
-    """`--ds-min` of `steady family` (default --deep auto) is the deep march's smallest step: it
-    was once silently replaced by AUTO_DEEP's 0.004. The march is stubbed: this checks the
-    settings it would get, resumed from a deep pulse."""
-    from types import SimpleNamespace
-    from slippulse.cli.app import main
-    from slippulse.steady.continuation import family
-    seen = {}
+#: Every option of ``steady family``: arguments that change the run (compared through
+#: ``family_run_args``, the keyword arguments the command passes to ``run_family``), or that
+#: change where it goes or what it shows. A new option without an entry here fails the test.
+FAMILY_OPTIONS = {
+    "--from": ["1.19"], "--to": ["1.009"], "--step": ["0.0025"], "--points": ["1500"],
+    "--max-points": ["9000"], "--ds-min": ["0.0005"], "--spacing": ["0.0"],
+    "--max-length": ["5000"],
+}
+NOT_THE_RUN = {"-h", "--help", "--out", "-q", "--quiet", "--params", "--set"}
 
-    def resume(params, out, rep):
-        rep.resumed_method, rep.reached_L = "arclength", 1000.0
-        return SimpleNamespace(xi=None, y=None, beta=0.998, q=1.0095)
 
-    def auto_deep(*args, settings=None, **kw):
-        seen["settings"] = settings
+def _family_parser():
+    from slippulse.cli.app import build_parser
+    sub = build_parser()._subparsers._group_actions[0].choices["steady"]
+    return sub._subparsers._group_actions[0].choices["family"]
 
-    monkeypatch.setattr(family, "_resume", resume)
-    monkeypatch.setattr(family, "_check_auto_args", lambda *a, **k: None)
-    monkeypatch.setattr(family, "_auto_deep", auto_deep)
-    out = str(tmp_path / "fam.h5")
-    main(["steady", "family", "--from", "1.2", "--to", "1.009", "--out", out, "-q",
-          "--ds-min", "0.0005"])
-    s = seen["settings"]
-    assert s.ds_min == 0.0005
-    assert (s.stretch, s.ds_max, s.max_iter) == (family.AUTO_DEEP.stretch, family.AUTO_DEEP.ds_max,
-                                                 family.AUTO_DEEP.max_iter)
-    assert family.auto_deep_settings(None) is family.AUTO_DEEP
+
+def test_every_family_option_changes_the_run_or_is_refused(tmp_path, params):
+    """Each option of ``steady family`` changes the keyword arguments of ``run_family`` (the
+    strategy included: ``--ds-min`` is the deep march's smallest step), and each refuses a bad
+    value with a one-line ParameterError naming it; the options of other runs' modes are gone and
+    refused by the parser. --out, -q, --params and --set are checked by their own tests."""
+    import argparse
+
+    from slippulse.cli.steady import family_run_args
+    from slippulse.core.params import ParameterError
+    import tests.cli_inproc as inproc
+    parser = _family_parser()
+    names = {o for a in parser._actions for o in a.option_strings}
+    assert names - NOT_THE_RUN == set(FAMILY_OPTIONS), "an option of steady family is untested"
+    base_args = parser.parse_args([])
+    base = family_run_args(base_args, params)
+    assert base["strategy"] == AUTO and base["spacing"] == 0.01
+    for opt, (val,) in FAMILY_OPTIONS.items():
+        got = family_run_args(parser.parse_args([opt, val]), params)
+        changed = {k for k in base if got[k] != base[k]}
+        assert changed, f"{opt} {val} changes nothing"
+        if opt == "--ds-min":
+            assert changed == {"strategy"} and got["strategy"].steps.ds_min == 0.0005
+            assert got["strategy"].replace(steps=AUTO.steps) == AUTO   # nothing else of it
+    bad = {"--step": "0", "--points": "10", "--max-points": "100", "--ds-min": "0.004",
+           "--spacing": "0.9", "--max-length": "0", "--from": "2", "--to": "0.5"}
+    assert set(bad) == set(FAMILY_OPTIONS)
+    for opt, val in bad.items():
+        with pytest.raises(ParameterError, match=opt.lstrip("-").split("-")[0]):
+            family_run_args(parser.parse_args([opt, val]), params)
+        r = inproc.run(["steady", "family", opt, val, "--out", str(tmp_path / "x.h5"), "-q"])
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+        assert not os.path.exists(tmp_path / "x.h5")
+    for gone in (["--deep", "beta"], ["--no-grid-check"]):
+        r = inproc.run(["steady", "family", *gone, "--out", str(tmp_path / "x.h5"), "-q"])
+        assert r.returncode == 2 and "unrecognized" in r.stderr
+    assert isinstance(parser, argparse.ArgumentParser)
+
+
+def test_a_strategy_is_a_value_refused_when_it_cannot_work():
+    """A combination prints its parts with their parameters, compares by value, and refuses what
+    cannot work when built: held steps without the length/secant predictor or without a
+    stretched grid, the length predictor on an adapted grid, recentring without held steps, bad
+    parameters of a part."""
+    text = str(AUTO)
+    for word in ("secant(ds_max=0.002)", "newton(max_iter=25", "held(", "line_search=natural",
+                 "stretch(", "recentre=0.001"):
+        assert word in text
+    assert AUTO == Strategy(SecantPredictor(), NewtonCorrector(), HeldSteps(), StretchGrid())
+    assert AUTO.replace(grid=StretchGrid(relay=0)) != AUTO
+    with pytest.raises(StrategyError, match="held"):
+        Strategy(TangentPredictor(), NewtonCorrector(), HeldSteps(), StretchGrid())
+    with pytest.raises(StrategyError, match="StretchGrid"):
+        Strategy(SecantPredictor(), NewtonCorrector(), HeldSteps(), AdaptGrid())
+    with pytest.raises(StrategyError, match="stretched grid"):
+        Strategy(LengthPredictor(), NewtonCorrector(), FreeSteps(), AdaptGrid())
+    with pytest.raises(StrategyError, match="ds_min"):
+        AUTO.replace(steps=HeldSteps(ds_min=0.004))
+    with pytest.raises(StrategyError, match="recentre"):
+        Strategy(SecantPredictor(), NewtonCorrector(), FreeSteps(), StretchGrid())
+    Strategy(SecantPredictor(), NewtonCorrector(), FreeSteps(), StretchGrid(recentre=0.0))
+    for bad in (lambda: NewtonCorrector(line_search="armijo"), lambda: NewtonCorrector(max_iter=0),
+                lambda: FreeSteps(ds=0.001, ds_min=0.01), lambda: HeldSteps(cap_shrink=0.0),
+                lambda: LengthPredictor(ds_max=0.0), lambda: StretchGrid(front_zone=2.0),
+                lambda: Strategy(predictor="secant")):
+        with pytest.raises(StrategyError):
+            bad()
 
 
 def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, params):
@@ -287,125 +360,94 @@ def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, 
     assert rep.resumed_cap == 0.0016
 
 
-@pytest.mark.parametrize("held", [False, True])
-def test_a_resumed_deep_march_starts_held_if_its_pulse_was_written_held(monkeypatch, held):
-    """DeepSettings.hold: every pulse the auto march writes carries ``march_held`` (whether ds was
-    held when it was written), and a march resumed from a held pulse (``_auto_deep(held=True)``,
-    from ``FamilyReport.resumed_held``) starts held instead of learning it again from a failed
-    tangent step; without hold nothing is written or restored."""
-    from types import SimpleNamespace
-    from slippulse.steady.continuation import family
-    from slippulse.steady.continuation.report import FamilyReport
-    monkeypatch.setattr(family, "DeepMarch", _StubMarch)
-    extras, marches = [], []
-    real_init = _StubMarch.__init__
-
-    def init(self, *a, **k):
-        real_init(self, *a, **k)
-        marches.append(self)
-
-    monkeypatch.setattr(_StubMarch, "__init__", init)
-
-    def write(sol, pulse, method, extra=None):
-        extras.append(extra)
-        return SimpleNamespace(passed=True, sol=sol)
-
-    for hold in (True, False):
-        extras.clear()
-        settings = dataclasses.replace(family.AUTO_DEEP, spacing=0.0, hold=hold, recentre=0.0,
-                                       ds_min=0.0002)
-        family._auto_deep(None, "unused.h5", (None, None, 0.998, 1.0095), 1.0, FamilyReport(),
-                          None, write, None, 1010.0, 4000, None, None, settings=settings,
-                          held=held, cap=0.0013)
-        m = marches[-1]
-        assert m.held is (held and hold)
-        # the cap restored with held (and the first ds within it)
-        assert (m.cap, m.ds) == ((0.0013, 0.0013) if held and hold else (0.002, 0.002))
-        assert extras and all(e == ({"march_held": held, "march_cap": m.cap} if hold else None)
-                              for e in extras)
+def test_a_resumed_march_starts_held_if_its_pulse_was_written_held(params, pulse12):
+    """Every pulse a march with held steps hands over carries ``march_held`` and ``march_cap``
+    (:meth:`Continuation.state_attrs`, with the strategy printed); a march resumed from a held
+    pulse (:meth:`Continuation.hold`) starts held at that cap, the first ds within it, instead of
+    learning it again from a failed tangent step; a strategy without held steps ignores it."""
+    from slippulse.steady.continuation.gridcheck import as_both
+    start = as_both(params, pulse12)
+    m = Continuation(params, start, AUTO)
+    attrs = m.state_attrs()
+    assert attrs["march_held"] is False and attrs["march_cap"] == 0.002
+    assert attrs["continuation_strategy"] == str(AUTO) and attrs["continuation"] == "arclength"
+    m.hold(0.0013)
+    assert m.held and (m.cap, m.ds) == (0.0013, 0.0013)
+    assert m.state_attrs()["march_held"] is True and m.state_attrs()["march_cap"] == 0.0013
+    free = Continuation(params, start, _strategy(stretch=True, predictor="secant"))
+    free.hold(0.0013)
+    assert not free.held and free.ds == 0.1
 
 
-class _StubMarch:
-    """A DeepMarch stand-in: every step lengthens the pulse by 0.3 %; stopped at max_length."""
+class _GrowingMarch(Continuation):
+    """A Continuation whose accepted step (``advance``) only lengthens the pulse by 0.3 %."""
 
-    def __init__(self, params, start, settings=None, stop=None, max_length=None, on_attempt=None):
-        from types import SimpleNamespace
-        self.L, self.max_length, self.status, self.n_steps = 1000.0, max_length, "running", 0
-        self.message = ""
-        self.held = False
-        self.cap, self.ds = 0.002, 0.002
-        self.sol = SimpleNamespace(to_pulse=lambda: SimpleNamespace(L=self.L))
-
-    def step(self):
+    def advance(self):
         self.L *= 1.003
         self.n_steps += 1
-        if self.L >= self.max_length:
-            self.status = "stopped"
+        self._update_status()
         return None
 
 
 @pytest.mark.parametrize("spacing", [0.0, 0.01])
-def test_the_deep_march_writes_a_pulse_per_spacing_of_L_and_its_last(monkeypatch, spacing):
-    """DeepSettings.spacing (`--spacing`): a step is written (and checked) once L has grown by the
-    spacing since the last written pulse, and the march's last pulse is always written; spacing
-    0 writes every step."""
-    from types import SimpleNamespace
-    from slippulse.steady.continuation import family
-    from slippulse.steady.continuation.report import FamilyReport
-    monkeypatch.setattr(family, "DeepMarch", _StubMarch)
+def test_the_deep_march_hands_over_a_pulse_per_spacing_of_L_and_its_last(params, pulse12,
+                                                                          spacing):
+    """``spacing`` (`--spacing`): a step is handed to ``on_accept`` (checked and written) once L
+    has grown by the spacing since the last one, and the march's last pulse always is; spacing 0
+    hands over every step."""
+    from slippulse.steady.continuation import Accepted
+    from slippulse.steady.continuation.gridcheck import as_both
     written = []
 
-    def write(sol, pulse, method, extra=None):
-        written.append(pulse.L)
-        return SimpleNamespace(passed=True, sol=sol)
+    def on_accept(sol, extra):
+        written.append(m.L)
+        return Accepted(True, sol)
 
-    rep = FamilyReport()
-    settings = dataclasses.replace(family.AUTO_DEEP, spacing=spacing)
-    family._auto_deep(None, "unused.h5", (None, None, 0.998, 1.0095), 1.0, rep, None, write,
-                      None, 1100.0, 4000, None, None, settings=settings)
-    steps = rep.deep_steps
-    assert written[-1] >= 1100.0 and rep.limit_reached
+    start = as_both(params, pulse12)
+    L0 = start.to_pulse().L
+    m = _GrowingMarch(params, start, AUTO.replace(grid=StretchGrid(recentre=0.0),
+                                                  steps=FreeSteps()),
+                      max_length=1.1 * L0, spacing=spacing, on_accept=on_accept)
+    assert m.run() == "stopped"
+    assert written[-1] >= 1.1 * L0 and m.n_written == len(written)
     if spacing == 0:
-        assert len(written) == steps
+        assert len(written) == m.n_steps
     else:
-        grown = np.array(written[:-1]) / np.array([1000.0] + written[:-2])
+        grown = np.array(written[:-1]) / np.array([L0] + written[:-2])
         assert grown.size >= 2 and np.all(grown >= 1 + spacing)
-        assert len(written) < steps / 3
+        assert len(written) < m.n_steps / 3
 
 
-def _stalling_march(monkeypatch, n_start):
-    """DeepMarch._attempt fails (a mocked stall of the corrector) while the march is on a grid of
-    ``n_start`` nodes (the start's, deformed), and is the real one on any other (a refined one)."""
-    real = DeepMarch._attempt
-    calls = {"failed": 0, "real": 0}
+class _StallingCorrector(NewtonCorrector):
+    """Newton that fails (a mocked stall) on grids of ``n`` nodes and is the real one on others."""
 
-    def attempt(self):
-        if self._base.xi.size == n_start:
-            calls["failed"] += 1
-            return False, None, "mocked: not converged after 25 iterations", (math.nan,
-                                                                               math.nan), self.q
-        calls["real"] += 1
-        return real(self)
+    def solve(self, problem, x0, lu=None, creep=None):
+        if problem.base.n == STALL_N[0]:
+            STALL_N[1] += 1
+            from slippulse.steady.newton import SolveStats
+            return x0, SolveStats(False, "mocked: not converged after 25 iterations", 25, 1.0)
+        STALL_N[2] += 1
+        return super().solve(problem, x0, lu=lu, creep=creep)
 
-    monkeypatch.setattr(DeepMarch, "_attempt", attempt)
-    return calls
+
+STALL_N = [0, 0, 0]          # the stalling grid's N, stalled attempts, real attempts
 
 
 @pytest.mark.parametrize("case", ["passes", "check fails", "re-solve fails", "off"])
 def test_the_deep_march_refines_the_healing_front_where_the_corrector_stalls(
         monkeypatch, tmp_path, params, pulse12, case):
-    """Where the corrector fails at ds_min (mocked), the "auto" march re-solves its pulse with the
-    healing front's cells split (DeepSettings.relay), grid-checks and writes it like every deep
-    pulse, and goes on from it; a refined pulse that fails its check is written failed and ends
-    the march, as does a re-solve that does not converge (nothing written); relay=0: the march
-    ends at the stall as before."""
-    from slippulse.steady.continuation import family
+    """Where the corrector fails at ds_min (a stalling corrector), the march re-solves its pulse
+    with the healing front's cells split (``StretchGrid.relay``), hands it over to be checked and
+    written like every deep pulse, and goes on from it; a refined pulse that fails its check is
+    written failed and ends the march, as does a re-solve that does not converge (nothing
+    written); relay=0: the march ends at the stall."""
+    from slippulse.steady.continuation import driver, family
     from slippulse.steady.continuation.gridcheck import as_both
     from slippulse.steady.continuation.report import FamilyReport
     start = as_both(params, pulse12)
-    calls = _stalling_march(monkeypatch, start.xi.size)
+    STALL_N[:] = [start.xi.size, 0, 0]
     if case == "re-solve fails":
-        monkeypatch.setattr(family, "refine_front", lambda *a, **k: (
+        monkeypatch.setattr(driver, "refine_front", lambda *a, **k: (
             None, math.inf, math.inf, "healing front refined: the re-solve did not "
                                       "converge (mocked)"))
     out = str(tmp_path / "fam.h5")
@@ -413,45 +455,46 @@ def test_the_deep_march_refines_the_healing_front_where_the_corrector_stalls(
     tol = GridTolerance(1e-30, 1e-30) if case == "check fails" else GRID_TOLERANCE
     n_max = 2 * 700 - 1
     write = family._CheckedWriter(params, out, rep, tol, n_max, None)
-    settings = dataclasses.replace(family.AUTO_DEEP, ds=0.008, ds_min=0.004,
-                                   relay=0 if case == "off" else 3)
+    strategy = AUTO.replace(corrector=_StallingCorrector(),
+                            steps=FreeSteps(ds=0.008, ds_min=0.004),
+                            grid=StretchGrid(relay=0 if case == "off" else 3, recentre=0.0))
     L0 = start.to_pulse().L
-    family._auto_deep(params, out, (start.xi, start.x[:-2], start.beta, 1.2), 1.0, rep, None,
-                      write, None, L0 * 1.004, n_max, tol, None, settings=settings)
+    family._deep(params, (start.xi, start.x[:-2], start.beta, 1.2), 1.0, rep, None, write, None,
+                 L0 * 1.004, None, strategy, 0.0)
     labels = list_pulses(out) if os.path.exists(out) else []
     pulses = [read_pulse(out, lab)[0] for lab in labels]
     # the stall: ds halved from 0.008 below 0.004, two failed attempts on the start's grid
-    assert calls["failed"] == 2
+    assert STALL_N[1] == 2
     if case == "off":
         assert rep.stopped_early and "ds fell below" in rep.stop_reason and not labels
-        assert calls["real"] == 0
+        assert STALL_N[2] == 0
         return
     if case == "re-solve fails":
         assert rep.stopped_early and "did not converge (mocked)" in rep.stop_reason
-        assert not labels and calls["real"] == 0
+        assert not labels and STALL_N[2] == 0
         return
     relaid = [p for p in pulses if p.extra.get("relaid")]
     assert len(relaid) == 1
     r = relaid[0]
     # re-solved on the start's grid with the healing front's cells split (nested), then checked
     assert "grid_check_passed" in r.extra and r.extra["continuation"] == "arclength"
+    assert r.extra["continuation_strategy"] == str(strategy)
     assert r.xi.size > 700 and np.isin(start.xi, r.xi).all()
     assert abs(r.tau_d_ratio - 1.2) < 1e-6
     assert math.isfinite(r.extra["relay_dL_rel"]) and math.isfinite(r.extra["relay_dbeta"])
     if case == "check fails":
         assert not r.converged and r.extra["status"] == "failed"
         assert not r.extra["grid_check_passed"] and rep.stopped_early
-        assert "failed its grid check" in rep.stop_reason and calls["real"] == 0
+        assert "failed its grid check" in rep.stop_reason and STALL_N[2] == 0
         assert rep.written == []
         return
     # passed: written as good, and the march went on from it on the new grid to max_length
     assert r.converged and r.extra["grid_check_passed"]
     assert abs(r.extra["grid_check_dL_rel"]) <= GRID_TOLERANCE.L
-    assert calls["real"] >= 1 and rep.limit_reached and not rep.stopped_early
+    assert STALL_N[2] >= 1 and rep.limit_reached and not rep.stopped_early
     assert rep.deep_steps >= 1 and len(rep.written) >= 2
     assert all(p.converged and p.extra["grid_check_passed"] for p in pulses)
     assert max(p.L for p in pulses) >= L0 * 1.004
-
 
 
 #: the fixed step of :func:`test_the_secant_predictor_of_the_deep_march` (measured at 1.2 τ_min,
@@ -460,46 +503,52 @@ def test_the_deep_march_refines_the_healing_front_where_the_corrector_stalls(
 DS = 0.001
 
 
+class _RecordingCorrector(NewtonCorrector):
+    """Newton that records max|r| at the predicted point of every attempt."""
+
+    def solve(self, problem, x0, lu=None, creep=None):
+        STARTS.append(float(np.max(np.abs(problem.residual(x0)))))
+        return super().solve(problem, x0, lu=lu, creep=creep)
+
+
+STARTS = []
+
+
 def _predictor_march(params, start, predictor, n, monkeypatch):
     """``n`` steps of the deformed-grid march at the fixed ds = DS from ``start`` with
     ``predictor``: the march, and per step (predictor, max|r| at the predicted point, Newton
     iterations, the shift of the grid's front zone, L before the step). Without reuse of the
-    corrector's LU (``reuse_lu=False``): its chord iterations would take the Newton iterations
-    that measure the predictor."""
-    from slippulse.steady.continuation import deep
-    seen, shifts = [], []
-    real, real_grid = deep.newton, deep.stretch_grid
-
-    def newton(prob, x0, **kw):
-        seen.append(float(np.max(np.abs(prob.residual(x0)))))
-        return real(prob, x0, **kw)
+    corrector's LU: its chord iterations would take the Newton iterations that measure the
+    predictor."""
+    from slippulse.steady.continuation import driver
+    shifts = []
+    real_grid = driver.stretch_grid
 
     def stretch_grid(xi, x0, shift, *args):
         shifts.append(shift)
         return real_grid(xi, x0, shift, *args)
 
-    monkeypatch.setattr(deep, "newton", newton)
-    monkeypatch.setattr(deep, "stretch_grid", stretch_grid)
-    m = DeepMarch(params, start, settings=DeepSettings(ds=DS, ds_max=DS, ds_min=0.25 * DS,
-                                                       max_iter=20, stretch=True,
-                                                       predictor=predictor, reuse_lu=False))
+    monkeypatch.setattr(driver, "stretch_grid", stretch_grid)
+    m = Continuation(params, start, _strategy(
+        ds=DS, ds_max=DS, ds_min=0.25 * DS, stretch=True, predictor=predictor,
+        corrector=_RecordingCorrector(max_iter=20, reuse_lu=False)))
     rows = []
     for _ in range(n):
         L0 = m.L
         assert m.step() is None and m.n_failed == 0
-        rows.append((m.last_predictor, seen[-1], m.sol.stats.iterations, shifts[-1], L0))
+        rows.append((m.last_predictor, STARTS[-1], m.sol.stats.iterations, shifts[-1], L0))
     return m, rows
 
 
 def test_the_secant_predictor_of_the_deep_march(params, monkeypatch):
-    """Issue 18: on the deformed grid the "tangent" predictor moves the front zone by the
-    tangent's change of L, which deep in the family falls short (by 13 % at 7.2 km: the healing
-    front lands a cell off its nodes every step and the corrector creeps); "length" moves it by
-    the last step's change of L per ds; "secant" also predicts the nodal ln v along the secant
-    through the last two pulses: its starting residual is second order in ds. Same ds, same
-    pulses: "length" and "secant" deform the grid alike and converge to the same pulse (solver
-    tolerance); "tangent" deforms it otherwise (another discretisation, well within the grid
-    criterion). replace/restart drop the nodal secant and keep dL/ds; a new march has neither."""
+    """On the deformed grid the tangent predictor moves the front zone by the tangent's change of
+    L, which deep in the family falls short (the healing front lands a cell off its nodes every
+    step and the corrector creeps); the length predictor moves it by the last step's change of L
+    per ds; the secant one also predicts the nodal ln v along the secant through the last two
+    pulses: its starting residual is second order in ds. Same ds, same pulses: length and secant
+    deform the grid alike and converge to the same pulse (solver tolerance); tangent deforms it
+    otherwise (another discretisation, well within the grid criterion). replace/restart drop the
+    nodal secant and keep dL/ds; a new march has neither."""
     from slippulse.steady.solver import solve_pulse
     a = solve_pulse(params, 1.2, n_points=500)
     start = (a.xi, a.x[:-1], a.beta, 1.2)
@@ -511,11 +560,11 @@ def test_the_secant_predictor_of_the_deep_march(params, monkeypatch):
     assert [r[0] for r in sec] == ["tangent", "length", "secant", "secant"]
     # the first step is the same in all three
     assert tan[0][1:4] == length[0][1:4] == sec[0][1:4]
-    # "length": the front zone moved by the last step's change of L per ds
+    # length: the front zone moved by the last step's change of L per ds
     for k in (1, 2, 3):
         assert length[k][3] == pytest.approx(length[k][4] - length[k - 1][4], rel=1e-12)
         assert sec[k][3] == pytest.approx(sec[k][4] - sec[k - 1][4], rel=1e-12)
-    # "secant": the starting residual falls by a clear factor, and so do the iterations
+    # secant: the starting residual falls by a clear factor, and so do the iterations
     for k in (2, 3):
         assert sec[k][1] < 0.2 * length[k][1] and sec[k][1] < 0.2 * tan[k][1]
         assert sec[k][2] < tan[k][2]
@@ -529,61 +578,61 @@ def test_the_secant_predictor_of_the_deep_march(params, monkeypatch):
     assert ms.step() is None and ms.last_predictor == "secant"
     ms.restart(ms.sol, DS)
     assert ms.step() is None and ms.last_predictor == "length"
-    fresh = DeepMarch(params, ms.sol, settings=ms.settings)
+    fresh = Continuation(params, ms.sol, ms.strategy)
     assert fresh.step() is None and fresh.last_predictor == "tangent"
     # a march resumed from a file: dL/ds of the step between the two last pulses seeds "length"
-    resumed = DeepMarch(params, fresh.sol, settings=ms.settings)
+    resumed = Continuation(params, fresh.sol, ms.strategy)
     resumed.resume_step(ms.beta, ms.q, ms.L)
     dist = math.hypot(math.log((1 - fresh.beta) / (1 - ms.beta)), (fresh.q - ms.q) / resumed.kappa)
-    assert resumed._rate == pytest.approx((fresh.L - ms.L) / dist, rel=1e-12)
     assert resumed.step() is None and resumed.last_predictor == "length"
-    # with hold, a resume from two pulses far apart starts at predictor_ds_max, with "length"
-    far = dataclasses.replace(ms.settings, hold=True, predictor_ds_max=0.5 * dist)
-    held = DeepMarch(params, fresh.sol, settings=far)
-    assert held.resume_step(ms.beta, ms.q, ms.L) == far.predictor_ds_max
+    # with held steps, a resume from two pulses far apart starts at the predictor's ds_max
+    far = _strategy(ds=DS, ds_max=DS, ds_min=0.25 * DS, stretch=True, predictor="secant",
+                    corrector=NewtonCorrector(max_iter=20, reuse_lu=False),
+                    predictor_ds_max=0.5 * dist, cap_shrink=1.0)
+    held = Continuation(params, fresh.sol, far)
+    assert held.resume_step(ms.beta, ms.q, ms.L) == pytest.approx(max(0.5 * dist, 0.25 * DS))
     assert held.step() is None and held.last_predictor == "length"
-    unheld = DeepMarch(params, fresh.sol, settings=dataclasses.replace(far, hold=False))
+    unheld = Continuation(params, fresh.sol, far.replace(steps=FreeSteps(ds=DS, ds_max=DS,
+                                                                         ds_min=0.25 * DS)))
     assert unheld.resume_step(ms.beta, ms.q, ms.L) == pytest.approx(
-        min(max(dist, far.ds_min), far.ds_max), rel=1e-12)
-    assert unheld.ds > far.predictor_ds_max
-    # above predictor_ds_max the march is the tangent's, history or not
-    ms.ds = 2.0 * ms.settings.predictor_ds_max
-    assert ms.step() is None and ms.last_predictor == "tangent"
-    with pytest.raises(ValueError, match="predictor"):
-        DeepMarch(params, ms.sol, settings=DeepSettings(stretch=True, predictor="nodal"))
+        min(max(dist, 0.25 * DS), DS), rel=1e-12)
+    # above the predictor's ds_max the march is the tangent's, history or not
+    wide = Continuation(params, ms.sol, ms.strategy.replace(
+        steps=FreeSteps(ds=0.004, ds_max=0.004, ds_min=0.001)))
+    wide.step()
+    assert wide.last_predictor == "tangent"
 
 
 @pytest.mark.parametrize("case", ["far", "near", "not held", "off", "fails"])
-def test_the_held_march_moves_the_zone_back_onto_the_healing_front(monkeypatch, case):
-    """DeepSettings.recentre: once held, at the start and after every written pulse that passed,
-    a march whose zone about the healing front lies more than recentre · L off its drop goes on
-    from the re-solved pulse (``relay.recentre``, mocked here; tested in test_recentre.py); not
-    when the offset is within it, not before held, not with recentre = 0, and a re-solve that
-    fails leaves the march on its pulse."""
-    from types import SimpleNamespace
-    from slippulse.steady.continuation import family
-    from slippulse.steady.continuation.report import FamilyReport
-    L = 5000.0
-    xi = np.linspace(-2 * L, 100.0, 50)
-    y = np.where((xi > -L) & (xi < 0), 0.0, -30.0)          # a pulse of length L for its crossings
-    cur = SimpleNamespace(xi=xi, x=np.concatenate([y, [0.998, 1.0095]]))
-    new = SimpleNamespace(xi=xi, x=cur.x.copy(), to_pulse=lambda: None)
-    replaced, calls = [], []
-    march = SimpleNamespace(sol=cur, L=L, held=case != "not held", status="running",
-                            replace=replaced.append)
+def test_the_held_march_moves_the_zone_back_onto_the_healing_front(monkeypatch, params, pulse12,
+                                                                    case):
+    """``StretchGrid.recentre``: once held, a march whose zone about the healing front lies more
+    than recentre · L off its drop goes on from the re-solved pulse (``relay.recentre``, mocked
+    here; tested in test_recentre.py); not when the offset is within it, not before held, not with
+    recentre = 0, and a re-solve that fails leaves the march on its pulse."""
+    from slippulse.steady.continuation import driver
+    from slippulse.steady.continuation.gridcheck import as_both
+    start = as_both(params, pulse12)
+    grid = StretchGrid(recentre=0.0) if case == "off" else StretchGrid()
+    steps = FreeSteps() if case == "off" else HeldSteps()
+    march = Continuation(params, start, AUTO.replace(grid=grid, steps=steps))
+    if case != "not held":
+        march.hold(0.002)
+    L = march.L
+    new = as_both(params, pulse12)
+    calls = []
     off = 2.0 * 0.001 * L if case != "near" else 0.5 * 0.001 * L
-    monkeypatch.setattr(family, "zone_offset", lambda params, sol, back_zone: (off, -L))
+    monkeypatch.setattr(driver, "zone_offset", lambda params, sol, back_zone: (off, -L))
 
     def fake(params, sol, front_zone, back_zone, offset=None):
         assert offset == (off, -L)                    # the offset measured once, passed on
         calls.append(sol)
         return (None if case == "fails" else new), 0.0, 0.0, off, "mocked"
 
-    monkeypatch.setattr(family, "recentre", fake)
-    settings = dataclasses.replace(family.AUTO_DEEP, recentre=0.0 if case == "off" else 0.001)
-    rep = FamilyReport()
-    moved = family._recentre(SimpleNamespace(v_star=1e-9), march, settings, rep, None)
+    monkeypatch.setattr(driver, "recentre", fake)
+    cur = march.sol
+    moved = march.recentre_front()
     assert moved is (case == "far")
-    assert replaced == ([new] if case == "far" else [])
+    assert march.sol is (new if case == "far" else cur)
     assert calls == ([cur] if case in ("far", "fails") else [])
-    assert rep.attempts == len(calls)
+    assert march.n_recentred == (1 if case == "far" else 0)

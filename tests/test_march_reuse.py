@@ -1,13 +1,17 @@
-"""What the deep march reuses from one pulse to the next (stop 44): the corrector's LU for the
-next tangent and the next corrector (``DeepSettings.reuse_lu``), and the last grid check's fine
+"""What the deep march reuses from one pulse to the next: the corrector's LU for the next tangent
+and the next corrector (``NewtonCorrector.reuse_lu``, ``chord``), and the last grid check's fine
 pulse and LU for the next check (``check_pulse(warm=...)``). Same pulses and checks as without,
-to the solver's tolerance; and the reuse does happen."""
+to the solver's tolerance; and the reuse does happen. Also the held step control
+(:class:`HeldSteps`): its cap, and its corrector."""
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
-from slippulse.steady.continuation import DeepMarch, DeepSettings, GridTolerance
+from slippulse.steady.continuation import (Continuation, FreeSteps, GridTolerance, HeldSteps,
+                                           NewtonCorrector, SecantPredictor, Strategy,
+                                           StretchGrid)
 from slippulse.steady.continuation.arclength import (family_tangent, tangent_by_refinement,
                                                      unit_tangent)
 from slippulse.steady.continuation.gridcheck import check_grid_2n, check_pulse
@@ -22,11 +26,13 @@ def start(params):
     return (a.xi, a.x[:-1], a.beta, 1.2)
 
 
+GRID = StretchGrid(relay=0, recentre=0.0)
+
+
 def _march(params, start, reuse, steps, chord=True):
-    m = DeepMarch(params, start, settings=DeepSettings(ds=DS, ds_max=DS, ds_min=0.25 * DS,
-                                                       max_iter=20, stretch=True,
-                                                       predictor="secant", reuse_lu=reuse,
-                                                       chord=chord and reuse))
+    m = Continuation(params, start, Strategy(
+        SecantPredictor(), NewtonCorrector(max_iter=20, reuse_lu=reuse, chord=chord and reuse),
+        FreeSteps(ds=DS, ds_max=DS, ds_min=0.25 * DS), GRID))
     rows = []
     for _ in range(steps):
         m.ds = DS
@@ -115,49 +121,56 @@ def test_a_warm_grid_check_is_the_cold_one(params, start):
     assert (db2, dl2) == (db0, dl0)
 
 
-class _TangentFails(DeepMarch):
-    """A march whose tangent-predicted steps above ``predictor_ds_max`` fail (as they do deep in
-    the family, where they take ``max_iter`` iterations to do so); the length/secant steps below
-    it are the real ones."""
+def _held(hold=True, corrector=None, cap_shrink=1.0, cap_grow_after=6, free=None):
+    """The held strategies of these tests: secant below ds = 1.2 DS, held steps up to 10 DS."""
+    free = free or NewtonCorrector(max_iter=20)
+    steps = (HeldSteps(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, cap_shrink=cap_shrink,
+                       cap_grow_after=cap_grow_after,
+                       corrector=corrector or NewtonCorrector(max_iter=20))
+             if hold else FreeSteps(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS))
+    return Strategy(SecantPredictor(ds_max=1.2 * DS), free, steps, GRID)
+
+
+class _TangentFails(Continuation):
+    """A march whose tangent-predicted steps above the predictor's ds_max fail (as they do deep
+    in the family, where they take ``max_iter`` iterations to do so); the length/secant steps
+    below it are the real ones."""
 
     def _attempt(self):
         res = super()._attempt()
-        if self.last_predictor == "tangent" and self.ds > self.settings.predictor_ds_max:
+        if self.last_predictor == "tangent" and self.ds > self.strategy.predictor.ds_max:
             return (False, None, "failed (forced)") + res[3:]
         return res
 
 
 @pytest.mark.parametrize("hold", [False, True])
 def test_hold_keeps_ds_where_the_secant_works(params, start, hold):
-    """``DeepSettings.hold``: after a tangent step above predictor_ds_max failed and a secant step
+    """``HeldSteps``: after a tangent step above the predictor's ds_max failed and a secant step
     below it passed, ds is capped there: one failure in six steps instead of one every time ds
     grows past the threshold."""
-    s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
-                     predictor="secant", predictor_ds_max=1.2 * DS, hold=hold)
-    m = _TangentFails(params, start, settings=s)
+    s = _held(hold)
+    m = _TangentFails(params, start, s)
     for _ in range(6):
         assert m.step() is None
     assert m.held is hold
     if hold:
-        assert m.n_failed == 1 and m.ds <= s.predictor_ds_max
+        assert m.n_failed == 1 and m.ds <= s.predictor.ds_max
     else:
         assert m.n_failed >= 2
 
 
 def test_chord_once_held_keeps_the_path(params, start):
-    """``DeepSettings.chord_held``: once held, the correctors start with chord iterations on the
-    last LU; ds is capped, so the march takes the same steps to the same pulses."""
+    """The held corrector with ``chord``: once held, the correctors start with chord iterations
+    on the last LU; ds is capped, so the march takes the same steps to the same pulses."""
     runs = {}
-    for chord_held in (False, True):
-        s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
-                         predictor="secant", predictor_ds_max=1.2 * DS, hold=True,
-                         chord_held=chord_held)
-        m = _TangentFails(params, start, settings=s)
+    for chord in (False, True):
+        m = _TangentFails(params, start, _held(corrector=NewtonCorrector(max_iter=20,
+                                                                         chord=chord)))
         rows = []
         for _ in range(6):
             assert m.step() is None
             rows.append((m.ds, m.sol.x.copy(), m.sol.stats.chord_iterations))
-        runs[chord_held] = (m, rows)
+        runs[chord] = (m, rows)
     (m0, plain), (m1, chord) = runs[False], runs[True]
     assert m0.held and m1.held
     assert [r[0] for r in plain] == [r[0] for r in chord]
@@ -168,34 +181,37 @@ def test_chord_once_held_keeps_the_path(params, start):
     assert m1.n_iterations < m0.n_iterations
 
 
-def test_creep_only_once_held_and_near_the_cap(params, start, monkeypatch):
-    """``DeepSettings.creep_held``: the correctors stop creeping Newton after that many
-    iterations (``newton(creep=...)``) only once the march is held and ds is within
-    ``cap_shrink`` of the cap; before, and below it (after a halving), ``creep`` as set (0).
-    ``natural_held``: the correctors' line search is "natural" once held, at any ds, and
-    ``line_search`` ("residual") before."""
-    from slippulse.steady.continuation import deep
-    seen, searches = [], []
-    real = deep.newton
-    box = {}
+SEEN = []
 
-    def newton(*a, **k):
-        m = box["m"]
-        seen.append((k["creep"], m.held, m.ds >= 0.8 * m.cap * (1 - 1e-9)))
-        searches.append((k["line_search"], m.held))
-        return real(*a, **k)
 
-    monkeypatch.setattr(deep, "newton", newton)
-    s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
-                     predictor="secant", predictor_ds_max=1.2 * DS, hold=True, creep_held=4,
-                     cap_shrink=0.8, cap_grow_after=3, natural_held=True)
-    m = box["m"] = _CapFails(params, start, settings=s)
+class _Recording(NewtonCorrector):
+    """Newton that records, per attempt, its creep stop, its line search and the march's state."""
+
+    def solve(self, problem, x0, lu=None, creep=None):
+        m = BOX[0]
+        SEEN.append((self.creep if creep is None else creep, self.line_search, m.held,
+                     m.ds >= 0.8 * m.cap * (1 - 1e-9)))
+        return super().solve(problem, x0, lu=lu, creep=creep)
+
+
+BOX = [None]
+
+
+def test_creep_only_once_held_and_near_the_cap(params, start):
+    """The held corrector's ``creep`` stops creeping Newton after that many iterations only once
+    the march is held and ds is within ``cap_shrink`` of the cap; before, and below it (after a
+    halving), the free corrector's (0). Its "natural" line search acts once held, at any ds, and
+    the free corrector's ("residual") before."""
+    SEEN.clear()
+    s = _held(corrector=_Recording(max_iter=20, creep=4, line_search="natural"),
+              free=_Recording(max_iter=20), cap_shrink=0.8, cap_grow_after=3)
+    m = BOX[0] = _CapFails(params, start, s)
     for _ in range(10):
         assert m.step() is None
-    assert all(c == (4 if held and near else 0) for c, held, near in seen), seen
-    assert all(ls == ("natural" if held else "residual") for ls, held in searches), searches
-    assert any(h and n for _, h, n in seen) and any(h and not n for _, h, n in seen)
-    assert not seen[0][1] and m.held
+    assert all(c == (4 if held and near else 0) for c, _, held, near in SEEN), SEEN
+    assert all(ls == ("natural" if held else "residual") for _, ls, held, _ in SEEN), SEEN
+    assert any(h and n for _, _, h, n in SEEN) and any(h and not n for _, _, h, n in SEEN)
+    assert not SEEN[0][2] and m.held
 
 
 class _CapFails(_TangentFails):
@@ -211,20 +227,18 @@ class _CapFails(_TangentFails):
 
 @pytest.mark.parametrize("shrink", [1.0, 0.8])
 def test_the_held_cap_lowers_itself_after_failures_at_it(params, start, shrink):
-    """``DeepSettings.cap_shrink``: once held, a failed attempt at the cap lowers it, so the
-    march stops failing there; with a fixed cap (1.0) it fails there again and again."""
-    s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
-                     predictor="secant", predictor_ds_max=1.2 * DS, hold=True,
-                     cap_shrink=shrink, cap_grow_after=100)
-    m = _CapFails(params, start, settings=s)
+    """``HeldSteps.cap_shrink``: once held, a failed attempt at the cap lowers it, so the march
+    stops failing there; with a fixed cap (1.0) it fails there again and again."""
+    s = _held(cap_shrink=shrink, cap_grow_after=100)
+    m = _CapFails(params, start, s)
     for _ in range(10):
         assert m.step() is None
     assert m.held
     failed_held = m.n_failed - 1                 # the first failure is the tangent's (held then)
     if shrink == 1.0:
-        assert m.cap == s.predictor_ds_max and failed_held >= 3
+        assert m.cap == s.predictor.ds_max and failed_held >= 3
     else:
-        assert failed_held == 1 and m.cap <= 0.8 * s.predictor_ds_max + 1e-15
+        assert failed_held == 1 and m.cap <= 0.8 * s.predictor.ds_max + 1e-15
 
 
 class _CapFailsOnce(_CapFails):
@@ -234,42 +248,67 @@ class _CapFailsOnce(_CapFails):
         if self.held and self.ds > self.limit * (1 + 1e-9) and not getattr(self, "_done", False):
             self._done = True
             return False, None, "failed (forced, held)", (math.nan, math.nan), self.q
-        return DeepMarch._attempt(self) if self.held else _TangentFails._attempt(self)
+        return Continuation._attempt(self) if self.held else _TangentFails._attempt(self)
 
 
 def test_the_held_cap_grows_back_after_steps_at_it(params, start):
     """After ``cap_grow_after`` accepted steps at the lowered cap it is raised by 1/cap_shrink,
-    never above predictor_ds_max."""
-    s = DeepSettings(ds=DS, ds_max=10 * DS, ds_min=0.1 * DS, max_iter=20, stretch=True,
-                     predictor="secant", predictor_ds_max=1.2 * DS, hold=True,
-                     cap_shrink=0.8, cap_grow_after=2)
-    m = _CapFailsOnce(params, start, settings=s)
+    never above the predictor's ds_max."""
+    s = _held(cap_shrink=0.8, cap_grow_after=2)
+    m = _CapFailsOnce(params, start, s)
     caps = []
     for _ in range(9):
         assert m.step() is None
         caps.append(m.cap)
-    assert min(caps) <= 0.8 * s.predictor_ds_max + 1e-15
-    assert caps[-1] == s.predictor_ds_max and max(caps) == s.predictor_ds_max
+    assert min(caps) <= 0.8 * s.predictor.ds_max + 1e-15
+    assert caps[-1] == s.predictor.ds_max and max(caps) == s.predictor.ds_max
+
+
+class _Got(Exception):
+    pass
+
+
+class _Capture(NewtonCorrector):
+    """A corrector that stops the march at its ``CAPTURE[0]``-th call, keeping problem and guess."""
+
+    def solve(self, problem, x0, lu=None, creep=None):
+        CAPTURE[1] += 1
+        if CAPTURE[1] == CAPTURE[0]:
+            CAPTURE[2:] = [problem, np.array(x0)]
+            raise _Got
+        return super().solve(problem, x0, lu=lu, creep=creep)
+
+
+CAPTURE = [3, 0]
 
 
 @pytest.mark.slow
-def test_the_held_corrector_at_9_5_km_converges_with_the_natural_line_search():
-    """The real case behind ``natural_held`` (stop 47): the march resumed from the committed
-    9.47 km seed (held, N = 6614) reaches the corrector of its second step, ds = 0.00064, which
-    failed after 25 iterations with the ‖r‖₂ line search. With the natural one it converges from
-    the same guess within 12 iterations, to a pulse near the guess (β and τ_d/τ_min within 1e−7).
-    ≈ 2.5 min on two threads (the capture, then one corrector)."""
-    import importlib.util
+def test_the_held_corrector_at_9_5_km_converges_with_the_natural_line_search(tmp_path):
+    """The real case behind the held corrector's natural line search: the march resumed from the
+    committed 9.47 km seed (held, N = 6614) reaches the corrector of its second step,
+    ds = 0.00064, which failed after 25 iterations with the ‖r‖₂ line search. With the natural
+    one it converges from the same guess within 12 iterations, to a pulse near the guess (β and
+    τ_d/τ_min within 1e−7). ≈ 2.5 min on two threads (the capture, then one corrector)."""
     import os
+    import shutil
+
+    from slippulse.core.params import Parameters
+    from slippulse.steady.continuation import AUTO, NEWTON_TOL, run_family
     from slippulse.steady.newton import newton
-    path = os.path.join(os.path.dirname(__file__), os.pardir, "benchmarks",
-                        "bench_line_search_held.py")
-    spec = importlib.util.spec_from_file_location("bench_line_search_held", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    box = mod.capture(os.path.join(os.path.dirname(path), os.pardir, "steady", "seeds",
-                                   "deep_seed_s46.h5"))
-    assert box["problem"].ds == pytest.approx(0.00064) and box["problem"].base.n == 6614
-    x, st = newton(box["problem"], box["x0"], tol=1e-13, max_iter=12, line_search="natural")
+    seed = os.path.join(os.path.dirname(__file__), os.pardir, "steady", "seeds",
+                        "seed_9473m.h5")
+    out = str(tmp_path / "deep.h5")
+    shutil.copy(seed, out)
+    CAPTURE[:] = [3, 0]
+    strategy = AUTO.replace(corrector=_Capture(max_iter=25),
+                            steps=dataclasses.replace(AUTO.steps, corrector=_Capture(
+                                max_iter=25, line_search="natural", creep=4, chord=True)),
+                            grid=dataclasses.replace(AUTO.grid, recentre=0.0))
+    with pytest.raises(_Got):
+        run_family(Parameters(), out, start=1.2, stop=1.008, max_length=9700, spacing=0.03,
+                   strategy=strategy)
+    problem, x0 = CAPTURE[2:]
+    assert problem.ds == pytest.approx(0.00064) and problem.base.n == 6614
+    x, st = newton(problem, x0, tol=NEWTON_TOL, max_iter=12, line_search="natural")
     assert st.converged, st.message
-    assert abs(x[-2] - box["x0"][-2]) < 1e-7 and abs(x[-1] - box["x0"][-1]) < 1e-7
+    assert abs(x[-2] - x0[-2]) < 1e-7 and abs(x[-1] - x0[-1]) < 1e-7

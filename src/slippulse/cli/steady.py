@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import sys
@@ -16,8 +17,9 @@ from ..core.params import DEFAULT, ParameterError
 from .analyse import CD_CS_DEFAULTS
 from .paramargs import add_params_args, check_files, params_for_output
 from ..steady.solver import MAX_POINTS, check_points, solve_pulse
-from ..steady.continuation.arclength import DeepSettings
 from ..core.executor import add_executor_options
+from ..steady.continuation.family import SPACING
+from ..steady.continuation.strategy import AUTO
 
 
 def summary_line(pulse, params) -> str:
@@ -127,7 +129,7 @@ def _check_solve_range(tau_d_ratio: float) -> None:
         raise ParameterError(
             f"tau-d={tau_d_ratio:g} is outside what steady solve reaches, [{lo}, {hi}]: "
             + (f"deeper pulses come from the family continuation (slippulse steady family --to "
-               f"{tau_d_ratio:g} --deep arclength)" if tau_d_ratio < lo else
+               f"{tau_d_ratio:g})" if tau_d_ratio < lo else
                f"above {hi} the pulse fades toward tau_peak/tau_min = 1.3319 and the continuation "
                "from 1.2 cannot follow it"))
 
@@ -248,60 +250,67 @@ def _check_targets(start: float, stop: float, step: float) -> None:
                              f"{(start - stop) / (MAX_TARGETS - 1):.3g})")
 
 
-def cmd_family(args) -> int:
-    from ..steady.continuation import run_family
-    out = args.out or os.path.join("runs", "steady", "family.h5")
-    params = params_for_output(args, out)
-    start, stop = _ratio(args.from_, params, "from"), _ratio(args.to, params, "to")
-    if not (math.isfinite(args.step) and args.step > 0):
-        raise ParameterError(f"step={args.step} is invalid: must be a number > 0")
-    _check_targets(start, stop, args.step)
-    check_writable(args.out or os.path.join("runs", "steady", "family.h5"), "out")
-    if args.points is not None:
-        check_points(args.points)
-    hi = params.tau_peak / params.tau_min
-    for flag, val in (("--from", start), ("--to", stop)):
-        if not 1.0 < val < hi:
-            raise ParameterError(f"{flag}={val:g} is invalid: must be in (1, {hi:.6g}) "
-                                 "(tau_d/tau_min: a pulse needs tau_min < tau_d < tau_peak)")
+def family_run_args(args, params) -> dict:
+    """The keyword arguments of :func:`~slippulse.steady.continuation.run_family` that the
+    options of ``steady family`` set (every option changes one, or is refused here with a
+    ParameterError naming it and its valid range)."""
+    from ..steady.continuation import AUTO, FAMILY_POINTS, StrategyError
+    from ..steady.continuation.family import DEEP_POINTS, check_family_args
+    start, stop = _ratio(args.from_, params, "--from"), _ratio(args.to, params, "--to")
     if not stop < start:
         raise ParameterError(f"--to={stop:g} is invalid: must be < --from={start:g} (the family "
                              "is continued downward in tau_d)")
-    from ..steady.continuation import FAMILY_POINTS
+    if not (math.isfinite(args.step) and args.step > 0):
+        raise ParameterError(f"step={args.step} is invalid: must be a number > 0")
+    check_family_args(params, start, stop, args.step)
+    _check_targets(start, stop, args.step)
+    if args.points is not None:
+        check_points(args.points)
     n_deep = FAMILY_POINTS[1] if args.points is None else args.points
-    if args.max_points < n_deep:
-        raise ParameterError(f"max-points={args.max_points} is invalid: must be >= points={n_deep}")
-    if args.deep == "auto":
-        from ..steady.continuation.family import DEEP_POINTS
-        if args.max_points < 2 * DEEP_POINTS - 1:
-            raise ParameterError(f"max-points={args.max_points} is invalid: the grid check of the "
-                                 f"deep pulses needs at least {2 * DEEP_POINTS - 1} (2N - 1, "
-                                 f"N = {DEEP_POINTS})")
-    if not (0 < args.ds_min < 0.4):
-        raise ParameterError(f"ds-min={args.ds_min} is invalid: must be in (0, 0.4)")
+    need = max(n_deep, 2 * DEEP_POINTS - 1)
+    if args.max_points < need:
+        raise ParameterError(f"max-points={args.max_points} is invalid: must be >= {need} (the "
+                             f"grid check of the deep pulses needs 2N - 1 = "
+                             f"{2 * DEEP_POINTS - 1}, N = {DEEP_POINTS}, and >= points)")
+    steps = AUTO.steps
+    if not (0 < args.ds_min <= steps.ds):
+        raise ParameterError(f"ds-min={args.ds_min} is invalid: must be in (0, {steps.ds:g}] "
+                             f"(the deep march's first step) and below the held steps' cap")
     if not args.max_length > 0:
         raise ParameterError(f"max-length={args.max_length} is invalid: must be > 0 (m)")
     if not (0 <= args.spacing <= 0.5):
         raise ParameterError(f"spacing={args.spacing} is invalid: must be in [0, 0.5] (a fraction "
                              "of L)")
-    deep = DeepSettings(n_max=args.max_points, ds_min=args.ds_min, max_length=args.max_length,
-                        check=not args.no_grid_check, spacing=args.spacing)
+    try:
+        strategy = AUTO.replace(steps=dataclasses.replace(steps, ds_min=args.ds_min))
+    except StrategyError as exc:
+        raise ParameterError(f"ds-min={args.ds_min} is invalid: {exc}") from None
+    return dict(start=start, stop=stop, step=args.step, n_points=args.points,
+                strategy=strategy, n_max=args.max_points, max_length=args.max_length,
+                spacing=args.spacing)
+
+
+def cmd_family(args) -> int:
+    from ..steady.continuation import run_family
+    out = args.out or os.path.join("runs", "steady", "family.h5")
+    params = params_for_output(args, out)
+    kw = family_run_args(args, params)
+    check_writable(out, "out")
     _check_out(out)
-
-    def log(msg):
-        if not args.quiet:
-            tqdm.write(msg, file=sys.stderr)
-
+    start, stop = kw["start"], kw["stop"]
     prog = FamilyProgress(start, stop, args.step)
     # the bar appears after a second of work: an input the run refuses at once leaves no stub
     bar = tqdm(total=prog.total, desc="family", unit="target", disable=args.quiet,
                file=sys.stderr, delay=1.0,
                bar_format="{l_bar}{bar}| {n}/{total} targets [{elapsed}<{remaining}{postfix}]")
     prog.bar = bar
+
+    def log(msg):
+        if not args.quiet:
+            tqdm.write(msg, file=sys.stderr)
+
     try:
-        rep = run_family(params, out, start=start, stop=stop, step=args.step,
-                         n_points=args.points, progress=prog, deep=args.deep, deep_settings=deep,
-                         n_max=args.max_points, max_length=args.max_length, log=log)
+        rep = run_family(params, out, progress=prog, log=log, **kw)
     finally:
         bar.close()
     if rep.resumed_from:
@@ -686,29 +695,19 @@ def register(sub) -> None:
     p.add_argument("--points", type=int, default=None,
                    help="grid points per pulse (default: 1000 while beta <= 0.7, 1250 beyond)")
     p.add_argument("--out", default=None, help="output HDF5 (default runs/steady/family.h5)")
-    p.add_argument("--deep", choices=("auto", "beta", "arclength"), default="auto",
-                   help="auto (default): every pulse grid-checked (beta 1e-5, L 1e-4 between N "
-                        "and 2N-1, N or the body refinement chosen per pulse), and past beta = "
-                        "0.99 the pseudo-arclength march on a grid deformed with the pulse; "
-                        "beta: steps in beta (no grid check); arclength: pseudo-arclength on "
-                        "re-laid grids, checked at N vs 2N")
     p.add_argument("--max-points", type=int, default=MAX_POINTS,
                    help=f"largest grid a per-pulse grid check may use (default {MAX_POINTS}; "
-                        "auto needs >= 3999)")
-    p.add_argument("--ds-min", type=float, default=DeepSettings.ds_min,
-                   help="auto and arclength: smallest step of the deep march before it stops "
-                        f"(default {DeepSettings.ds_min:g})")
-    p.add_argument("--spacing", type=float, default=0.0,
-                   help="auto: write (and grid-check) a deep-march pulse only once L has grown "
-                        "by this fraction since the last one, e.g. 0.01 (default 0: every "
-                        "arclength step; beyond 4 km a step moves L by 0.2-0.4 %% and its grid "
-                        "check costs several steps). A checked pulse also hands its grid back to "
-                        "the march, so a wide spacing lets the deformed grid drift: at 0.04 the "
-                        "check at 2.5 km had to double N to 6863 (docs/steady.md §8)")
+                        "at least 3999)")
+    p.add_argument("--ds-min", type=float, default=AUTO.steps.ds_min,
+                   help="smallest arclength step of the deep march before it refines the "
+                        f"healing front or stops (default {AUTO.steps.ds_min:g})")
+    p.add_argument("--spacing", type=float, default=SPACING,
+                   help="write (and grid-check) a deep-march pulse once L has grown by this "
+                        f"fraction since the last one (default {SPACING:g}; 0: every arclength "
+                        "step). The march goes on from each checked pulse, so a wide spacing "
+                        "lets the deformed grid drift between checks")
     p.add_argument("--max-length", type=float, default=math.inf,
                    help="stop (exit 0) once the pulse length exceeds this (m; default no limit)")
-    p.add_argument("--no-grid-check", action="store_true",
-                   help="arclength: write pulses without the N vs 2N check")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_family)

@@ -30,11 +30,18 @@ class SolveStats:
     jacobian: object = None         # keep=True: the Jacobian at the returned x, when formed there
 
 
+#: Every Newton solve of the package (family steps, grid checks, re-solves) converges to max|r| ≤
+#: this: the residual is relative to τ_d, and 1e−13 is ~100 times the floating-point floor of the
+#: Hilbert sum at N ~ 5000 (:data:`ROUNDOFF`), tight enough that a grid check measures the grid,
+#: not the solve.
+NEWTON_TOL = 1e-13
+
+
 def _max_abs(r):
     return float(np.max(np.abs(r))) if np.all(np.isfinite(r)) else np.inf
 
 
-def chord(problem, x0, lu, tol=1e-13, max_iter=30, rate=0.5, r0=None):
+def chord(problem, x0, lu, tol=NEWTON_TOL, max_iter=30, rate=0.5, r0=None):
     """Chord iterations x ← x − J₀⁻¹ r(x) with a factored Jacobian J₀ (``lu``, from
     :func:`scipy.linalg.lu_factor`) taken at a nearby point; one residual per iteration
     (``r0``: the residual at x0 when the caller has it).
@@ -74,7 +81,7 @@ ROUNDOFF = 10.0
 LINE_SEARCHES = ("residual", "natural")
 
 
-def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=None,
+def newton(problem, x0, tol=NEWTON_TOL, max_iter=60, max_dy=2.0, callback=None, lu=None,
            reuse=False, creep=0, line_search="residual", keep=False):
     """Damped Newton: J δ = −r by LU, step limited to |δy| ≤ max_dy, kept valid, backtracking on ‖r‖₂
     (or on the natural monotonicity test, ``line_search='natural'``).
@@ -110,7 +117,8 @@ def newton(problem, x0, tol=1e-13, max_iter=60, max_dy=2.0, callback=None, lu=No
     ``keep=True``: the returned stats carry ``lu``, the last LU factorization used (the one
     passed in when none was formed), and ``jacobian``, the Jacobian at the returned x when it was
     formed there (None after chord iterations converged): a continuation reuses them for the
-    next tangent and the next corrector's chord iterations (:class:`~.continuation.deep.DeepMarch`).
+    next tangent and the next corrector's chord iterations
+    (:class:`~.continuation.driver.Continuation`).
     """
     if line_search not in LINE_SEARCHES:
         raise ValueError(f"line_search={line_search!r}: must be one of {LINE_SEARCHES}")
@@ -242,7 +250,7 @@ def _newton(problem, x0, tol, max_iter, max_dy, callback, lu, reuse, creep, natu
     return x, st
 
 
-def levenberg_marquardt(problem, x0, tol=1e-13, max_iter=200, **_):
+def levenberg_marquardt(problem, x0, tol=NEWTON_TOL, max_iter=200, **_):
     """scipy.optimize.least_squares (method 'lm', MINPACK) with the analytic Jacobian."""
     cache = {}
 

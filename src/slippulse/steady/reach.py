@@ -27,12 +27,13 @@ import numpy as np
 from ..core.h5io import read_pulse
 from ..core.params import Parameters
 from .continuation import run_family
+from .newton import NEWTON_TOL
 from .solver import SteadySolution, solve_pulse
 
 #: τ_d/τ_min where the built-in guess converges; the walk to any other τ_d starts here.
 GUESS_RATIO = 1.2
 #: τ_d/τ_min that ``steady solve`` reaches (measured, docs/steady.md): down to where the family
-#: continuation's default reaches (1.015; deeper pulses need ``steady family --deep``), up to
+#: continuation's default reaches (1.015; deeper pulses come from ``steady family``), up to
 #: 1.32 (the walk upward stalls at 1.3269: the pulse fades, its length cannot be measured for the
 #: next grid; τ_peak/τ_min = 1.33186; at 1.325 the walk arrives but the final solve cannot lay
 #: its grid, as measured, so 1.325 is no longer advertised).
@@ -82,7 +83,7 @@ def _walk_up(params, tau_d_ratio, h, progress, n_points, min_step):
 
 
 def reach_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 2000,
-                method: str = "newton", tol: float = 1e-13, step: float = 0.005,
+                method: str = "newton", tol: float = NEWTON_TOL, step: float = 0.005,
                 min_step: float = 1e-4, progress=None) -> tuple[SteadySolution | None, str]:
     """Solve the steady pulse at τ_d = ``tau_d_ratio`` τ_min from the built-in guess, continuing
     from τ_d/τ_min = 1.2 where the guess does not reach (module docstring).
@@ -118,7 +119,7 @@ def reach_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 2000,
         with tempfile.TemporaryDirectory(prefix="slippulse-reach-") as tmp:
             out = os.path.join(tmp, "walk.h5")
             rep = run_family(params, out, start=GUESS_RATIO, stop=tau_d_ratio, step=-h,
-                             progress=progress)
+                             progress=progress, check=False)
             if rep.stopped_early or not rep.written:
                 return None, (f"the family continuation from {GUESS_RATIO} stopped at "
                               f"tau_d/tau_min={rep.reached:.5f}: {rep.stop_reason}")

@@ -20,7 +20,7 @@ from scipy.interpolate import PchipInterpolator
 from .grid import build_grid
 from .measures import pulse_length
 from ..core.h5io import STATE_ORDER, Pulse
-from .newton import SOLVERS, SolveStats
+from .newton import NEWTON_TOL, SOLVERS, SolveStats
 from ..core.params import ParameterError, Parameters
 from ..core import friction as fr
 from .equations import SteadyProblem, integrate_state
@@ -199,7 +199,7 @@ def check_points(n_points: int) -> None:
                              "matrices)")
 
 
-def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, hilbert="cubic",
+def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=NEWTON_TOL, hilbert="cubic",
                   max_iter=60, state_order=STATE_ORDER, creep=0, reuse=False,
                   line_search="residual"):
     """One solve on a fixed grid from (y, β); the phase condition is placed on the guess's front.
@@ -225,7 +225,7 @@ def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=1e-13, 
 
 
 def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, guess=None,
-                method: str = "newton", tol: float = 1e-13, hilbert: str = "cubic",
+                method: str = "newton", tol: float = NEWTON_TOL, hilbert: str = "cubic",
                 spec: GridSpec = GridSpec(), passes: int = 2, coarse_points: int = 500,
                 progress=None, max_iter: int = 60, adapt_guess: bool = True,
                 state_order: int = STATE_ORDER) -> SteadySolution:
@@ -305,7 +305,7 @@ def regrid_guess(params, tau_d_ratio, xi, y, beta, n_points, spec: GridSpec = Gr
     return xi_new, interpolate(xi, y, xi_new, v_st)
 
 
-def resolve_on_grid(params, pulse, xi_new, method="newton", tol=1e-13, state_order=STATE_ORDER,
+def resolve_on_grid(params, pulse, xi_new, method="newton", tol=NEWTON_TOL, state_order=STATE_ORDER,
                     creep=0, reuse=False, line_search="residual"):
     """The pulse re-solved on the grid `xi_new`, started from its ln v interpolated there and its
     β (creep, reuse, line_search: as :func:`solve_on_grid`). Returns a :class:`SteadySolution`."""
@@ -319,7 +319,7 @@ def resolve_on_grid(params, pulse, xi_new, method="newton", tol=1e-13, state_ord
     return SteadySolution(prob, x, stats, time.perf_counter() - t0, 0)
 
 
-def refine_nested(params, pulse, method="newton", tol=1e-13, state_order=STATE_ORDER):
+def refine_nested(params, pulse, method="newton", tol=NEWTON_TOL, state_order=STATE_ORDER):
     """The pulse re-solved on its own grid with the midpoints inserted (N → 2N − 1), started from
     its ln v interpolated there: a nested refinement, for convergence studies (near τ_min it keeps
     the adapted grid's spacing jumps; :class:`slippulse.steady.grid.GridMap` does not). Returns a

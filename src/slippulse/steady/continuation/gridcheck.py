@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..equations import SteadyProblem
-from ..newton import newton
+from ..newton import NEWTON_TOL, newton
 from ..measures import pulse_length
 from ..solver import MAX_POINTS, GridSpec, SteadySolution, front_pin, interpolate, regrid_guess
 from .arclength import ArclengthProblem, family_tangent
@@ -85,7 +85,7 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
             xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter, reuse=reuse,
                                   plain=plain)
         else:
-            xs, st = newton(arc, x_start, tol=1e-13, max_iter=max_iter, reuse=reuse,
+            xs, st = newton(arc, x_start, tol=NEWTON_TOL, max_iter=max_iter, reuse=reuse,
                             keep=warm is not None)
         if st.lu is None:               # the homotopy keeps none: the warm attempt's, if any
             st.lu = lu_warm
@@ -142,7 +142,7 @@ def _warm_solve(arc, x, x_start, warm, max_iter, reuse):
         return None, None
     if lu is not None and lu[0].shape[0] != xw.size:
         lu = None
-    return newton(arc, xw, tol=1e-13, max_iter=max_iter, lu=lu, reuse=reuse, creep=2, keep=True)
+    return newton(arc, xw, tol=NEWTON_TOL, max_iter=max_iter, lu=lu, reuse=reuse, creep=2, keep=True)
 
 
 def _as_both(params, sol: SteadySolution) -> SteadySolution:
@@ -172,8 +172,8 @@ def as_both(params, sol: SteadySolution) -> SteadySolution:
 #: The regions of :func:`regions`. The body held most of the N-dependence on the deformed grid
 #: at 600 m (docs/analysis.md: 1.67e-4 of 1.78e-4 at 602 m); beyond 2 km the zone ±0.01 L about
 #: the leading edge, which the deformation keeps while the pulse lengthens, holds the largest part
-#: (stop 32: −1.26e-4 of ≈ −1.7e-4 at 2.43 km, :func:`locate_error`), and within it the band
-#: (−0.01 L, −0.0005 L] behind the edge (stop 35: at 2.06 km −8.6e-5 of the zone's −1.0e-4 from
+#: (−1.26e-4 of ≈ −1.7e-4 at 2.43 km, :func:`locate_error`), and within it the band
+#: (−0.01 L, −0.0005 L] behind the edge (at 2.06 km −8.6e-5 of the zone's −1.0e-4 from
 #: 121 of its 620 cells, the steep edge itself −1.2e-5; at 4.08 km that band alone, 119 cells,
 #: took the check from 9.1e-5 to 2.1e-5, the whole zone, 696 cells, to 7.4e-6).
 AHEAD = "ahead (> +0.01 L)"

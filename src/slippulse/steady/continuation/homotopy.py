@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..newton import newton
+from ..newton import NEWTON_TOL, newton
 
 
 class _Shifted:
@@ -28,7 +28,7 @@ class _Shifted:
 CREEP = 3
 
 
-def solve_robust(problem, x0, stages=8, max_iter=15, tol=1e-13, reuse=False, creep=None,
+def solve_robust(problem, x0, stages=8, max_iter=15, tol=NEWTON_TOL, reuse=False, creep=None,
                  plain=True):
     """Newton from x0; if it fails, the residual homotopy F(x) = s F(x0), s = 1 − k/stages.
 

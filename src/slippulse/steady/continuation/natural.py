@@ -11,7 +11,7 @@ import scipy.linalg as sla
 
 from ...core.h5io import write_pulse
 from ..equations import SteadyProblem
-from ..newton import newton
+from ..newton import NEWTON_TOL, newton
 from ..measures import pulse_length
 from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess, solve_pulse
 from .stretch import _stretch
@@ -107,7 +107,7 @@ def tangent_step(params, base: _Base, value, fixed, n_points, spec=GridSpec(), m
         if not _valid_q(params, x0[-1]):
             x0[-1] = base.q
         prob = SteadyProblem(params, x0[-1], xi, k, ky, H=both.H, free="tau_d", beta=value)
-    x, st = newton(prob, x0, tol=1e-13, max_iter=max_iter, lu=lu)
+    x, st = newton(prob, x0, tol=NEWTON_TOL, max_iter=max_iter, lu=lu)
     sol = SteadySolution(prob, x, st, time.perf_counter() - t0, 0)
     return sol, _Base.of(sol, L_grid)
 
@@ -124,7 +124,7 @@ def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_i
     xn, yn = regrid_guess(params, q_guess, xi, y, beta, n_points, spec)
     k, _ = front_pin(xn, yn, np.log(params.v_stick(q_guess * params.tau_min)))
     prob = SteadyProblem(params, q_guess, xn, k, float(yn[k]), free="tau_d", beta=beta)
-    x, st = newton(prob, np.concatenate([yn, [q_guess]]), tol=1e-13, max_iter=max_iter)
+    x, st = newton(prob, np.concatenate([yn, [q_guess]]), tol=NEWTON_TOL, max_iter=max_iter)
     return SteadySolution(prob, x, st, time.perf_counter() - t0, 1)
 
 

@@ -1,5 +1,5 @@
-"""A new grid where the deformed grid's arclength corrector stalls (issue 18, item 4), for
-:func:`~slippulse.steady.continuation.family._auto_deep`'s fallback (``DeepSettings.relay``).
+"""A new grid where the deformed grid's arclength corrector stalls, for
+:class:`~slippulse.steady.continuation.driver.Continuation`'s fallback (``StretchGrid.relay``).
 
 Measured at the stall of the 271-pulse family (L = 6744 m, N = 3542, docs/analysis.md): the
 corrector's Newton creeps at the healing front (the largest residual and the largest correction,

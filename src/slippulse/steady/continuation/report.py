@@ -23,10 +23,11 @@ class FamilyReport:
     resumed_previous: tuple | None = None            # (β, q, L) of the arclength pulse above it
     resumed_held: bool = False                       # that pulse's march had ds held (hold)
     resumed_cap: float = float("nan")                # and its cap on ds (cap_shrink)
-    checks: int = 0                                  # grid checks ("auto")
+    checks: int = 0                                  # grid checks
     failed_checks: list = field(default_factory=list)  # (tau_d_ratio, message): written failed
     deep_steps: int = 0                              # accepted steps of the deep march
     limit_reached: bool = False                      # stopped cleanly at max_length
+    strategy: str = ""                               # the deep driver's combination (printed)
 
     def record(self, tau_d_ratio, ok, message):
         """Count one attempted solve; a failed one is kept with its τ_d/τ_min and message."""

@@ -61,7 +61,7 @@ def block_offset(xi, y, x_back, w):
 
     Each deformed step moves the zone by the predicted change of L; the corrector then moves the
     front by what the prediction missed, so the drop wanders off the cells laid out for it
-    (measured on the march of stops 43–46: the 0.05–0.1 m cells of the zone moved 0.6 m ahead of
+    (measured on the march from 2.5 to 9.5 km: the 0.05–0.1 m cells of the zone moved 0.6 m ahead of
     the back crossing per 100 m of L, 6 m at 4.8 km, 17 m at 6.8 km; the drop then sat on cells of
     0.15–0.31 m behind them, and the check found the healing front's error, docs/steady.md §8).
     """

@@ -1,7 +1,10 @@
-"""The grid criterion of the family, in one place: :class:`GridTolerance`."""
+"""The tolerances of the family, in one place: the grid criterion (:class:`GridTolerance`,
+:data:`GRID_TOLERANCE`) and the Newton tolerance (:data:`NEWTON_TOL`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from ..newton import NEWTON_TOL  # noqa: F401  (defined beside the solver, read from here)
 
 
 @dataclass(frozen=True)
@@ -26,5 +29,6 @@ class GridTolerance:
         return bool(abs(dbeta) <= self.beta and abs(dL_rel) <= self.L)
 
 
-#: The family's criterion (docs/steady.md §8): β within 1e-5, L within 1e-4.
+#: The family's criterion: β within 1e-5, L within 1e-4 between N and 2N − 1.
 GRID_TOLERANCE = GridTolerance()
+

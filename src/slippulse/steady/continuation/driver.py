@@ -1,0 +1,455 @@
+"""The continuation driver: :class:`Continuation`, a pseudo-arclength march of the family toward
+β → 1 built from a :class:`~.strategy.Strategy`, with its state, status and counters on the
+object (in the style of scipy's ``OdeSolver``: ``step()`` advances by one accepted pulse,
+``status`` says whether it may go on, ``message`` says why not).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..equations import SteadyProblem
+from ..measures import pulse_length
+from ..newton import SolveStats
+from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess
+from .arclength import ArclengthProblem, family_tangent, tangent_by_refinement, unit_tangent
+from .natural import _judge
+from .relay import recentre, refine_front, zone_offset
+from .strategy import AUTO, Strategy
+from .stretch import _stretch, stretch_grid
+
+
+@dataclass
+class Accepted:
+    """What ``on_accept`` returns for a pulse it wrote: whether it passed (its grid check), and
+    the pulse written (e.g. the refined pulse of the check), which the march continues from when
+    it passed."""
+
+    passed: bool
+    sol: SteadySolution
+    message: str = ""
+
+
+class Continuation:
+    """Pseudo-arclength continuation of the family in (a, q/κ), a = ln(1 − β), q = τ_d/τ_min.
+
+    Parameters
+    ----------
+    params : Parameters
+    start : SteadySolution of ``free="both"`` (x = (y, β, q)), or a tuple (xi, y, β, q) (the pin
+        is then put at the leading edge, :func:`front_pin`).
+    strategy : :class:`~.strategy.Strategy` (default :data:`~.strategy.AUTO`).
+    spec : layout of re-laid grids (:class:`~.strategy.AdaptGrid`).
+    stop : the march is ``"finished"`` once τ_d/τ_min ≤ stop.
+    max_length : the march is ``"stopped"`` once L ≥ max_length (m).
+    spacing : hand an accepted pulse to ``on_accept`` only once L has grown by this fraction
+        since the last one handed (0: every one); the pulse the march ends on always is.
+    on_attempt : callable(tau_d_ratio, pulse_or_None, message), optional; after every attempt
+        (steps, relays, recentring re-solves).
+    on_accept : callable(solution, extra) → :class:`Accepted` or None, optional: the place where
+        each accepted pulse is written (and grid-checked, or monitored); ``extra`` holds the
+        driver's attributes for the pulse (strategy, step control state, relay figures). The
+        march goes on from the returned pulse when it passed.
+    log : callable(str), optional; one line per relay or recentring.
+
+    Attributes
+    ----------
+    status : "running", "finished" (stop reached), "stopped" (max_length), "failed" (ds fell
+        below ``ds_min`` and no relay helped; ``message`` says where and why).
+    sol : the current pulse (x = (y, β, q)); q, beta, L : its τ_d/τ_min, β and length (m).
+    ds : the next arclength step; held, cap : whether the step control holds ds, and its cap.
+    tangent : (t_a, t_Q) of the last accepted step; fold : τ_d/τ_min where τ_d first rose.
+    n_steps, n_attempts, n_failed, n_iterations, n_relays, n_recentred, n_written : counters.
+    last_predictor : "tangent", "length" or "secant", the predictor of the last attempt.
+    """
+
+    def __init__(self, params, start, strategy: Strategy = AUTO, spec=GridSpec(),
+                 stop=-math.inf, max_length=math.inf, spacing=0.0, on_attempt=None,
+                 on_accept=None, log=None):
+        if not isinstance(strategy, Strategy):
+            raise TypeError(f"strategy={strategy!r}: must be a Strategy")
+        self.params, self.spec, self.strategy = params, spec, strategy
+        self.stop, self.max_length, self.spacing = stop, max_length, spacing
+        self.on_attempt, self.on_accept, self.log = on_attempt, on_accept, log
+        if isinstance(start, SteadySolution):
+            base, x = start.problem, np.asarray(start.x, float).copy()
+        else:
+            xi, y, beta, q = start
+            k, _ = front_pin(xi, y, math.log(params.v_stick(q * params.tau_min)))
+            base = SteadyProblem(params, q, xi, k, float(y[k]), free="both")
+            x = np.concatenate([y, [beta, q]])
+        grid = strategy.grid
+        self.n_points = (base.n if strategy.stretch or grid.n_points is None else grid.n_points)
+        self._base, self._x = base, x
+        self.beta, self.q = float(x[-2]), float(x[-1])
+        # κ: |dq/da| at the start, so that one unit of ds moves a and q/κ alike
+        n0 = family_tangent(base, x, (1.0, 0.0, 1.0))
+        self.kappa = max(abs(n0[-1] / (-n0[-2] / (1.0 - self.beta))), 1e-5)
+        self._orient = (1.0, 0.0, self.kappa)
+        self.ds = strategy.steps.ds
+        self.L = self._L_grid = pulse_length(base.xi, np.exp(x[:-2]), params.v_star,
+                                             crossings=False)
+        self.sol = SteadySolution(base, x, SolveStats(True, "start", 0, 0.0), 0.0, 0)
+        self.tangent = (math.nan, math.nan)
+        self.fold = None
+        self.status, self.message = "running", ""
+        self.n_steps = self.n_attempts = self.n_failed = self.n_iterations = 0
+        self.n_relays = self.n_recentred = self.n_written = 0
+        self.last_predictor = "tangent"
+        # the history of the length and secant predictors: dL/ds of the last accepted step
+        # (kept across replace/restart: those re-solve the same pulse on another grid); (x, ds)
+        # of the pulse before the current one, kept while the current grid is its deformed one
+        self._rate = None
+        self._prev = None
+        self._forget()
+        self._candidate = (None, None, None)
+        # held steps: a tangent step above the predictor's ds_max failed since the last
+        # accepted step; held: ds capped from then on
+        self._tangent_failed = False
+        self.held = False
+        self.cap = getattr(strategy.predictor, "ds_max", math.inf)
+        self._at_cap = 0
+        self._relaid_at = None
+        self._last_written_L = self.L
+        self._started = False
+
+    # ---------------------------------------------------------------- state a resume restores
+    def resume_step(self, beta_prev, q_prev, L_prev=None):
+        """Go on at the pace of the march that wrote the pulse before the start (β_prev,
+        τ_d/τ_min = q_prev, length L_prev): ds is the step between the two in this march's plane,
+        clipped to [ds_min, ds_max], and dL/ds between them seeds the length predictor; with held
+        steps the first step is at most the predictor's ds_max (a file's last two pulses are
+        usually several steps apart, and the tangent's step from that distance fails)."""
+        st, pred = self.strategy.steps, self.strategy.predictor
+        da = math.log(1.0 - self.beta) - math.log(1.0 - beta_prev)
+        dq = (self.q - q_prev) / self.kappa
+        ds = math.hypot(da, dq)
+        if math.isfinite(ds) and ds > 0:
+            self.ds = min(max(ds, st.ds_min), st.ds_max)
+            if L_prev is not None and math.isfinite(L_prev):
+                self._rate = (self.L - L_prev) / ds
+                if self.strategy.held:
+                    self.ds = max(min(self.ds, pred.ds_max), st.ds_min)
+        return self.ds
+
+    def hold(self, cap=None):
+        """Start held (the pulse resumed from was written by a held march), with its ``cap``."""
+        if not self.strategy.held:
+            return
+        st, pred = self.strategy.steps, self.strategy.predictor
+        self.held = True
+        if cap is not None and math.isfinite(cap):
+            self.cap = min(max(float(cap), st.ds_min), pred.ds_max)
+            self.ds = min(self.ds, self.cap)
+
+    def state_attrs(self) -> dict:
+        """The driver's attributes of a written pulse: its strategy, the predictor and Newton
+        iterations of the step that produced it, and the step control state (what a resumed march
+        restores, :meth:`resume_step`, :meth:`hold`)."""
+        return {"continuation": "arclength", "continuation_strategy": str(self.strategy),
+                "continuation_predictor": self.last_predictor,
+                "continuation_iterations": int(self.sol.stats.iterations),
+                "march_held": bool(self.held), "march_cap": float(self.cap)}
+
+    # ---------------------------------------------------------------- the public step
+    def step(self):
+        """Advance by one accepted pulse, hand it to ``on_accept`` when it is due, and keep the
+        healing-front zone on its drop. Returns None, or the message once the march failed.
+        Raises RuntimeError when the march is not running."""
+        if self.status != "running":
+            raise RuntimeError(f"Continuation.step() with status {self.status!r}")
+        if not self._started:
+            self._started = True
+            self.recentre_front()
+        if self.advance() is not None:
+            # the corrector stalled at ds_min: refine the healing front and go on from there
+            if not self._relay():
+                return self.message
+            return None
+        if self.status == "running" and self.L < self._last_written_L * (1.0 + self.spacing):
+            return None                    # a continuation step, not written (spacing)
+        res = self._hand(self.sol, {})
+        if res is not None and res.passed:
+            if res.sol is not self.sol:
+                self.replace(res.sol)
+            self.recentre_front()
+        return None
+
+    def run(self) -> str:
+        """Step until the march is no longer running; returns the status."""
+        while self.status == "running":
+            self.step()
+        return self.status
+
+    def _hand(self, sol, extra):
+        """Hand ``sol`` to ``on_accept`` with the driver's attributes."""
+        self._last_written_L = self.L
+        if self.on_accept is None:
+            return None
+        res = self.on_accept(sol, {**self.state_attrs(), **extra})
+        self.n_written += 1
+        return res
+
+    def _told(self, q, new, msg):
+        if self.on_attempt:
+            self.on_attempt(float(new.x[-1]) if new is not None else q,
+                            new.to_pulse() if new is not None else None, msg)
+        if self.log:
+            self.log(f"at tau_d/tau_min={q:.7f} (L={self.L:.1f} m): {msg}")
+
+    # ---------------------------------------------------------------- grid policy extras
+    def _relay(self) -> bool:
+        """The stretched grid's fallback where the corrector failed at ds_min: the current pulse
+        with its healing front's steep cells split (:func:`~.relay.refine_front`), handed to
+        ``on_accept`` (``relaid`` and its change at fixed τ_d as attributes); if it passes, the
+        march restarts from it with ds = 2 ds_min. Returns whether the march goes on."""
+        g = self.strategy.grid
+        if not (self.strategy.stretch and self.n_relays < g.relay
+                and self._relaid_at != self.n_steps):
+            return False
+        self.n_relays += 1
+        self._relaid_at = self.n_steps
+        q = float(self.sol.x[-1])
+        new, dbeta, dL_rel, msg = refine_front(self.params, self.sol, levels=g.relay_levels)
+        self._told(q, new, f"corrector stalled; {msg}")
+        if new is None:
+            self.message += f"; then {msg}"
+            return False
+        res = self._hand(new, {"relaid": True, "relay_dbeta": float(dbeta),
+                               "relay_dL_rel": float(dL_rel)})
+        if res is not None and not res.passed:
+            self.message += (f"; then {msg}, but the refined pulse failed its grid check "
+                             f"({res.message})")
+            return False
+        self.restart(res.sol if res is not None else new, 2.0 * self.strategy.steps.ds_min)
+        self._last_written_L = self.L
+        return True
+
+    def recentre_front(self) -> bool:
+        """Once held: where the finest cells of the healing-front zone lie more than
+        ``recentre`` · L from its steep drop, move the zone back onto it and go on from the
+        re-solved pulse (:func:`~.relay.recentre`); a re-solve that does not converge leaves the
+        march as it was. Returns whether the grid moved."""
+        g = self.strategy.grid
+        if not (self.strategy.stretch and g.recentre > 0 and self.held
+                and self.status == "running"):
+            return False
+        try:
+            offset = zone_offset(self.params, self.sol, g.back_zone)
+        except ValueError:
+            return False
+        if not abs(offset[0]) > g.recentre * self.L:
+            return False
+        new, _, _, _, msg = recentre(self.params, self.sol, g.front_zone, g.back_zone,
+                                     offset=offset)
+        self._told(float(self.sol.x[-1]), new, msg)
+        if new is None:
+            return False
+        self.n_recentred += 1
+        self.replace(new)
+        return True
+
+    # ---------------------------------------------------------------- one accepted pulse
+    def _forget(self):
+        """Drop what was kept of the last corrector (the pulse changed grid or was replaced)."""
+        self._lu = self._jac = self._arc = self._n = None
+
+    def _tangent(self):
+        """The unit family tangent at the current pulse (:func:`family_tangent`), once per pulse;
+        by refinement with the last corrector's LU where the corrector keeps it
+        (:func:`tangent_by_refinement`), oriented along the previous tangent."""
+        if self._n is not None:
+            return self._n
+        base, x, n = self._base, self._x, None
+        if self._lu is not None and self._lu[0].shape[0] == x.size:
+            A = self._jac if self._jac is not None else self._arc.residual_and_jacobian(x)[1]
+            n = tangent_by_refinement(A, self._lu)
+            if n is not None:
+                c_b, c_q, _ = self._orient
+                n = unit_tangent(n if c_b * n[-2] + c_q * n[-1] >= 0 else -n, self.beta,
+                                 self.kappa)
+        self._jac = None
+        if n is None:
+            n = family_tangent(base, x, self._orient)
+        self._n = n
+        return n
+
+    def _predict(self, n, ds):
+        """The predicted grid, ln v, pin, Hilbert matrix, β and q of a step of ``ds`` along the
+        unit tangent ``n`` (stages as named in the comments)."""
+        P, S, base, x = self.params, self.strategy, self._base, self._x
+        t_a, t_Q = -n[-2] / (1.0 - self.beta), n[-1] / self.kappa
+        # d ln L/ds along the tangent, by a finite difference of the FWHM
+        eps = 1e-4
+        dlnL = (math.log(pulse_length(base.xi, np.exp(x[:-2] + eps * n[:-2]), P.v_star,
+                                      crossings=False)) - math.log(self.L)) / eps
+        bp = 1.0 - (1.0 - self.beta) * math.exp(ds * t_a)
+        qp = self.q + ds * self.kappa * t_Q
+        P.check_tau_d(qp * P.tau_min)
+        if S.stretch:
+            g = S.grid
+            # deform the grid with the pulse, nodal ln v kept: the healing-front zone moved by
+            # the predicted change of L (the tangent's, or the last step's dL/ds)
+            x_pin = base.xi[base.pin_index]
+            x_left = pulse_length(base.xi, np.exp(x[:-2]), P.v_star)[1]
+            has_secant = self._prev is not None and self._prev[0].size == x.size
+            mode = S.predictor.mode(ds, self._rate is not None, has_secant)
+            shift = ds * self._rate if mode != "tangent" else math.expm1(ds * dlnL) * self.L
+            xn = stretch_grid(base.xi, x_pin, shift, g.front_zone * self.L, x_left,
+                              g.back_zone * self.L)
+            yn, k, ky, H = x[:-2].copy(), base.pin_index, base.y_pin, None
+            if mode == "secant":
+                # ln v node by node along the secant through the last two pulses
+                x_prev, ds_prev = self._prev
+                ys = x[:-2] + (ds / ds_prev) * (x[:-2] - x_prev[:-2])
+                if np.all(np.isfinite(ys)):
+                    yn = ys
+                else:
+                    mode = "length"
+            self.last_predictor = mode
+            return xn, yn, k, ky, H, bp, qp, base.n
+        # ln v stretched behind the leading edge by exp(ds · d ln L/ds): the healing edge moves
+        # by many of its own widths per step, which the linear tangent in ln v cannot carry
+        self.last_predictor = "tangent"
+        yp = _stretch(base.xi, x[:-2], base.xi[base.pin_index], math.exp(ds * dlnL))
+        n_cur = self.n_points
+        if n_cur == base.n and abs(self.L / self._L_grid - 1.0) < S.grid.regrid:
+            return base.xi, yp, base.pin_index, base.y_pin, base.H, bp, qp, n_cur
+        xn, yn = regrid_guess(P, qp, base.xi, yp, bp, n_cur, self.spec)
+        k, _ = front_pin(xn, yn, math.log(P.v_stick(qp * P.tau_min)))
+        return xn, yn, k, float(yn[k]), None, bp, qp, n_cur
+
+    def _attempt(self):
+        """One predictor–corrector attempt at the current ds: (ok, solution or None, message,
+        (t_a, t_Q), predicted q)."""
+        S, ds = self.strategy, self.ds
+        n = self._tangent()
+        t_a, t_Q = -n[-2] / (1.0 - self.beta), n[-1] / self.kappa
+        self._orient = (n[-2], n[-1], self.kappa)
+        new, its, n_cur = None, 0, self._base.n
+        qp = self.q + ds * self.kappa * t_Q
+        bp = math.nan
+        try:
+            # predict
+            xn, yn, k, ky, H, bp, qp, n_cur = self._predict(n, ds)
+        except (RuntimeError, ValueError) as exc:
+            ok, msg = False, f"predictor unusable: {exc}"
+        else:
+            # correct: the steady equations closed by the arclength condition
+            nb = SteadyProblem(self.params, qp, xn, k, ky, free="both", H=H)
+            arc = ArclengthProblem(nb, math.log(1.0 - self.beta), self.q, t_a, t_Q, self.kappa,
+                                   ds)
+            x0 = np.concatenate([yn, [bp, qp]])
+            corr = S.corrector_for(self.held)
+            lu = self._lu if self._lu is not None and self._lu[0].shape[0] == x0.size else None
+            # the held corrector's creep stop acts near the cap only (after halvings below it,
+            # the free corrector's)
+            near_cap = ds >= min(getattr(S.steps, "cap_shrink", 1.0), 1.0) * self.cap * (1 - 1e-9)
+            creep = corr.creep if (not self.held or near_cap) else S.corrector.creep
+            t0 = time.perf_counter()
+            xs, st = corr.solve(arc, x0, lu=lu, creep=creep)
+            new = SteadySolution(nb, xs, st, time.perf_counter() - t0, 1)
+            self._candidate = (st.lu, st.jacobian, arc)
+            st.lu = st.jacobian = None
+            ok, msg, its = st.converged, st.message, st.iterations
+            self.n_iterations += its
+            if ok and not _judge(new)[1]:
+                ok, msg = False, "converged to a multi-hump solution: rejected"
+        msg = f"arclength step ds={ds:.3g} (N={n_cur}, {its} it.) to beta~{bp:.6f}: {msg}"
+        return ok, new, msg, (t_a, t_Q), qp
+
+    def advance(self):
+        """One accepted pulse (halving ds on failure). Returns None, or the message when ds fell
+        below ds_min (status "failed")."""
+        S = self.strategy
+        st, pred_ds_max = S.steps, getattr(S.predictor, "ds_max", math.inf)
+        while True:
+            ok, new, msg, tangent, qp = self._attempt()
+            self.n_attempts += 1
+            self.message = msg
+            if self.on_attempt:
+                qa = float(new.x[-1]) if new is not None else qp
+                self.on_attempt(qa, new.to_pulse() if ok else None, msg)
+            if ok:
+                break
+            self.n_failed += 1
+            if self.last_predictor == "tangent" and self.ds > pred_ds_max:
+                self._tangent_failed = True
+            if self.held and st.cap_shrink < 1.0 and self.ds >= st.cap_shrink * self.cap:
+                # a failure at or near the cap: the cap below it
+                self.cap = max(st.cap_shrink * min(self.ds, self.cap), st.ds_min)
+                self._at_cap = 0
+            self.ds *= 0.5
+            if self.ds < st.ds_min:
+                self.status = "failed"
+                self.message = (f"arclength steps stopped converging at beta={self.beta:.6f}, "
+                                f"tau_d/tau_min={self.q:.6f}: ds fell below {st.ds_min} ({msg})")
+                return self.message
+        if new.problem.xi is not self._base.xi:
+            self._L_grid = new.to_pulse().L
+        self._lu, self._jac, self._arc = (self._candidate if S.corrector.reuse_lu
+                                          else (None, None, None))
+        self._n = None
+        # the history: a nodal secant only across a step that kept the front on its nodes
+        lineage = (S.stretch and new.problem.n == self._base.n
+                   and self.last_predictor in ("length", "secant"))
+        self._prev = (self._x, self.ds) if lineage else None
+        L_old = self.L
+        self._accept(new)
+        self._rate = (self.L - L_old) / self.ds
+        if S.held and self._tangent_failed and self.last_predictor in ("length", "secant"):
+            self.held = True
+        self._tangent_failed = False
+        if self.held and st.cap_shrink < 1.0 and self.ds >= self.cap * (1.0 - 1e-9):
+            self._at_cap += 1
+            if self._at_cap >= st.cap_grow_after:
+                self.cap = min(self.cap / st.cap_shrink, pred_ds_max)
+                self._at_cap = 0
+        ds_max = min(st.ds_max, self.cap) if self.held else st.ds_max
+        self.ds = st.next_ds(self.ds, new.stats.iterations, ds_max)
+        self.tangent = tangent
+        if tangent[1] > 0 and self.fold is None:
+            self.fold = self.q
+        self.n_steps += 1
+        self._update_status()
+        return None
+
+    def _accept(self, sol):
+        self.sol, self._base, self._x = sol, sol.problem, sol.x.copy()
+        self.beta, self.q = float(self._x[-2]), float(self._x[-1])
+        self.L = sol.to_pulse().L
+
+    def _update_status(self):
+        if self.q <= self.stop + 1e-12:
+            self.status = "finished"
+            self.message = f"reached tau_d/tau_min={self.q:.6f} <= {self.stop}"
+        elif self.L >= self.max_length:
+            self.status = "stopped"
+            self.message = f"pulse length L={self.L:.5g} m reached max_length={self.max_length:g} m"
+
+    def replace(self, sol: SteadySolution) -> None:
+        """Continue from ``sol`` (x = (y, β, q); e.g. the refined pulse of a grid check) instead of
+        the current pulse: its grid becomes the march's (the nodal secant starts afresh; dL/ds of
+        the last step is kept)."""
+        self._prev = None
+        self._forget()
+        self._accept(sol)
+        self._L_grid = self.L
+        if self.status in ("finished", "stopped"):
+            self.status = "running"
+            self._update_status()
+
+    def restart(self, sol: SteadySolution, ds: float) -> None:
+        """Continue (a failed march too) from ``sol`` (x = (y, β, q)) with the step ``ds``: its
+        grid becomes the march's, the status "running" (or "finished"/"stopped" if ``sol`` is
+        already there); the tangent's orientation, κ and dL/ds of the last step are kept."""
+        self._prev = None
+        self._forget()
+        self._accept(sol)
+        self._L_grid = self.L
+        self.ds = float(ds)
+        self.status, self.message = "running", ""
+        self._update_status()

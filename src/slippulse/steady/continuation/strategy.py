@@ -1,0 +1,345 @@
+"""The strategies of the continuation driver (:class:`~.driver.Continuation`), one job each, and
+their combination (:class:`Strategy`), a value: printed, stored with every pulse it writes, and
+refused when built if its parts cannot work together.
+
+* predictor — where the next pulse is guessed: :class:`TangentPredictor`,
+  :class:`LengthPredictor`, :class:`SecantPredictor`;
+* corrector — how the guess is driven to the family: :class:`NewtonCorrector` (Newton with a
+  line search, optional chord start and creep stop);
+* step control — how the arclength step ds changes: :class:`FreeSteps`, :class:`HeldSteps`;
+* grid policy — which grid carries the next pulse: :class:`AdaptGrid`, :class:`StretchGrid`.
+
+:data:`AUTO` is the product's combination (``slippulse steady family``).
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from ..newton import LINE_SEARCHES
+from .tolerance import NEWTON_TOL
+
+
+class StrategyError(ValueError):
+    """A strategy, or a combination of strategies, that cannot work (refused when built)."""
+
+
+def _describe(obj) -> str:
+    """``name(field=value, ...)`` of a strategy: its name and the fields that set it."""
+    parts = []
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        parts.append(f"{f.name}={v}" if not dataclasses.is_dataclass(v) else
+                     f"{f.name}={_describe(v)}")
+    return f"{obj.name}({', '.join(parts)})"
+
+
+# ------------------------------------------------------------------------------ predictors
+@dataclass(frozen=True)
+class TangentPredictor:
+    """Predict along the family tangent: (ln(1 − β), q/κ) moved by ds along it, ln v stretched
+    behind the leading edge by the change of L the tangent gives (the healing front moves by many
+    of its own widths per step, which a linear tangent in ln v cannot carry)."""
+
+    name = "tangent"
+
+    def mode(self, ds, has_rate, has_secant) -> str:
+        """The predictor used for a step of ``ds``: always the tangent."""
+        return "tangent"
+
+
+@dataclass(frozen=True)
+class LengthPredictor:
+    """On a stretched grid, move the healing-front zone by the change of L per ds of the last
+    accepted step instead of the tangent's: deep in the family the tangent's change of L falls
+    ≈ 13 % short, so the front lands about a cell off its nodes and the corrector creeps. Acts
+    for steps ds ≤ ``ds_max`` only (larger steps, far from the family's curvature scale, fail with
+    it); above, and without a last step, the tangent's.
+    """
+
+    ds_max: float = 0.002
+    name = "length"
+
+    def __post_init__(self):
+        if not self.ds_max > 0:
+            raise StrategyError(f"{self.name}: ds_max={self.ds_max} is invalid: must be > 0")
+
+    def mode(self, ds, has_rate, has_secant) -> str:
+        """The predictor used for a step of ``ds``: "length" with a last step's dL/ds and
+        ds ≤ ``ds_max``, else "tangent"."""
+        return "length" if has_rate and ds <= self.ds_max else "tangent"
+
+
+@dataclass(frozen=True)
+class SecantPredictor(LengthPredictor):
+    """:class:`LengthPredictor`, and ln v node by node along the secant through the last two
+    pulses when both lie on the same deformed grid (the last step itself "length" or "secant"):
+    the starting residual falls from ~5e−5 to ~1e−7 and the corrector needs 2–3 iterations."""
+
+    name = "secant"
+
+    def mode(self, ds, has_rate, has_secant) -> str:
+        m = super().mode(ds, has_rate, has_secant)
+        return "secant" if m == "length" and has_secant else m
+
+
+PREDICTORS = {c.name: c for c in (TangentPredictor, LengthPredictor, SecantPredictor)}
+
+
+# ------------------------------------------------------------------------------ corrector
+@dataclass(frozen=True)
+class NewtonCorrector:
+    """Damped Newton on the arclength-closed equations (:func:`~slippulse.steady.newton.newton`)
+    to max|r| ≤ :data:`~.tolerance.NEWTON_TOL`.
+
+    max_iter : iterations before the attempt fails (ds is then halved).
+    line_search : "residual" (‖r‖₂ must fall) or "natural" (the simplified Newton correction
+        must shrink: affine invariant, it takes full steps where the Jacobian is nearly singular
+        along the motion of the healing front and the ‖r‖₂ test cuts every step to λ ≤ 1/4).
+    creep : > 0: fail as soon as max|r| has not halved over that many iterations (a step too long
+        for Newton's basin fails in a few iterations instead of ``max_iter``); 0: never.
+    chord : start with chord iterations on the LU of the last accepted corrector (the Jacobian
+        is then formed only when they stop contracting).
+    reuse_lu : find the next tangent by iterative refinement with the last corrector's LU
+        (back-substitutions instead of a factorisation; the same tangent to ~1e−11).
+    """
+
+    max_iter: int = 25
+    line_search: str = "residual"
+    creep: int = 0
+    chord: bool = False
+    reuse_lu: bool = True
+    name = "newton"
+
+    def __post_init__(self):
+        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+            raise StrategyError(f"newton: max_iter={self.max_iter!r} is invalid: must be an "
+                                f"integer >= 1")
+        if self.line_search not in LINE_SEARCHES:
+            raise StrategyError(f"newton: line_search={self.line_search!r} is invalid: must be "
+                                f"one of {LINE_SEARCHES}")
+        if not (isinstance(self.creep, int) and self.creep >= 0):
+            raise StrategyError(f"newton: creep={self.creep!r} is invalid: must be an integer "
+                                f">= 0")
+
+    @property
+    def tol(self) -> float:
+        """The convergence tolerance on max|r| (the one of the whole package)."""
+        return NEWTON_TOL
+
+    def solve(self, problem, x0, lu=None, creep=None):
+        """Drive ``problem`` from ``x0``; ``lu``: the LU for the chord start (used only with
+        ``chord``); ``creep``: this attempt's creep stop when it differs from ``self.creep``.
+        Returns (x, SolveStats) with the LU (and the Jacobian) kept for the next tangent."""
+        from ..newton import newton
+        return newton(problem, x0, tol=NEWTON_TOL, max_iter=self.max_iter,
+                      lu=lu if self.chord else None, keep=self.reuse_lu,
+                      creep=self.creep if creep is None else creep,
+                      line_search=self.line_search)
+
+
+# ------------------------------------------------------------------------------ step control
+@dataclass(frozen=True)
+class FreeSteps:
+    """ds grows by ``grow`` after a corrector of ≤ ``easy`` iterations, shrinks by ``shrink``
+    after one of > ``hard``, halves after a failure; the march fails below ``ds_min``.
+
+    ds : the first step; ds_min, ds_max : its bounds (in the plane (ln(1 − β), q/κ)).
+    """
+
+    ds: float = 0.1
+    ds_min: float = 0.004
+    ds_max: float = 0.4
+    grow: float = 1.5
+    shrink: float = 0.7
+    easy: int = 6
+    hard: int = 10
+    name = "free"
+
+    def __post_init__(self):
+        if not (0 < self.ds_min <= self.ds <= self.ds_max):
+            raise StrategyError(f"{self.name}: ds={self.ds}, ds_min={self.ds_min}, "
+                                f"ds_max={self.ds_max} are invalid: need 0 < ds_min <= ds <= "
+                                f"ds_max")
+        if not (self.grow >= 1.0 and 0 < self.shrink <= 1.0 and self.easy <= self.hard):
+            raise StrategyError(f"{self.name}: grow={self.grow}, shrink={self.shrink}, "
+                                f"easy={self.easy}, hard={self.hard} are invalid: need grow >= 1, "
+                                f"0 < shrink <= 1, easy <= hard")
+
+    def next_ds(self, ds, iterations, ds_max):
+        """The step after an accepted one of ``ds`` whose corrector took ``iterations``."""
+        if iterations <= self.easy:
+            return min(self.grow * ds, ds_max)
+        if iterations > self.hard:
+            return max(self.shrink * ds, self.ds_min)
+        return ds
+
+
+@dataclass(frozen=True)
+class HeldSteps(FreeSteps):
+    """:class:`FreeSteps` until a tangent step above the predictor's ``ds_max`` has failed and the
+    next accepted step was the length or secant predictor's; from then on ds is held at or below a
+    cap (at first the predictor's ``ds_max``). Deep in the family the free control grows ds past
+    the threshold after every easy step, where the tangent's step fails after ``max_iter``
+    iterations: one attempt in three, half the wall time.
+
+    ds_min : a tenth of the cap (the march halves ds below the cap after failures before it
+        refines the healing front).
+    cap_shrink : after a failure at or near the cap (ds ≥ cap_shrink · cap) the cap becomes
+        cap_shrink · ds; 1: a fixed cap.
+    cap_grow_after : after this many accepted steps at the cap in a row it is divided by
+        ``cap_shrink`` (up to the predictor's ``ds_max``).
+    corrector : the corrector once held (ds then sits at its cap whatever the iterations, so a
+        chord start cannot change the path the way it does with ds free); its ``creep`` acts only
+        at a ds within ``cap_shrink`` of the cap (below it, after halvings, the free corrector's).
+    """
+
+    ds_min: float = 0.0002
+    cap_shrink: float = 0.8
+    cap_grow_after: int = 6
+    corrector: NewtonCorrector = field(default_factory=lambda: NewtonCorrector(
+        line_search="natural", creep=4, chord=True))
+    name = "held"
+
+    def __post_init__(self):
+        super().__post_init__()
+        if not (0 < self.cap_shrink <= 1.0):
+            raise StrategyError(f"held: cap_shrink={self.cap_shrink} is invalid: must be in "
+                                f"(0, 1]")
+        if not (isinstance(self.cap_grow_after, int) and self.cap_grow_after >= 1):
+            raise StrategyError(f"held: cap_grow_after={self.cap_grow_after!r} is invalid: must "
+                                f"be an integer >= 1")
+
+
+# ------------------------------------------------------------------------------ grid policies
+@dataclass(frozen=True)
+class AdaptGrid:
+    """Keep the grid (and its Hilbert matrix) while L stays within ``regrid`` of the L it was laid
+    out for; then lay out a grid adapted to the predicted pulse, ``n_points`` nodes (None: the
+    start's), ln v interpolated onto it."""
+
+    regrid: float = 0.05
+    n_points: int | None = None
+    name = "adapt"
+
+    def __post_init__(self):
+        if not self.regrid > 0:
+            raise StrategyError(f"adapt: regrid={self.regrid} is invalid: must be > 0")
+
+
+@dataclass(frozen=True)
+class StretchGrid:
+    """Deform the current grid with the pulse every step (:func:`~.stretch.stretch_grid`): the
+    leading-edge zone (``front_zone`` · L) kept, the zone about the healing front
+    (``back_zone`` · L) moved rigidly, the body lengthened; ln v kept node by node. No
+    interpolation, so no jump of the discrete family at a regrid.
+
+    relay, relay_levels : where the corrector fails at ds_min, re-solve the current pulse with the
+        cells of its healing front's steep drop split into 2**relay_levels
+        (:func:`~.relay.refine_front`), check and write it, and go on from it; at most ``relay``
+        times a run, never twice without an accepted step between (0: off).
+    recentre : once the steps are held, after every written pulse that passed its check, move the
+        healing-front zone back onto the steep drop when they lie more than ``recentre`` · L apart
+        (:func:`~.relay.recentre`): each step moves the zone by the predicted change of L, and the
+        drop wanders off the cells laid out for it (0: off).
+    """
+
+    front_zone: float = 0.01
+    back_zone: float = 0.05
+    relay: int = 20
+    relay_levels: int = 2
+    recentre: float = 0.001
+    name = "stretch"
+
+    def __post_init__(self):
+        if not (0 < self.front_zone < 1 and 0 < self.back_zone < 1):
+            raise StrategyError(f"stretch: front_zone={self.front_zone}, back_zone="
+                                f"{self.back_zone} are invalid: must be in (0, 1) (fractions of L)")
+        if not (self.relay >= 0 and self.relay_levels >= 1 and self.recentre >= 0):
+            raise StrategyError(f"stretch: relay={self.relay}, relay_levels={self.relay_levels}, "
+                                f"recentre={self.recentre} are invalid: need relay >= 0, "
+                                f"relay_levels >= 1, recentre >= 0")
+
+
+# ------------------------------------------------------------------------------ combination
+@dataclass(frozen=True)
+class Strategy:
+    """A combination of a predictor, a corrector, a step control and a grid policy. Refused when
+    built (:class:`StrategyError`) if they cannot work together:
+
+    * the length and secant predictors move the healing-front zone of a stretched grid: they need
+      :class:`StretchGrid`;
+    * :class:`HeldSteps` caps ds where the length or secant predictor acts, on a stretched grid:
+      it needs both, and a ds_min below that cap (the predictor's ds_max);
+    * ``recentre`` acts once the steps are held: it needs :class:`HeldSteps` (or 0).
+    """
+
+    predictor: object = field(default_factory=TangentPredictor)
+    corrector: NewtonCorrector = field(default_factory=NewtonCorrector)
+    steps: FreeSteps = field(default_factory=FreeSteps)
+    grid: object = field(default_factory=AdaptGrid)
+
+    def __post_init__(self):
+        kinds = ((self.predictor, (TangentPredictor, LengthPredictor), "predictor"),
+                 (self.corrector, (NewtonCorrector,), "corrector"),
+                 (self.steps, (FreeSteps,), "steps"),
+                 (self.grid, (AdaptGrid, StretchGrid), "grid"))
+        for obj, cls, what in kinds:
+            if not isinstance(obj, cls):
+                raise StrategyError(f"{what}={obj!r} is invalid: must be one of "
+                                    f"{', '.join(c.__name__ for c in cls)}")
+        stretch = isinstance(self.grid, StretchGrid)
+        if isinstance(self.predictor, LengthPredictor) and not stretch:
+            raise StrategyError(f"predictor {self.predictor.name!r} moves the healing-front zone "
+                                f"of a stretched grid: it needs grid=StretchGrid()")
+        if isinstance(self.steps, HeldSteps):
+            if not (stretch and isinstance(self.predictor, LengthPredictor)):
+                raise StrategyError("steps=held caps ds where the length or secant predictor "
+                                    "acts on a stretched grid: it needs predictor=length or "
+                                    "secant and grid=StretchGrid()")
+            if not self.steps.ds_min < self.predictor.ds_max:
+                raise StrategyError(f"steps=held: ds_min={self.steps.ds_min:g} must be below the "
+                                    f"cap it holds ds at, the {self.predictor.name} predictor's "
+                                    f"ds_max={self.predictor.ds_max:g}")
+        elif stretch and self.grid.recentre > 0:
+            raise StrategyError(f"stretch: recentre={self.grid.recentre} acts once the steps are "
+                                f"held: it needs steps=HeldSteps() (or recentre=0)")
+
+    @property
+    def held(self) -> bool:
+        """Whether the step control may hold ds at a cap."""
+        return isinstance(self.steps, HeldSteps)
+
+    @property
+    def stretch(self) -> bool:
+        """Whether the grid is deformed with the pulse."""
+        return isinstance(self.grid, StretchGrid)
+
+    def corrector_for(self, held: bool) -> NewtonCorrector:
+        """The corrector of a step: the held one once the steps are held."""
+        return self.steps.corrector if held and self.held else self.corrector
+
+    def replace(self, **parts) -> "Strategy":
+        """A copy with some parts replaced (checked again)."""
+        return dataclasses.replace(self, **parts)
+
+    def __str__(self):
+        return " + ".join(_describe(p) for p in (self.predictor, self.corrector, self.steps,
+                                                 self.grid))
+
+
+#: The product's combination: the deep family from β ≈ 0.99 toward τ̃*, on a grid deformed with
+#: the pulse, with the secant predictor below ds = 0.002, the step held there once the tangent's
+#: larger steps fail (down to ds_min = 0.0002, a tenth of that cap, before the healing front is
+#: refined), and the held corrector's chord start, natural line search and creep stop.
+AUTO = Strategy(predictor=SecantPredictor(ds_max=0.002),
+                corrector=NewtonCorrector(max_iter=25),
+                steps=HeldSteps(ds=0.1, ds_min=0.0002, ds_max=0.4, cap_shrink=0.8,
+                                cap_grow_after=6,
+                                corrector=NewtonCorrector(max_iter=25, line_search="natural",
+                                                          creep=4, chord=True)),
+                grid=StretchGrid(front_zone=0.01, back_zone=0.05, relay=20, relay_levels=2,
+                                 recentre=0.001))
+
+#: Named combinations (``STRATEGIES["auto"]`` is :data:`AUTO`).
+STRATEGIES = {"auto": AUTO}
