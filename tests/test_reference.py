@@ -37,18 +37,3 @@ def test_sbi_rates_file_has_provenance_and_rows():
     assert data["source"]["commit"] and data["source"]["commands"]
     rows = data["rates"]
     assert rows and all({"tau_d_ratio", "s", "err", "domain"} <= set(r) for r in rows)
-
-
-def test_sbi_rates_agree_with_the_records_of_the_docs():
-    """docs/results/records.toml quotes some of the same SBI rates: each must be a row here."""
-    from slippulse.core.h5io import label_ratio
-    rec_path = os.path.join(ROOT, "docs", "results", "records.toml")
-    if not os.path.exists(rec_path):
-        pytest.skip("no docs/results/records.toml")
-    with open(rec_path, "rb") as fh:
-        records = tomllib.load(fh).get("sbi_generic", {})
-    with open(os.path.join(ROOT, "dynamic", "results", "sbi_growth_rates.toml"), "rb") as fh:
-        rows = {(r["tau_d_ratio"], r["s"], r["err"]) for r in tomllib.load(fh)["rates"]}
-    quoted = [(label_ratio(lab), v["value"], v["err"]) for lab, entry in records.items()
-              for k, v in entry.items() if k.startswith("s_per_L")]
-    assert quoted and all(q in rows for q in quoted), quoted
