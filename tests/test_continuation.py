@@ -605,7 +605,7 @@ def test_to_refine_picks_the_fewest_regions_that_leave_the_rest_within_tolerance
     from slippulse.steady.continuation.gridcheck import BODY, HEALING, LEADING, _to_refine
     from slippulse.steady.continuation.tolerance import GridTolerance
     tol = GridTolerance(beta=1e-5, L=1e-4)
-    # stop 32, 2.43 km: the leading edge alone; body and healing front cancel to -4.5e-5
+    # measured at 2.43 km: the leading edge alone; body and healing front cancel to -4.5e-5
     assert _to_refine({LEADING: (-7.8e-8, -1.26e-4), BODY: (-4.6e-8, -8.6e-5),
                        HEALING: (4.1e-8, 4.1e-5)}, tol) == [LEADING]
     assert _to_refine({LEADING: (0.0, -2e-5), BODY: (0.0, -1.6e-4), HEALING: (0.0, 1e-5)},
@@ -657,7 +657,7 @@ def test_check_pulse_locates_the_error_before_refining(params):
 
 
 def test_to_refine_keeps_the_refined_check_within_the_largest_grid():
-    """Stop 32, 4.19 km: the rule asked for the healing front and the body, whose cells would have
+    """At 4.19 km the rule asked for the healing front and the body, whose cells would have
     made the refined pulse's check larger than --max-points; within a cell budget it keeps the
     largest share alone (refined next, the rest located again at the next level)."""
     from slippulse.steady.continuation.gridcheck import BODY, HEALING, LEADING, _to_refine

@@ -56,7 +56,7 @@ def test_labels_readable_and_unique_off_round_tau_d():
 
 
 def test_close_deep_pulses_get_longer_labels_and_read_back_under_them(tmp_path, params):
-    """Stop 32: a pulse 1.5e-7 in τ_d below the one it came from (ds = 2e-4 at 4.17 km) had the
+    """A pulse 1.5e-7 in τ_d below the one it came from (ds = 2e-4 at 4.17 km) had the
     same six-decimal label and was not written. It now gets the fewest extra decimals that keep
     it apart; reading it back keeps that label, so every reader finds it under its name."""
     from slippulse.core.h5io import unique_label
@@ -162,7 +162,7 @@ def test_family_bad_input_one_line_no_file(tmp_path, capsys, args, words):
 
 def test_family_refuses_file_of_other_parameters_or_older_format(params, tmp_path):
     """A family file of other parameters, or of the older format (pulses without grid checks, as
-    the command wrote before issue 18), is refused with one line and left as it was."""
+    the command wrote before every pulse was grid-checked), is refused with one line and left as it was."""
     from dataclasses import replace
 
     from slippulse import cli

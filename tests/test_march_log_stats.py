@@ -21,7 +21,7 @@ LOG = "\r".join([
     BAR + "[05:00<00:00, 1.00837 beta=0.998590 L=7050m]",
     BAR + "[1:05:30<00:00, 1.00837 beta=0.998591 L=7080m]",
 ])
-# above 10 km: the bar of stops <= 46 (4 digits) and of stop 47 on
+# above 10 km: the bar with L in 4 digits and with L in 5 digits
 LOG_10KM = "\r".join([BAR + "[00:30<00:00, 1.00826 beta=0.998727 L=9993m]",
                        BAR + "[01:00<00:00, 1.00826 beta=0.998727 L=1.002e+04m]",
                        BAR + "[01:30<00:00, 1.00826 beta=0.998728 L=10111m]"])

@@ -109,7 +109,7 @@ def test_a_warm_grid_check_is_the_cold_one(params, start):
     assert db1 == pytest.approx(db0, abs=1e-12) and dl1 == pytest.approx(dl0, abs=1e-10)
     assert warm.stats.history[0] < 0.5 * cold.stats.history[0]
     # (measured: 1 Newton + 3 chord iterations against 1 + 5; deep in the family, where the
-    # front moves by a few cells between checks, far fewer: BENCHMARKS.md "Stop 44")
+    # front moves by a few cells between checks, far fewer)
     assert (warm.stats.iterations + warm.stats.chord_iterations
             < cold.stats.iterations + cold.stats.chord_iterations)
     assert warm.stats.lu is not None and cold.stats.lu is None

@@ -73,8 +73,6 @@ def test_the_patterns_find_history_words_and_nothing_else(text, words):
     assert history_words(text) == words
 
 
-@pytest.mark.xfail(strict=False, reason="other files still name episodes of the work; "
-                   "they are being rewritten (run `python tests/test_no_history.py` for the list)")
 def test_no_tracked_file_names_an_episode_of_the_work():
     files = tracked_files()
     if files is None:
@@ -82,10 +80,6 @@ def test_no_tracked_file_names_an_episode_of_the_work():
     bad = offenders(files)
     assert not bad, f"{len(bad)} lines name episodes of the work:\n" + "\n".join(bad[:50])
 
-
-if __name__ == "__main__":
-    for row in offenders():
-        print(row)
 
 
 def test_the_scan_reads_lines_and_names(tmp_path):
@@ -95,3 +89,8 @@ def test_the_scan_reads_lines_and_names(tmp_path):
     f.write_text("a clean line\nthe rule before stop 33\n")
     rows = offenders([str(f), "a/deep_seed_s46.h5", SELF])
     assert rows == [f"{f}:2: the rule before stop 33", "a/deep_seed_s46.h5:0: (file name)"]
+
+
+if __name__ == "__main__":
+    for row in offenders():
+        print(row)

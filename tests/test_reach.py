@@ -1,4 +1,4 @@
-"""Issue 19 item 1: ``steady solve --tau-d X`` converges over its advertised range
+"""``steady solve --tau-d X`` converges over its advertised range
 (reach.SOLVE_RANGE) by continuation from the built-in guess at 1.2, and each pulse agrees with the
 family's pulse at that τ_d within the family's grid tolerance (β 1e-5, L 1e-4 relative).
 
@@ -80,7 +80,7 @@ def test_range_is_advertised_and_enforced(capsys):
 def test_a_final_solve_that_cannot_start_is_a_failure_with_its_reason(monkeypatch):
     """The walk up reaches the target, but the final solve on N points raises (at 1.325 τ_min
     with the default N the grid could not be laid: "cannot measure the pulse length"): reach_pulse
-    returns no solution and says why, instead of the traceback the command printed (stop 35)."""
+    returns no solution and says why, instead of a traceback."""
     import slippulse.steady.reach as reach
     real = reach.solve_pulse
 

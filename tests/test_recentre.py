@@ -1,5 +1,5 @@
 """The deformed grid's zone about the healing front kept on the front's steep drop
-(``block_offset``, ``recentre``; docs/steady.md §8, stop 46)."""
+(``block_offset``, ``recentre``; docs/steady.md §3)."""
 import math
 
 import numpy as np
