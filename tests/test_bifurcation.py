@@ -223,3 +223,30 @@ def test_scan_reads_the_stored_count_of_real_unstable_eigenvalues(steady12_with_
     from slippulse.steady.bifurcation import scan
     rows, ev = scan(steady12_with_spectrum)
     assert len(rows) == 1 and rows[0].unstable_count == 1 and not ev
+
+
+def test_family_stores_the_test_functions_of_every_pulse_and_reports_their_events(tmp_path):
+    """``steady family`` stores the test functions with each pulse it writes, the tangent
+    oriented along the march (t_q < 0 on a family continued down in τ_d without a fold), and
+    reports their events; a stored sign change of t_q is read back as a fold."""
+    import h5py
+    import cli_inproc
+    from slippulse.core.h5io import list_pulses, read_pulse
+    from slippulse.steady.bifurcation import stored_rows
+    path = tmp_path / "fam.h5"
+    r = cli_inproc.run(["steady", "family", "--from", "1.2", "--to", "1.16", "--step", "0.02",
+                        "--out", path, "-q"])
+    assert r.returncode == 0, r.stderr
+    assert "test functions: 3 pulses: 0 folds" in r.stdout and "0 branch points" in r.stdout
+    labels = list_pulses(str(path))
+    for lab in labels:
+        p, _ = read_pulse(str(path), lab)
+        assert p.extra["bif_t_q"] < 0 and p.extra["bif_fold_sign"] in (-1, 1)
+        assert 0 < p.extra["bif_sigma1"] <= p.extra["bif_sigma2"]
+    rows = stored_rows(str(path))
+    assert [r.label for r in rows] == sorted(labels, key=lambda lab: read_pulse(str(path), lab)[0].beta)
+    assert not [e for e in events(rows) if e.kind in ("fold", "branch point")]
+    with h5py.File(path, "a") as h5:                   # the middle pulse's tangent turned back
+        h5["pulses"][rows[1].label].attrs["bif_t_q"] = -rows[1].values.t_param
+    kinds = [e.kind for e in events(stored_rows(str(path)))]
+    assert kinds.count("fold") == 2

@@ -15,7 +15,7 @@ from .paramargs import add_params_args, params_for_input, params_for_output
 
 def cmd_bifurcations(args) -> int:
     from ..core.h5io import list_pulses, open_h5, read_parameters
-    from ..steady.bifurcation import locate_between_pulses, scan, LocateError
+    from ..steady.bifurcation import scan
 
     with open_h5(args.file, "FILE") as h5:
         stored = read_parameters(h5)
@@ -47,35 +47,43 @@ def cmd_bifurcations(args) -> int:
     if args.write:
         from ..steady.bifurcation import write_indicators
         write_indicators(args.file, rows)
-    located = []
-    if args.locate:
-        from ..core.h5io import read_pulse
-        for e in evs:
-            if e.kind in ("fold", "branch point"):
-                pa, _ = read_pulse(args.file, e.between[0])
-                pb, _ = read_pulse(args.file, e.between[1])
-                try:
-                    b = locate_between_pulses(pa, pb, stored)
-                    located.append(f"{b.kind} at tau_d/tau_min={b.extra['tau_d_ratio']:.9f} "
-                                   f"beta={b.extra['beta']:.8g} L={b.extra['L']:.6g} m "
-                                   f"({b.evaluations} evaluations"
-                                   f"{'' if b.converged else ', NOT CONVERGED: bracket still open, best point shown'})")
-                except LocateError as exc:
-                    located.append(f"{e.kind} between {e.between}: not located ({exc})")
-    for e in evs:
-        print(f"event: {e.kind} between {e.between[0]} and {e.between[1]}: {e.detail}")
-    for line in located:
-        print(f"located: {line}")
-    nf = sum(e.kind == "fold" for e in evs)
-    nb = sum(e.kind == "branch point" for e in evs)
-    nc = sum(e.kind == "not comparable" for e in evs)
-    nm = sum(e.kind == "sigma minimum" for e in evs)
-    smin = min(r.values.sigma[0] for r in rows) if rows else math.nan
-    print(f"{len(rows)} pulses: {nf} folds (t_q sign changes), {nb} branch points (det B sign "
-          f"changes at equal N), {nc} det B sign changes across a change of N (not comparable), "
-          f"{nm} sigma1/sigma2 minima; smallest sigma1 = {smin:.3e}; the test functions have "
-          "no uncertainty estimate (their signs are exact for the discrete system)")
+    for line in event_lines(args.file, stored, rows, evs, locate=args.locate):
+        print(line)
     return 0
+
+
+def event_lines(path, params, rows, evs, locate=True) -> list[str]:
+    """The lines that report the test functions' events along the pulses ``rows`` of ``path``
+    (:func:`~slippulse.steady.bifurcation.events`), each fold and branch point located between
+    its two pulses when ``locate``, and the count line (folds, branch points, sign changes of
+    det B across a change of N, σ₁/σ₂ minima, the smallest σ₁)."""
+    from ..core.h5io import read_pulse
+    from ..steady.bifurcation import LocateError, locate_between_pulses
+    lines = [f"event: {e.kind} between {e.between[0]} and {e.between[1]}: {e.detail}" for e in evs]
+    for e in evs:
+        if not locate or e.kind not in ("fold", "branch point"):
+            continue
+        pa, _ = read_pulse(path, e.between[0])
+        pb, _ = read_pulse(path, e.between[1])
+        try:
+            b = locate_between_pulses(pa, pb, params)
+            lines.append(f"located: {b.kind} at tau_d/tau_min={b.extra['tau_d_ratio']:.9f} "
+                         f"beta={b.extra['beta']:.8g} L={b.extra['L']:.6g} m "
+                         f"({b.evaluations} evaluations"
+                         f"{'' if b.converged else ', NOT CONVERGED: bracket still open, best point shown'})")
+        except LocateError as exc:
+            lines.append(f"located: {e.kind} between {e.between}: not located ({exc})")
+    count = {k: sum(e.kind == k for e in evs)
+             for k in ("fold", "branch point", "not comparable", "sigma minimum")}
+    sig = [r.values.sigma[0] for r in rows if r.values.sigma]
+    smin = f"{min(sig):.3e}" if sig else "not computed"
+    lines.append(f"{len(rows)} pulses: {count['fold']} folds (t_q sign changes), "
+                 f"{count['branch point']} branch points (det B sign changes at equal N), "
+                 f"{count['not comparable']} det B sign changes across a change of N (not "
+                 f"comparable), {count['sigma minimum']} sigma1/sigma2 minima; smallest sigma1 = "
+                 f"{smin}; the test functions have no uncertainty estimate (their signs are exact "
+                 "for the discrete system)")
+    return lines
 
 
 def _guess_arg(text: str, params_cli, args):

@@ -291,7 +291,9 @@ def family_run_args(args, params) -> dict:
 
 
 def cmd_family(args) -> int:
+    from ..steady.bifurcation import FamilyMonitor, events, stored_rows
     from ..steady.continuation import run_family
+    from .branches import event_lines
     out = args.out or os.path.join("runs", "steady", "family.h5")
     params = params_for_output(args, out)
     kw = family_run_args(args, params)
@@ -310,12 +312,17 @@ def cmd_family(args) -> int:
             tqdm.write(msg, file=sys.stderr)
 
     try:
-        rep = run_family(params, out, progress=prog, log=log, **kw)
+        rep = run_family(params, out, progress=prog, log=log, monitor=FamilyMonitor(params),
+                         **kw)
     finally:
         bar.close()
     if rep.resumed_from:
         print(f"resumed from {rep.resumed_from} in {out}", file=sys.stderr)
     print(final_status(rep, start, stop, out))
+    if os.path.exists(out):
+        rows = stored_rows(out)
+        for line in event_lines(out, params, rows, events(rows)):
+            print(f"test functions: {line}")
     return 1 if rep.stopped_early else 0
 
 

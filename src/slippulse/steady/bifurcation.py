@@ -478,21 +478,69 @@ def locate_between_pulses(pa, pb, params, **kw) -> Bifurcation:
     return bif
 
 
+def indicator_attrs(v: Indicators) -> dict:
+    """The stored form of a pulse's test functions (its ``bif_*`` attributes)."""
+    out = {"bif_fold_sign": int(v.fold_sign), "bif_fold_logdet": float(v.fold_logdet),
+           "bif_bordered_sign": int(v.bordered_sign),
+           "bif_bordered_logdet": float(v.bordered_logdet), "bif_t_q": float(v.t_param)}
+    if len(v.sigma) == 2:
+        out["bif_sigma1"], out["bif_sigma2"] = map(float, v.sigma)
+    return out
+
+
 def write_indicators(path, rows):
     """Store the test functions of :func:`scan` rows as attributes of their pulses in ``path``
-    (bif_fold_sign, bif_fold_logdet, bif_bordered_sign, bif_t_q, bif_sigma1, bif_sigma2),
-    atomically."""
+    (:func:`indicator_attrs`), atomically."""
     from ..core.h5io import atomic_update
 
     def fill(h5):
         for r in rows:
-            g = h5["pulses"][r.label]
-            v = r.values
-            g.attrs["bif_fold_sign"] = int(v.fold_sign)
-            g.attrs["bif_fold_logdet"] = float(v.fold_logdet)
-            g.attrs["bif_bordered_sign"] = int(v.bordered_sign)
-            g.attrs["bif_t_q"] = float(v.t_param)
-            if len(v.sigma) == 2:
-                g.attrs["bif_sigma1"], g.attrs["bif_sigma2"] = map(float, v.sigma)
+            h5["pulses"][r.label].attrs.update(indicator_attrs(r.values))
 
     atomic_update(path, fill)
+
+
+class FamilyMonitor:
+    """The test functions of each pulse a continuation writes, returned as its ``bif_*``
+    attributes (the ``monitor`` of :func:`~slippulse.steady.continuation.run_family`).
+
+    The tangent is oriented along the march, by the step from the previous written pulse (the
+    first one: toward lower τ_d, the direction a family is continued), so that between two
+    neighbours a sign change of t_q is a fold and of det B a branch point, not a flipped tangent.
+    :func:`stored_rows` reads the attributes back for :func:`events`."""
+
+    def __init__(self, params):
+        self.params = params
+        self.previous = None                  # (β, τ_d/τ_min) of the last pulse seen
+
+    def __call__(self, sol, pulse) -> dict:
+        if self.previous is None:
+            orient = (0.0, -1.0)
+        else:
+            b0, q0 = self.previous
+            orient = (math.log(pulse.beta / b0) * pulse.beta, pulse.tau_d_ratio - q0)
+        vals, _ = pulse_tests(pulse, self.params, orient)
+        self.previous = (float(pulse.beta), float(pulse.tau_d_ratio))
+        return indicator_attrs(vals)
+
+
+def stored_rows(path):
+    """The test functions stored with the converged pulses of a family file (``bif_*``
+    attributes), as :class:`ScanRow` by increasing β, for :func:`events`; pulses without them are
+    left out (no recomputation: :func:`scan` does that)."""
+    from ..core.h5io import list_pulses, read_pulse
+    rows = []
+    for lab in list_pulses(path):
+        p, _ = read_pulse(path, lab)
+        e = p.extra
+        if not p.converged or "bif_t_q" not in e:
+            continue
+        sig = (float(e["bif_sigma1"]), float(e["bif_sigma2"])) if "bif_sigma1" in e else ()
+        vals = Indicators(int(e["bif_fold_sign"]), float(e["bif_fold_logdet"]),
+                          int(e["bif_bordered_sign"]),
+                          float(e.get("bif_bordered_logdet", math.nan)), np.empty(0),
+                          float(e["bif_t_q"]), sig, int(p.n_points))
+        rows.append(ScanRow(lab, float(p.tau_d_ratio), float(p.beta), float(p.L),
+                            int(p.n_points), float(p.max_residual), vals))
+    rows.sort(key=lambda r: r.beta)
+    return rows
