@@ -69,7 +69,7 @@ def steady_solve(quick, work):
 # ---------------------------------------------------------------- family
 def family_continuation(quick, work):
     """``slippulse steady family`` from an empty file, every pulse grid-checked (the default
-    ``--deep auto``): quick 1.2 → 1.1 τ_min (step 0.01), full the defaults (1.2 → 1.015, 0.005)."""
+    strategy): quick 1.2 → 1.1 τ_min (step 0.01), full the defaults (1.2 → 1.015, 0.005)."""
     from slippulse.core.h5io import list_pulses, read_pulse
     _warm_steady()
     out_file = os.path.join(work, "family.h5")

@@ -45,7 +45,7 @@ VERBATIM_DOCSTRINGS = {  # modules, by full name
 VERBATIM_OBJECTS = {  # functions and classes, by their own name (so that a move keeps the rule)
     "pulse_spectrum",
     "run_spectrum",
-    "DeepSettings",
+    "Strategy",
     "hilbert_matrix_fft",
     "GridSpec",
     "TimeStepRule",

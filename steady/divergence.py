@@ -26,10 +26,10 @@ prints, as Markdown:
    and the fits repeated on the N, 2N − 1 and extrapolated branches.
 
 With --table (the tables `steady/deep_seed.py --table` writes beside a committed seed, e.g.
-steady/seeds/deep_family_s4*.csv), their converged, grid-checked rows join the fits and the local
+steady/seeds/deep_family_*.csv), their converged, grid-checked rows join the fits and the local
 exponents as (τ_d/τ_min, β, L) points (a pulse the family file also holds is taken from the file);
-the edge structure is measured on the file's pulses only (a table has no profiles). So the march
-of several sessions, chained by seeds, is analysed as one family.
+the edge structure is measured on the file's pulses only (a table has no profiles). So a march
+chained through seeds is analysed as one family.
 
 Figures (PNG): divergence_deep.png (L and 1 − β against τ_d/τ_min − τ̃* on log axes),
 local_exponents_deep.png (the local exponents against L, with τ̃* from the deepest decade of L),
