@@ -92,15 +92,22 @@ class NewtonCorrector:
     """Damped Newton on the arclength-closed equations (:func:`~slippulse.steady.newton.newton`)
     to max|r| ≤ :data:`~.tolerance.NEWTON_TOL`.
 
-    max_iter : iterations before the attempt fails (ds is then halved).
-    line_search : "residual" (‖r‖₂ must fall) or "natural" (the simplified Newton correction
-        must shrink: affine invariant, it takes full steps where the Jacobian is nearly singular
-        along the motion of the healing front and the ‖r‖₂ test cuts every step to λ ≤ 1/4).
-    creep : > 0: fail as soon as max|r| has not halved over that many iterations (a step too long
+    Attributes
+    ----------
+    max_iter : int
+        Iterations before the attempt fails (ds is then halved).
+    line_search : str
+        "residual" (‖r‖₂ must fall) or "natural" (the simplified Newton correction must shrink:
+        affine invariant, it takes full steps where the Jacobian is nearly singular along the
+        motion of the healing front and the ‖r‖₂ test cuts every step to λ ≤ 1/4).
+    creep : int
+        > 0: fail as soon as max|r| has not halved over that many iterations (a step too long
         for Newton's basin fails in a few iterations instead of ``max_iter``); 0: never.
-    chord : start with chord iterations on the LU of the last accepted corrector (the Jacobian
-        is then formed only when they stop contracting).
-    reuse_lu : find the next tangent by iterative refinement with the last corrector's LU
+    chord : bool
+        Start with chord iterations on the LU of the last accepted corrector (the Jacobian is
+        then formed only when they stop contracting).
+    reuse_lu : bool
+        Find the next tangent by iterative refinement with the last corrector's LU
         (back-substitutions instead of a factorisation; the same tangent to ~1e−11).
     """
 
