@@ -332,7 +332,7 @@ def test_a_strategy_is_a_value_refused_when_it_cannot_work():
 
 def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, params):
     """`_previous_arclength`: the deepest converged arclength pulse above the one the march
-    resumes from (its (β, q) set the first step, `DeepMarch.resume_step`); None without one.
+    resumes from (its (β, q) set the first step); None without one.
     `_resume` puts it on the report."""
     import dataclasses
     from slippulse.core.h5io import write_pulse
@@ -344,8 +344,8 @@ def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, 
     for q, b, method, ok in [(1.2, 0.01, "tau_d", True), (1.19, 0.02, "arclength", True),
                              (1.18, 0.03, "arclength", True), (1.175, 0.035, "arclength", False),
                              (1.17, 0.04, "arclength", True)]:
-        write_pulse(out, dataclasses.replace(base, tau_d_ratio=q, beta=b, converged=ok,
-                                             extra={"continuation": method}), params)
+        write_pulse(out, dataclasses.replace(base, tau_d_ratio=q, tau_d=q * base.tau_min, beta=b,
+                                             converged=ok, extra={"continuation": method}), params)
     pulses = [read_pulse(out, lab)[0] for lab in list_pulses(out)]
     assert _previous_arclength(pulses, 1.17) == (0.03, 1.18, base.L)  # not the unconverged 1.175
     assert _previous_arclength(pulses, 1.19) is None              # above it: a tau_d pulse only
@@ -353,7 +353,8 @@ def test_a_resumed_deep_march_starts_from_the_step_before_it(tmp_path, pulse12, 
     assert _resume(params, out, rep).q == 1.17
     assert rep.resumed_previous == (0.03, 1.18, base.L) and rep.resumed_method == "arclength"
     assert rep.resumed_held is False and math.isnan(rep.resumed_cap)   # written without them
-    write_pulse(out, dataclasses.replace(base, tau_d_ratio=1.165, beta=0.045, extra={
+    write_pulse(out, dataclasses.replace(base, tau_d_ratio=1.165, tau_d=1.165 * base.tau_min,
+                                         beta=0.045, extra={
         "continuation": "arclength", "march_held": True, "march_cap": 0.0016}), params)
     rep = FamilyReport()
     assert _resume(params, out, rep).q == 1.165 and rep.resumed_held is True

@@ -175,6 +175,7 @@ def _synthetic_family(pu, v_star, dq, field_y, field_psi, c_slope):
         from slippulse.steady.analysis import pulse_length
         L = pulse_length(pu.xi, v, v_star)[0]
         out.append(dataclasses.replace(pu, v=v, phi=phi, L=L, tau_d_ratio=pu.tau_d_ratio + s * dq,
+                                       tau_d=(pu.tau_d_ratio + s * dq) * pu.tau_min,
                                        c_p=pu.c_p * math.exp(s * dq * c_slope)))
     return out
 

@@ -362,7 +362,7 @@ def test_cli_bad_input(tmp_path, pulse12, params):
     cases = [([str(junk)], "not a readable HDF5"), ([str(foreign)], "not a slippulse pulse file"),
              ([str(good), "--labels", "td1.1000"], "no pulse 'td1.1000'"),
              ([str(failed)], "no converged pulse"),
-             ([str(tmp_path / "missing.h5")], "not a readable HDF5")]
+             ([str(tmp_path / "missing.h5")], "no such file")]
     for args, msg in cases:
         r = cli_inproc.run(["steady", "stability", *args, "-q"])
         assert r.returncode == 2, (args, r.stderr)
@@ -472,7 +472,7 @@ def test_family_spectra_labels_survive_a_failed_pulse(tmp_path, pulse12, params)
     f = str(tmp_path / "fam.h5")
     base = pulse12.to_pulse()
     for q, status in ((1.20, "converged"), (1.19, "failed"), (1.18, "converged")):
-        p = replace(base, tau_d_ratio=q)
+        p = replace(base, tau_d_ratio=q, tau_d=q * base.tau_min)
         write_pulse(f, p, params)
         res = PulseSpectrum(pulse_label(q), np.zeros(0, complex), [], np.zeros(2), 0.0, 1.0,
                             p.n_points, status, "test", 0.0)

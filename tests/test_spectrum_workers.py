@@ -116,7 +116,7 @@ def _two_pulse_file(tmp_path, pulse12, params):
     f = str(tmp_path / "fam.h5")
     base = pulse12.to_pulse()
     for q in (1.2, 1.19, 1.18):
-        write_pulse(f, replace(base, tau_d_ratio=q), params)
+        write_pulse(f, replace(base, tau_d_ratio=q, tau_d=q * base.tau_min), params)
     return f
 
 

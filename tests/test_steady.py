@@ -221,7 +221,7 @@ def test_cli_bad_input_one_line_exit_2_no_file(tmp_path, args, name):
 
 def test_cli_nonconvergence_exits_nonzero_and_marks_file(tmp_path):
     out = tmp_path / "x.h5"
-    r = run_cli("steady", "solve", "--tol", "1e-30", "--points", "300", "--out", str(out), "-q",
+    r = run_cli("steady", "solve", "--tol", "1e-16", "--points", "300", "--out", str(out), "-q",
                 "--no-figure", cwd=tmp_path)
     assert r.returncode == 1 and "did not converge" in r.stderr
     pu, _ = read_pulse(str(out))

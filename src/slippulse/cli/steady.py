@@ -40,10 +40,10 @@ def _ratio(text: str, params=DEFAULT, option: str = "tau-d") -> float:
     try:
         val = float(text)
     except ValueError:
-        raise ParameterError(f"{option}={text!r} is invalid: must be a number (tau_d/tau_min) in "
+        raise ParameterError(f"{option}={text} is invalid: must be a number (tau_d/tau_min) in "
                              f"(1, {hi:.4f})") from None
     if not (math.isfinite(val) and 1.0 < val < hi):
-        raise ParameterError(f"{option}={text!r} is invalid: must be a finite number "
+        raise ParameterError(f"{option}={text} is invalid: must be a finite number "
                              f"(tau_d/tau_min) in (1, {hi:.4f})")
     return val
 
