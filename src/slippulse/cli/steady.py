@@ -815,6 +815,9 @@ def register(sub) -> None:
     from .existence_map import register as register_existence_map
     register_existence_map(ss)
 
+    from .divergence import register as register_divergence   # steady divergence, steady edges
+    register_divergence(ss)
+
     p = ss.add_parser("analyse", help="analyse a pulse family file",
                       description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "
                                   "singularity; family scaling fit, G_c, delta_c, mode II. Results "
