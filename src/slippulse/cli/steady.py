@@ -817,6 +817,8 @@ def register(sub) -> None:
 
     from .divergence import register as register_divergence   # steady divergence, steady edges
     register_divergence(ss)
+    from .referee import register as register_referee
+    register_referee(ss)
 
     p = ss.add_parser("analyse", help="analyse a pulse family file",
                       description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "
