@@ -819,6 +819,8 @@ def register(sub) -> None:
     register_divergence(ss)
     from .referee import register as register_referee
     register_referee(ss)
+    from .fold_ratio import register as register_fold_ratio
+    register_fold_ratio(ss)
 
     p = ss.add_parser("analyse", help="analyse a pulse family file",
                       description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "
