@@ -125,3 +125,20 @@ def test_edges_of_a_committed_seed(capsys):
 def test_edges_cli_bad_figure_exits_2(capsys):
     assert main(["steady", "edges", SEED, "--figure", "x.nope"]) == 2
     assert "--figure" in capsys.readouterr().err
+
+
+def test_seed_copies_the_deepest_pulses_and_tables_them(tmp_path, capsys):
+    """`steady seed`: the deepest pulse of a seed file copied into a new one; its table read back
+    by `read_points` gives the same (τ_d, β, L); a second write to the same seed exits 2."""
+    from slippulse.core.h5io import list_pulses, read_pulse
+
+    src = "steady/seeds/seed_9473m.h5"
+    out, table = tmp_path / "s.h5", tmp_path / "t.csv"
+    assert main(["steady", "seed", src, str(out), "--keep", "1", "--table", str(table)]) == 0
+    labs = list_pulses(str(out))
+    deepest = read_pulse(src, list_pulses(src)[-1])[0]
+    assert labs == [deepest.label]
+    pts = dv.read_points(tables=[str(table)])
+    assert pts.q.min() == deepest.tau_d_ratio and pts.L[-1] == deepest.L
+    assert main(["steady", "seed", src, str(out)]) == 2
+    assert main(["steady", "seed", src, str(tmp_path / "x.h5"), "--keep", "0"]) == 2

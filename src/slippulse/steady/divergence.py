@@ -62,7 +62,7 @@ def _table_rows(path):
         missing = [c for c in _TABLE_COLUMNS if c not in (reader.fieldnames or [])]
         if missing:
             raise UsageError(f"--table={path!r} is invalid: no column(s) {', '.join(missing)} "
-                             "(a table written by steady/deep_seed.py --table)")
+                             "(a table written by slippulse steady seed --table)")
         rows = []
         for row in reader:
             if row["grid_check_passed"] != "True":
