@@ -1,6 +1,5 @@
 """`slippulse steady fold-ratio`: the rates of record against the family's slope; bad input."""
 import numpy as np
-import pytest
 
 from slippulse.cli.app import main
 from slippulse.spectrum.records import read_rates, records_fold_ratio

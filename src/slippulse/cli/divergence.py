@@ -1,12 +1,6 @@
-"""``slippulse steady divergence``, ``steady edges``, ``steady seed`` and ``steady long-domain``:
-τ̃* and the local exponents of a deep family (:mod:`slippulse.steady.divergence`), its edges
-against L (:mod:`slippulse.steady.edges`), the seed of a march (:mod:`slippulse.steady.seed`),
-and a pulse re-solved on a longer domain (paper Fig. S1b)."""
+"""``slippulse steady divergence`` and ``steady edges``: τ̃* and the local exponents of a deep
+family (:mod:`slippulse.steady.divergence`), and its edges against L (:mod:`slippulse.steady.edges`)."""
 from __future__ import annotations
-
-import math
-
-import numpy as np
 
 from ..core.errors import UsageError
 from ..core.params import DEFAULT
@@ -175,86 +169,3 @@ def register(ss) -> None:
     p.add_argument("--profiles-figure", default=None, metavar="PNG",
                    help="draw the edge profiles overlaid")
     p.set_defaults(func=cmd_edges)
-    register_seed(ss)
-    register_long_domain(ss)
-
-
-def cmd_seed(args) -> int:
-    from ..core.h5io import check_writable
-    from ..steady.seed import write_seed, write_table
-
-    if args.keep < 1:
-        raise UsageError(f"--keep={args.keep!r} is invalid: must be an integer >= 1")
-    if args.table:
-        check_writable(args.table, "--table")
-    try:
-        deepest = write_seed(args.family, args.seed, args.keep)
-    except ValueError as exc:
-        raise UsageError(f"SEED/FAMILY: {exc}") from None
-    n = write_table(args.family, args.table) if args.table else None
-    p = deepest[0]
-    print(f"seed {args.seed}: {len(deepest)} pulses, deepest {p.label} (L = {p.L:.1f} m, beta = "
-          f"{p.beta:.7f}, tau_d/tau_min = {p.tau_d_ratio:.7f}); copied, no new numbers"
-          + (f"; table {args.table}: {n} pulses" if args.table else ""))
-    return 0
-
-
-def register_seed(ss) -> None:
-    p = ss.add_parser("seed", help="copy the deepest pulses of a family into a seed file",
-                      description="Copies the --keep deepest converged pulses of FAMILY into the "
-                                  "new file SEED: `slippulse steady family --out` a copy of SEED "
-                                  "goes on from there (pace, secant predictor and held steps "
-                                  "included). --table writes every pulse of FAMILY as a CSV row "
-                                  "(label, tau_d_ratio, beta, L, n_points and the grid check), "
-                                  "which `steady divergence --table` reads.")
-    p.add_argument("family", metavar="FAMILY", help="HDF5 family file")
-    p.add_argument("seed", metavar="SEED", help="new HDF5 file for the seed")
-    p.add_argument("--keep", type=int, default=2, help="deepest converged pulses (default 2)")
-    p.add_argument("--table", default=None, metavar="CSV", help="also table every pulse")
-    p.set_defaults(func=cmd_seed)
-
-
-def cmd_long_domain(args) -> int:
-    import os
-
-    from ..core.h5io import list_pulses, read_pulse, write_pulse
-    from ..steady.solver import resolve_on_longer_domain
-    from .checks import finite
-
-    finite(args.factor, "--factor", lo=1.0, hi=1000.0, lo_open=False)
-    labels = list_pulses(args.file)
-    if args.label not in labels:
-        raise UsageError(f"--label={args.label!r} is invalid: not in {args.file!r} (labels "
-                         f"{', '.join(labels[:6])}{' ...' if len(labels) > 6 else ''})")
-    out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.file)),
-                                   f"long_domain_{args.label}.h5")
-    pulse, params = read_pulse(args.file, args.label)
-    long = resolve_on_longer_domain(params, pulse, args.factor).to_pulse()
-    long.extra["domain_factor"] = args.factor
-    if not long.converged:
-        print(f"long-domain {args.label}: NOT CONVERGED on the {args.factor:g}x domain "
-              f"(max|D| = {long.max_residual:.2e}); nothing written")
-        return 1
-    write_pulse(out, long, params)
-    print(f"long-domain {args.label}: domain ({pulse.xi[0]:.4g}, {pulse.xi[-1]:.4g}) m -> "
-          f"({long.xi[0]:.4g}, {long.xi[-1]:.4g}) m, N {pulse.n_points} -> {long.n_points}; "
-          f"beta {pulse.beta:.8f} -> {long.beta:.8f}, L {pulse.L:.6f} -> {long.L:.6f} m "
-          f"(the differences are the domain's effect plus the two grids' discretisation "
-          f"errors, no separate error estimate); wrote {out}")
-    return 0
-
-
-def register_long_domain(ss) -> None:
-    p = ss.add_parser("long-domain", help="re-solve one pulse on a much longer domain (Fig. S1b)",
-                      description="Solves pulse --label of FILE again on a domain --factor times "
-                                  "longer ahead and behind (N grown by 1 + 0.1 ln factor) and "
-                                  "writes it to --out; `slippulse figures FILE --compare OUT` "
-                                  "overlays the two (paper Fig. S1b). A solve that does not "
-                                  "converge writes nothing (exit 1).")
-    p.add_argument("file", metavar="FILE", help="HDF5 family file")
-    p.add_argument("--label", default="td1.0500", help="pulse label (default td1.0500)")
-    p.add_argument("--factor", type=float, default=40.0,
-                   help="domain length factor, in [1, 1000] (default 40)")
-    p.add_argument("--out", default=None,
-                   help="output HDF5 (default: long_domain_LABEL.h5 beside FILE)")
-    p.set_defaults(func=cmd_long_domain)

@@ -2,7 +2,6 @@
 (:mod:`slippulse.spectrum.records`; docs/results.md §2)."""
 from __future__ import annotations
 
-import math
 import os
 
 import numpy as np

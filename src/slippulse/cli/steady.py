@@ -821,6 +821,10 @@ def register(sub) -> None:
     register_referee(ss)
     from .fold_ratio import register as register_fold_ratio
     register_fold_ratio(ss)
+    from .seed import register as register_seed
+    register_seed(ss)
+    from .long_domain import register as register_long_domain
+    register_long_domain(ss)
 
     p = ss.add_parser("analyse", help="analyse a pulse family file",
                       description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "
