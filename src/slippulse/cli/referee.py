@@ -4,7 +4,6 @@ record, the paper's Eqs. 3–4 refitted over its own range, and ζ, Ḡ_max at t
 from __future__ import annotations
 
 import os
-import tomllib
 
 from ..core import h5io
 from ..core.errors import UsageError
@@ -14,22 +13,18 @@ WINDOWS = ((1.015, 1.2), (1.015, 1.1), (1.015, 1.05))
 
 
 def _rates(path):
-    """τ_d/τ_min → (s L/c_p, err) of the ``[spectrum."LABEL"]`` entries of a records file."""
+    """τ_d/τ_min → (s L/c_p, err) of the rates of record of a records file
+    (:func:`slippulse.spectrum.records.read_rates`)."""
+    from ..spectrum.records import read_rates
+
     if not os.path.isfile(path):
         raise UsageError(f"--records={path!r} is invalid: no such file (a records TOML, e.g. "
                          "docs/results/records.toml)")
     try:
-        with open(path, "rb") as fh:
-            rec = tomllib.load(fh)
-        rates = {h5io.label_ratio(k): (v["s_per_L"]["value"], v["s_per_L"]["err"])
-                 for k, v in rec.get("spectrum", {}).items()}
-    except (tomllib.TOMLDecodeError, KeyError, TypeError, ValueError) as exc:
-        raise UsageError(f"--records={path!r} is invalid: not a records file with "
-                         f"[spectrum.\"LABEL\"] s_per_L entries ({exc})") from None
-    if not rates:
-        raise UsageError(f"--records={path!r} is invalid: it holds no [spectrum.\"LABEL\"] "
-                         "s_per_L entries to compare with")
-    return rates
+        r = read_rates(path)
+    except ValueError as exc:
+        raise UsageError(f"--records={path!r} is invalid: {exc}") from None
+    return {q: (s, e) for q, s, e in zip(r["tau_d_ratio"], r["s"], r["s_err"])}
 
 
 def cmd_referee(args) -> int:
