@@ -11,8 +11,8 @@ to K steps of :class:`slippulse.steady.continuation.Continuation` (``--stretch``
 deformed with the pulse). Each step goes to arc_kkk.npz (grid xi, unknowns x = (ln v, β, τ_d/τ_min), L,
 pin, state order, and with ``--check`` the figures of
 :func:`slippulse.steady.continuation.gridcheck.check_pulse`: the pulse whose check passed, N or
-the body refinement chosen per step; the march goes on from it). `steady/divergence.py` reads
-the npz files.
+the body refinement chosen per step; the march goes on from it). The analysis (`slippulse steady divergence`, `steady
+edges`) reads family files and tables, not these npz files.
 """
 import argparse
 import glob

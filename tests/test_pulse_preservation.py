@@ -4,7 +4,7 @@ Cheap case: τ_d = 1.05 τ_min (β = 0.47, L = 7.3 m), steady pulse from a coars
 continuation 1.2 → 1.05 in steps of 0.025, ~2 s), SBI grid Δx = 4 mm, 2 L ahead + 2 L behind
 (N = 7288), adaptive steps, far field added, frame following; 0.5 L travelled (3879 steps, ~11 s).
 
-Tolerance, from a convergence check of this case at 0.5 L (dynamic/verify.py machinery,
+Tolerance, from a convergence check of this case at 0.5 L (`slippulse dynamic verify`,
 errors c_p / v_max / L / ln v):
 
     steady N = 1000, Δx = 4 mm, 2 L + 2 L   6.2e-4  7.8e-4  6.5e-4  4.1e-4    (this test)

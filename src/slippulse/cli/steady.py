@@ -815,6 +815,17 @@ def register(sub) -> None:
     from .existence_map import register as register_existence_map
     register_existence_map(ss)
 
+    from .divergence import register as register_divergence   # steady divergence, steady edges
+    register_divergence(ss)
+    from .referee import register as register_referee
+    register_referee(ss)
+    from .fold_ratio import register as register_fold_ratio
+    register_fold_ratio(ss)
+    from .seed import register as register_seed
+    register_seed(ss)
+    from .long_domain import register as register_long_domain
+    register_long_domain(ss)
+
     p = ss.add_parser("analyse", help="analyse a pulse family file",
                       description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "
                                   "singularity; family scaling fit, G_c, delta_c, mode II. Results "

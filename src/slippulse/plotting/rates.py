@@ -72,3 +72,38 @@ def plot_rates(rates, fits, out, tau_star, dpi=130, fold=None):
     save_figure(fig, out, dpi=dpi)
     plt.close(fig)
     return out
+
+
+def plot_fold_ratio(fr, fit, from_length, out, dpi=130):
+    """R = s L/c_p / |dτ_d/d ln L| and |dτ_d/d ln L| against L
+    (:func:`slippulse.spectrum.records.records_fold_ratio`), with the power law ``fit`` of R."""
+    from matplotlib.figure import Figure
+
+    L, R, Re, g, ge = fr["L"], fr["R"], fr["R_err"], fr["slope"], fr["slope_err"]
+    fig = Figure(figsize=(11, 4.3))
+    ax = fig.subplots(1, 2)
+    ok = np.isfinite(R) & (R > 0)
+    for mk, lab in (("family", "slope from a march's pulses"),
+                    ("records", "slope from the records' own pulses")):
+        w = ok & (fr["source"] == mk)
+        if np.any(w):
+            ax[0].errorbar(L[w], R[w], yerr=np.minimum(Re[w], 0.999 * R[w]),
+                           fmt="o" if mk == "family" else "s", ms=4, capsize=2, label=lab)
+            ax[1].errorbar(L[w], np.abs(g[w]), yerr=np.minimum(ge[w], 0.999 * np.abs(g[w])),
+                           fmt="o" if mk == "family" else "s", ms=4, capsize=2, label=lab)
+    xx = np.geomspace(*fit.x_range, 100)
+    ax[0].plot(xx, fit(xx), "-", color="C3",
+               label=f"R ∝ L^({fit.n:.3f} ± {fit.n_err:.3f}), L ≥ {from_length:g} m")
+    ax[1].plot(L[ok], fr["s"][ok], "^", ms=4, color="0.4", label="s L/c_p (rates of record)")
+    ax[0].set_ylabel("R = s L/c_p / |dτ_d/d ln L|  (τ_d in τ_min)")
+    ax[0].set_title("(a) growth rate per unit slope of the family")
+    ax[1].set_ylabel("|dτ_d/d ln L|  (τ_min), and s L/c_p")
+    ax[1].set_title("(b) the slope of the family → 0 as L → ∞")
+    for x in ax:
+        x.set_xscale("log")
+        x.set_yscale("log")
+        x.set_xlabel("pulse length L (m)")
+        x.grid(True, which="both", alpha=0.3)
+        x.legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, out, dpi=dpi)

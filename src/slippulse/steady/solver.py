@@ -327,3 +327,19 @@ def refine_nested(params, pulse, method="newton", tol=NEWTON_TOL, state_order=ST
     xi = np.asarray(pulse.xi, float)
     xin = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
     return resolve_on_grid(params, pulse, xin, method, tol, state_order)
+
+
+def resolve_on_longer_domain(params, pulse, factor):
+    """``pulse`` solved again on a domain ``factor`` times longer (paper Fig. S1b: the pulse does
+    not depend on the domain): the domain ahead (in pulse lengths) and the healing tail behind
+    (in healing lengths) both multiplied by ``factor``, N grown by 1 + 0.1 ln(factor) to keep the
+    near-field spacing. Returns a :class:`SteadySolution`."""
+    if not (math.isfinite(factor) and factor >= 1.0):
+        raise ValueError(f"factor={factor!r}: must be a finite number >= 1")
+    base = GridSpec()
+    spec = GridSpec(ahead=base.ahead * factor, behind_tail=base.behind_tail * factor,
+                    body=base.body, gamma=base.gamma)
+    n = int(pulse.n_points * (1.0 + 0.1 * math.log(factor)))
+    return solve_pulse(params, pulse.tau_d_ratio, n_points=n,
+                       guess=(pulse.xi, np.log(pulse.v), pulse.beta), passes=1, coarse_points=n,
+                       spec=spec)

@@ -1,0 +1,51 @@
+"""``slippulse steady long-domain``: a pulse re-solved on a longer domain (paper Fig. S1b;
+:func:`slippulse.steady.solver.resolve_on_longer_domain`)."""
+from __future__ import annotations
+
+from ..core.errors import UsageError
+
+
+def cmd_long_domain(args) -> int:
+    import os
+
+    from ..core.h5io import list_pulses, read_pulse, write_pulse
+    from ..steady.solver import resolve_on_longer_domain
+    from .checks import finite
+
+    finite(args.factor, "--factor", lo=1.0, hi=1000.0, lo_open=False)
+    labels = list_pulses(args.file)
+    if args.label not in labels:
+        raise UsageError(f"--label={args.label!r} is invalid: not in {args.file!r} (labels "
+                         f"{', '.join(labels[:6])}{' ...' if len(labels) > 6 else ''})")
+    out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.file)),
+                                   f"long_domain_{args.label}.h5")
+    pulse, params = read_pulse(args.file, args.label)
+    long = resolve_on_longer_domain(params, pulse, args.factor).to_pulse()
+    long.extra["domain_factor"] = args.factor
+    if not long.converged:
+        print(f"long-domain {args.label}: NOT CONVERGED on the {args.factor:g}x domain "
+              f"(max|D| = {long.max_residual:.2e}); nothing written")
+        return 1
+    write_pulse(out, long, params)
+    print(f"long-domain {args.label}: domain ({pulse.xi[0]:.4g}, {pulse.xi[-1]:.4g}) m -> "
+          f"({long.xi[0]:.4g}, {long.xi[-1]:.4g}) m, N {pulse.n_points} -> {long.n_points}; "
+          f"beta {pulse.beta:.8f} -> {long.beta:.8f}, L {pulse.L:.6f} -> {long.L:.6f} m "
+          f"(the differences are the domain's effect plus the two grids' discretisation "
+          f"errors, no separate error estimate); wrote {out}")
+    return 0
+
+
+def register(ss) -> None:
+    p = ss.add_parser("long-domain", help="re-solve one pulse on a much longer domain (Fig. S1b)",
+                      description="Solves pulse --label of FILE again on a domain --factor times "
+                                  "longer ahead and behind (N grown by 1 + 0.1 ln factor) and "
+                                  "writes it to --out; `slippulse figures FILE --compare OUT` "
+                                  "overlays the two (paper Fig. S1b). A solve that does not "
+                                  "converge writes nothing (exit 1).")
+    p.add_argument("file", metavar="FILE", help="HDF5 family file")
+    p.add_argument("--label", default="td1.0500", help="pulse label (default td1.0500)")
+    p.add_argument("--factor", type=float, default=40.0,
+                   help="domain length factor, in [1, 1000] (default 40)")
+    p.add_argument("--out", default=None,
+                   help="output HDF5 (default: long_domain_LABEL.h5 beside FILE)")
+    p.set_defaults(func=cmd_long_domain)
