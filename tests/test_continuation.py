@@ -573,32 +573,6 @@ def test_stretched_march_and_nested_grid_check(params):
     assert b.stats.converged and b.beta == pytest.approx(s.beta, rel=1e-8)
 
 
-def test_deep_march_script_writes_steps_and_resumes(params, tmp_path):
-    """steady/deep_march.py --stretch: two steps from a family pulse, each an npz with the state
-    order and the unknowns; a second run resumes from the last npz (its first step continues the
-    march: τ_d lower than the last written) instead of starting over."""
-    import importlib.util
-    import os
-    from slippulse.core.h5io import write_pulse
-    from slippulse.steady.solver import solve_pulse
-    spec = importlib.util.spec_from_file_location(
-        "deep_march", os.path.join(os.path.dirname(__file__), "..", "steady", "deep_march.py"))
-    dm = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(dm)
-    fam = str(tmp_path / "fam.h5")
-    write_pulse(fam, solve_pulse(params, 1.2, n_points=500).to_pulse(), params)
-    out = str(tmp_path / "deep")
-    args = [fam, "td1.2000", "--stretch", "--ds-max", "0.004", "--outdir", out]
-    assert dm.main(args + ["--steps", "2"]) == 0
-    assert sorted(os.listdir(out)) == ["arc_001.npz", "arc_002.npz"]
-    z2 = np.load(os.path.join(out, "arc_002.npz"))
-    assert int(z2["state_order"]) == 4 and z2["x"].size == 502 and float(z2["x"][-1]) < 1.2
-    assert dm.main(args + ["--steps", "1"]) == 0
-    z3 = np.load(os.path.join(out, "arc_003.npz"))
-    assert float(z3["x"][-1]) < float(z2["x"][-1])
-    assert np.array_equal(z3["xi"][-1], z2["xi"][-1])        # the same (deformed) grid family
-
-
 def test_to_refine_picks_the_fewest_regions_that_leave_the_rest_within_tolerance():
     """The located shares are signed and add up: refine the largest until the rest (which may
     cancel) is within 0.8 of the tolerance; a region whose re-solve failed comes first."""

@@ -55,8 +55,7 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     nodes; errors then fall smoothly with the level, and the N-pulse's grid, e.g. a deformed
     one of :func:`stretch_grid`, is checked as it is); otherwise a grid of 2N adapted to the
     pulse (``spec``). ``cells`` (with ``nested``): a boolean mask over the N − 1 cells; only
-    their midpoints are inserted (one region refined: ``steady/locate_error.py``,
-    ``steady/body_refine.py``). ``stages`` > 0: when Newton fails, :func:`solve_robust` with that
+    their midpoints are inserted (one region refined: :func:`locate_error`). ``stages`` > 0: when Newton fails, :func:`solve_robust` with that
     many homotopy stages. ``reuse``: Newton reuses each full step's LU for chord iterations
     (the same tolerance); None: :data:`REUSE_LU`, read at the call. ``plain=False`` (with
     ``stages``): the homotopy from the start (:func:`solve_robust`).
