@@ -7,7 +7,8 @@ slippulse``), the file readers of :mod:`slippulse.core.h5io`, the steady solver 
 stepper. Its wall times are taken inside the process, after a warm-up that fills the numba caches.
 
 Groups: steady (one pulse solved), family (the continuation 1.2 → 1.1 or → 1.015), deep (the
-deep march resumed from a committed seed), spectrum (the leading growth rate with its error), sbi
+deep march resumed from a committed seed), continuation (the family's pulses against the
+committed deep tables), spectrum (the leading growth rate with its error), sbi
 (the time step of the SBI stepper on the host, its errors on exact solutions, the cost of a
 checkpoint), gpu (the same step on the device engine)."""
 from __future__ import annotations
@@ -119,6 +120,68 @@ def deep_march(quick, work):
     L1 = max((p.L for p in new), default=L0)
     return {"wall s": wall, "seed L m": L0, "pulses written": len(new), "last L m": L1,
             "m of L per min": (L1 - L0) / (wall / 60.0)}
+
+
+# ---------------------------------------------------------------- continuation against the tables
+def _family_curve(path):
+    """(τ_d/τ_min, β, L) of the converged, grid-checked pulses of a family file, sorted."""
+    import numpy as np
+    from slippulse.core.h5io import list_pulses, read_pulse
+    rows = []
+    for lab in list_pulses(path):
+        p, _ = read_pulse(path, lab)
+        if p.converged and p.extra.get("grid_check_passed", True):
+            rows.append((p.tau_d_ratio, p.beta, p.L))
+    return np.array(sorted(rows)).reshape(-1, 3)
+
+
+def _committed_tables():
+    """(τ_d/τ_min, β, L) of the grid-checked rows of steady/seeds/deep_family_*.csv, one row per
+    τ_d (the chained tables overlap: each resumed run starts from the last one's two pulses)."""
+    import csv
+    import numpy as np
+    rows = set()
+    for path in glob.glob(os.path.join(ROOT, "steady", "seeds", "deep_family_*.csv")):
+        with open(path) as f:
+            rows.update((float(r["tau_d_ratio"]), float(r["beta"]), float(r["L"]))
+                        for r in csv.DictReader(f) if r["grid_check_passed"] == "True")
+    rows = np.array(sorted(rows)).reshape(-1, 3)
+    return rows[np.r_[True, np.diff(rows[:, 0]) > 1e-7]] if len(rows) else rows
+
+
+def _against(new, ref):
+    """Largest |Δβ| and |ΔL|/L of ``new`` against ``ref`` at matched τ_d (within ref's span), and
+    the number compared. β and ln L are interpolated in τ_d by cubic splines: L is so steep in
+    τ_d near τ_min that linear interpolation between rows 100 m apart errs by 3e−3
+    (leave-one-out on the tables at 1–3 km), the cubic by 6e−5."""
+    import numpy as np
+    from scipy.interpolate import CubicSpline
+    q = new[:, 0]
+    inside = (q >= ref[0, 0]) & (q <= ref[-1, 0])
+    if not inside.any():
+        return math.nan, math.nan, 0
+    b = CubicSpline(ref[:, 0], ref[:, 1])(q[inside])
+    L = np.exp(CubicSpline(ref[:, 0], np.log(ref[:, 2]))(q[inside]))
+    return (float(np.max(np.abs(new[inside, 1] - b))),
+            float(np.max(np.abs(new[inside, 2] / L - 1.0))), int(inside.sum()))
+
+
+def continuation_tables(quick, work):
+    """``slippulse steady family --from 1.2 --to TO`` from an empty file (quick: TO = 1.1, step
+    0.01; full: TO = 1.015, the default step), and its pulses against the committed deep tables
+    (steady/seeds/deep_family_*.csv of this checkout, the same reference for both trees): wall,
+    pulses, and the largest |Δβ| and |ΔL/L| at matched τ_d."""
+    ref = _committed_tables()
+    if not len(ref):
+        return {"skipped": "no committed tables in steady/seeds"}
+    _warm_steady()
+    out_file = os.path.join(work, "family.h5")
+    args = ["--to", "1.1", "--step", "0.01"] if quick else ["--to", "1.015"]
+    wall = _cli("steady", "family", "--from", "1.2", "--out", out_file, "-q", *args)
+    new = _family_curve(out_file)
+    db, dl, n = _against(new, ref)
+    return {"wall s": wall, "pulses": len(new), "pulses compared": n,
+            "max abs dbeta vs tables": db, "max abs dL/L vs tables": dl}
 
 
 # ---------------------------------------------------------------- spectrum
@@ -293,6 +356,7 @@ GROUPS = {
     "steady": [("steady.solve", steady_solve)],
     "family": [("family.continuation", family_continuation)],
     "deep": [("deep.march", deep_march)],
+    "continuation": [("continuation.tables", continuation_tables)],
     "spectrum": [("spectrum.rate", spectrum_rate)],
     "sbi": [("sbi.step", sbi_step), ("sbi.exact", sbi_exact),
             ("sbi.checkpoint", sbi_checkpoint)],

@@ -18,9 +18,9 @@ def _load(name):
     return mod
 
 
-def test_the_suite_has_the_six_groups_each_with_a_benchmark():
+def test_the_suite_has_the_seven_groups_each_with_a_benchmark():
     suite = _load("suite")
-    assert list(suite.GROUPS) == ["steady", "family", "deep", "spectrum", "sbi", "gpu"]
+    assert list(suite.GROUPS) == ["steady", "family", "deep", "continuation", "spectrum", "sbi", "gpu"]
     assert all(suite.GROUPS[g] for g in suite.GROUPS)
     assert all(callable(f) for f in suite.BENCHMARKS.values())
 
@@ -40,3 +40,22 @@ def test_an_unknown_group_is_refused():
     r = subprocess.run([sys.executable, os.path.join(BENCH, "run.py"), "nogroup", "--no-base"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "unknown group(s) nogroup" in r.stderr
+
+
+def test_the_continuation_benchmark_measures_against_the_committed_tables():
+    """The committed deep tables against themselves give zero; a pulse shifted by δβ and a
+    relative δL shows exactly those; a pulse outside the tables' span is not compared."""
+    import numpy as np
+    suite = _load("suite")
+    ref = suite._committed_tables()
+    assert len(ref) > 100 and np.all(np.diff(ref[:, 0]) > 0)
+    assert ref[-1, 0] == 1.2 and ref[0, 0] < 1.01
+    new = ref[::7].copy()
+    db, dl, n = suite._against(new, ref)
+    assert n == len(new) and db < 1e-14 and dl < 1e-14
+    new[3, 1] += 2e-6
+    new[5, 2] *= 1 + 3e-5
+    outside = np.array([[1.3, 0.0, 1.0]])
+    db, dl, n = suite._against(np.vstack([new, outside]), ref)
+    assert n == len(new)
+    assert db == pytest.approx(2e-6, rel=1e-6) and dl == pytest.approx(3e-5, rel=1e-6)
