@@ -210,3 +210,50 @@ def test_compare_finds_no_split_for_the_exact_dynamics_and_one_for_a_pulse_off_t
     # the same lengths at a speed 10 % above the line: they split at once
     c = compare(line, tau_d, t, 1.1 * x, L, skip=0)
     assert c.t_split == t[0] and np.nanmedian(c.line_distance) == pytest.approx(0.1, abs=2e-3)
+
+
+def _fate_file(path, tau_d, L0, speedup=1.0, n=200):
+    """A fate file (the layout :func:`timedomain.fate.read_fate` reads) whose pulse follows the
+    synthetic family's exact dynamics dL/dt = γ(τ_d − τ⁰(L)), or ``speedup`` times it."""
+    s = float(-gamma(4.0) * dtau0(4.0))
+    t = np.linspace(0.0, 3.0 / s, n)
+    sol = solve_ivp(lambda _, y: [speedup * exact_rate(y[0], tau_d)], (0, t[-1]), [L0], t_eval=t,
+                    method="DOP853", rtol=1e-12, atol=1e-12)
+    L = sol.y[0]
+    c = c0(L)
+    x = np.concatenate([[0.0], np.cumsum(0.5 * (c[1:] + c[:-1]) * np.diff(t))])
+    with h5py.File(path, "w") as h5:
+        h5.attrs.update({"tau_d_ratio": tau_d, "eps": 1e-2, "perturbation": "mode", "ahead": 4.0,
+                         "behind": 4.0, "far_field": "steady", "fate": "grew x3",
+                         "distance_fate": float("nan"), "t_fate": float("nan"), "L": 4.0})
+        g = h5.create_group("series")
+        for k, v in (("t", t), ("x_front", x), ("L", L), ("v_max", np.ones_like(t))):
+            g[k] = v
+    return str(path)
+
+
+def test_fate_compare_follows_the_exact_dynamics_and_splits_from_a_pulse_off_the_line(tmp_path):
+    """``slippulse dynamic fate-compare``: a run on the family's own dynamics stays within 5 % of
+    the model to its end (no split); one growing twice as fast splits; the figure is written."""
+    fam = _family_file(tmp_path / "fam.h5", n=40)
+    tau_d = float(tau0(4.0))
+    on = _fate_file(tmp_path / "on.h5", tau_d, 4.1)
+    off = _fate_file(tmp_path / "off.h5", tau_d, 4.1, speedup=2.0)
+    fig = tmp_path / "m.png"
+    r = cli(["dynamic", "fate-compare", fig, "--family", fam, "--runs", on, off])
+    assert r.returncode == 0, r.stderr
+    rows = [ln.split("|")[1:-1] for ln in r.stdout.splitlines() if ln.startswith("| 1.")]
+    assert len(rows) == 2
+    split_on = [float(v) for v in rows[0][11].split(",")]
+    split_off = [float(v) for v in rows[1][11].split(",")]
+    assert all(math.isnan(v) for v in split_on)
+    assert math.isfinite(split_off[0]) and split_off[0] > 0
+    assert fig.exists() and fig.stat().st_size > 0
+
+
+def test_fate_compare_refuses_a_missing_run_with_one_line(tmp_path):
+    fam = _family_file(tmp_path / "fam.h5")
+    r = cli(["dynamic", "fate-compare", tmp_path / "m.png", "--family", fam, "--runs",
+             tmp_path / "none.h5"])
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not (tmp_path / "m.png").exists()

@@ -111,6 +111,7 @@ def register(subparsers) -> None:
         cli_scan.register(sub)
     from . import fate as cli_fate         # ``dynamic fate`` (cli/fate.py)
     cli_fate.register(sub)
+    cli_fate.register_compare(sub)
 
 
 def _mode_args(p) -> None:

@@ -100,3 +100,82 @@ def register(sub) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_fate)
+
+
+def _row(r, line, c) -> str:
+    """One markdown row: the run's description, its fate, and the model from the same L."""
+    import math
+
+    import numpy as np
+    head = (f"| {r['tau_d_ratio']:.4g} | {r['eps']:+.0e} | {r.get('perturbation', '–')} | "
+            f"{r['ahead']:g}+{r['behind']:g} | {r['far_field']} | {r['fate']} | "
+            f"{r.get('distance_fate', math.nan):.3g} | ")
+    if isinstance(c, str):
+        return head + f"– | – | – | model not run: {c} | – | – |"
+    cp = c.c_p[np.isfinite(c.c_p)]
+    d = c.line_distance[np.isfinite(c.line_distance)]
+    return head + (f"{np.nanmin(c.L):.4g}–{np.nanmax(c.L):.4g} | "
+                   f"{cp.min() / line.c_s:.3g}–{cp.max() / line.c_s:.3g} | "
+                   f"{c.x[c.skip] / c.L[0]:.3g} | {c.model.fate} | {c.distance_split_L:.3g}, "
+                   f"{c.distance_split_c:.3g} | "
+                   f"{np.median(np.abs(d)) if d.size else math.nan:.3g} |")
+
+
+def cmd_fate_compare(args) -> int:
+    """The fate runs against the equation of motion along the family's steady line: a table, the
+    (L, c_p) figure, and with --law the time to the fate against ln|eps| beside -1/s."""
+    from ..plotting.motion import motion_figure
+    from ..timedomain.fate import read_fate, time_law
+    from ..timedomain.motion import SteadyLine, compare
+    start = finite(args.start, "--start", lo=0.0, unit="of L*")
+    check_writable(args.figure, "FIGURE")
+    line = SteadyLine.from_family(args.family)
+    runs = [read_fate(p) for p in args.runs]
+    law = [read_fate(p) for p in args.law]
+    if law and len(law) < 3:
+        raise UsageError(f"--law needs at least 3 runs; got {len(law)}")
+    print("| tau_d/tau_min | eps | seed | domain (L) | far field | SBI fate | after (L0) | "
+          "L range (m) | c_p/c_s range | model from (L0) | model fate | 5 % split after (L0): "
+          "L, c_p | median abs(c_p/c_p0(L) - 1) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    cmps = {}
+    for r in runs:
+        try:
+            c = compare(line, float(r["tau_d_ratio"]), r["t"], r["x_front"], r["L"], start=start)
+        except ValueError as exc:
+            c = str(exc)
+        else:
+            cmps[f"{r['tau_d_ratio']:.2f} eps={r['eps']:+.0e} {r.get('perturbation', '')} "
+                 f"({r['ahead']:g}+{r['behind']:g} L, {r['far_field']})"] = c
+        print(_row(r, line, c))
+    if law:
+        A, B, E = time_law([r["eps"] for r in law], [r["t_fate"] for r in law])
+        s = float(line.functions()[3](line.equilibrium(float(law[0]["tau_d_ratio"]))))
+        print(f"time to fate ({', '.join(sorted(set(r['fate'] for r in law)))}) at "
+              f"{law[0]['tau_d_ratio']:.4g} tau_min, eps = "
+              f"{', '.join(format(r['eps'], '+.0e') for r in law)}: t = {A:.4g} + ({B:.4g} ± "
+              f"{E:.1g}) ln|eps| s; -1/s = {-1 / s:.4g} s (b s = {-B * s:.3f})")
+    motion_figure(args.figure, line, cmps, title="fate runs (SBI, load tau_d at infinity) and "
+                                                 "the equation of motion from the same L")
+    print(f"{len(cmps)} of {len(runs)} runs against the model -> {args.figure}")
+    return 0
+
+
+def register_compare(sub) -> None:
+    """Add ``fate-compare`` to the ``dynamic`` sub-commands."""
+    p = sub.add_parser("fate-compare", help="fate runs against the equation of motion: table, figure",
+                       description="Each fate run (`slippulse dynamic fate`) against the equation "
+                                   "of motion along the steady line of --family (with stored "
+                                   "growth rates), started where the measured L first departs "
+                                   "from L* by --start: a markdown table (how far L and c_p stay "
+                                   "within 5 % of the model) and the (L, c_p) figure "
+                                   "(docs/motion.md).")
+    p.add_argument("figure", metavar="FIGURE", help="output PNG")
+    p.add_argument("--family", nargs="+", required=True, metavar="FILE",
+                   help="HDF5 family file(s) with stored spectra")
+    p.add_argument("--runs", nargs="+", required=True, metavar="FATE.h5", help="fate runs")
+    p.add_argument("--start", type=float, default=0.01,
+                   help="start the model where L first departs from L* by this (default 0.01)")
+    p.add_argument("--law", nargs="+", default=(), metavar="FATE.h5",
+                   help="runs of one pulse at >= 3 eps: fit t_fate = a + b ln|eps| (b vs -1/s)")
+    p.set_defaults(func=cmd_fate_compare)
