@@ -17,7 +17,7 @@ from .paramargs import add_params_args, check_files
 
 
 def register(sub) -> None:
-    """Add ``scan`` to the ``slippulse dynamic`` sub-commands ``sub``."""
+    """Add ``scan`` and ``pack`` to the ``slippulse dynamic`` sub-commands ``sub``."""
     p = sub.add_parser(
         "scan", help="run the independent simulations of a scan (SCAN.toml), resumable",
         description="Run every case of SCAN.toml (cartesian product of [grid] over [defaults], "
@@ -36,6 +36,23 @@ def register(sub) -> None:
     p.add_argument("--no-progress", action="store_true", help="do not show the progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_scan)
+    k = sub.add_parser("pack", help="pack a scan's results small (no slip-rate snapshots, no figures)",
+                       description="Write SCAN_DIR as a gzipped tar OUT: each case file with its "
+                                   "attributes and groups but of its snapshots only the times "
+                                   "and front positions; summaries and tables as they are; no "
+                                   "figures. For carrying a scan off a lent machine.")
+    k.add_argument("scan_dir", metavar="SCAN_DIR", help="the scan's output directory")
+    k.add_argument("out", metavar="OUT", help="the .tar.gz to write")
+    k.set_defaults(func=cmd_pack)
+
+
+def cmd_pack(args) -> int:
+    from ..core.h5io import check_writable
+    from ..timedomain.scan import pack_scan
+    check_writable(args.out, "OUT")
+    n, size = pack_scan(args.scan_dir, args.out)
+    print(f"packed {n} files of {_show(args.scan_dir)} -> {args.out} ({size} bytes)")
+    return 0
 
 
 _STATE = {"done": "done", "missing": "todo", "incomplete": "todo (incomplete file)",

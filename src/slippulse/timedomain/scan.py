@@ -648,3 +648,49 @@ def run_scan(scan: Scan, executor=None, overwrite: bool = False, progress: bool 
     return ScanResult(scan=scan, rows=final, n_run=len(todo), n_reused=n_reused,
                       n_errors=n_errors, wall=time.perf_counter() - t0, summary_csv=csv_path,
                       summary_h5=h5_path, figures=figures, figure_error=fig_error)
+
+
+def pack_scan(scan_dir: str, dest: str) -> tuple[int, int]:
+    """The scan directory small enough to carry off a lent machine: a gzipped tar at ``dest``
+    whose case files keep their attributes and every group but the slip-rate snapshots (of
+    ``snapshots`` only its times and front positions), the summaries and tables as they are,
+    no figures (they are redrawn from the cases). Written to a temporary name, then renamed.
+    Returns (files packed, bytes). A missing directory raises UsageError."""
+    import glob
+    import tarfile
+    import tempfile
+
+    import h5py
+    if not os.path.isdir(scan_dir):
+        raise UsageError(f"SCAN_DIR={scan_dir!r}: no such directory")
+    root = os.path.basename(os.path.normpath(scan_dir))
+    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(os.path.abspath(dest)), suffix=".part")
+    os.close(fd)
+    n = 0
+    try:
+        with tarfile.open(tmp, "w:gz") as tar, tempfile.TemporaryDirectory() as work:
+            for f in sorted(glob.glob(os.path.join(scan_dir, "*"))):
+                name = os.path.basename(f)
+                if name.endswith(".png") or not os.path.isfile(f):
+                    continue
+                src = f
+                if name.endswith(".h5") and not name.startswith("summary"):
+                    src = os.path.join(work, name)
+                    with h5py.File(f, "r") as h, h5py.File(src, "w") as s:
+                        s.attrs.update(dict(h.attrs))
+                        for k in h:
+                            if k != "snapshots":
+                                h.copy(k, s)
+                        if "snapshots" in h:
+                            g = s.create_group("snapshots")
+                            g.attrs.update(dict(h["snapshots"].attrs))
+                            for k in ("t", "x_front"):
+                                if k in h["snapshots"]:
+                                    h.copy(f"snapshots/{k}", g)
+                tar.add(src, arcname=os.path.join(root, name))
+                n += 1
+        os.replace(tmp, dest)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return n, os.path.getsize(dest)
