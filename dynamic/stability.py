@@ -37,44 +37,15 @@ def family():
 
 
 def _rows(name):
-    """Rows of the finished cases of scan ``name`` (case keys + ``stability.read_row``), in case
-    order; unfinished cases are skipped, so a report can be drawn while a scan runs."""
-    from slippulse.timedomain.scan import case_state, load_scan
-    from slippulse.timedomain.perturbation import read_row
-
-    scan = load_scan(os.path.join("dynamic", "scans", name + ".toml"))
-    out = []
-    for c in scan.cases:
-        path = scan.out_file(c)
-        if case_state(path, c) != "done":
-            continue
-        row = dict(c.params)
-        row.update(read_row(path))
-        row["id"] = c.id
-        out.append(row)
-    return out
-
-
-def _variant(p, base):
-    """Which setting of a pair differs from the scan's base pair."""
-    diffs = []
-    if abs(p["eps"] - base["eps"]) > 1e-12:
-        diffs.append(f"ε = {p['eps']:g}")
-    if abs(float(p["dx"]) - float(base["dx"])) > 1e-12 or \
-            abs(float(p["xi_stab"]) - float(base["xi_stab"])) > 1e-12:
-        diffs.append(f"Δx = {float(p['dx']) * 1e3:g} mm, ξ_s = {float(p['xi_stab']):g}")
-    if float(p["ahead"]) != float(base["ahead"]) or float(p["behind"]) != float(base["behind"]):
-        diffs.append(f"domain {float(p['behind']):g}+{float(p['ahead']):g} L")
-    if p["history"] != base["history"]:
-        diffs.append(f"history {p['history']}")
-    if p.get("perturbation") != base.get("perturbation"):
-        diffs.append(f"perturbation {p['perturbation']}")
-    return "; ".join(diffs) or "base"
+    """Rows of the finished cases of scan ``name`` (dynamic/scans/NAME.toml)."""
+    from slippulse.timedomain.perturbation import scan_rows
+    from slippulse.timedomain.scan import load_scan
+    return scan_rows(load_scan(os.path.join("dynamic", "scans", name + ".toml")))
 
 
 def report():
     from slippulse.plotting.stability import stability_figures
-    from slippulse.timedomain.perturbation import pair_table
+    from slippulse.timedomain.perturbation import pair_table, pair_variant
 
     all_rows, table = [], []
     for name in SCANS:
@@ -89,7 +60,7 @@ def report():
         base = pairs[0]
         wall = sum(float(r.get("wall_time", 0.0)) for r in rows)
         for p in pairs:
-            p["variant"] = _variant(p, base)
+            p["variant"] = pair_variant(p, base)
             p["scan"] = name
             p["scan_wall"] = wall
         table += pairs

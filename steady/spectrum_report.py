@@ -36,22 +36,13 @@ def sbi_table(path=SBI_RATES):
 
 def scan_pairs(name):
     """Pairs (τ_d, s per L, err, domain, mode, mode_xi) of a scan under runs/scans, if present."""
-    here = os.path.dirname(os.path.abspath(__file__))
-    sys_path = os.path.join(here, "..", "dynamic")
-    import sys
-    if sys_path not in sys.path:
-        sys.path.insert(0, sys_path)
-    try:
-        from stability import _rows  # dynamic/stability.py
-    except Exception:
-        return []
-    from slippulse.timedomain.perturbation import pair_growth, pair_rows, read_series
+    from slippulse.timedomain.perturbation import pair_growth, pair_rows, read_series, scan_rows
     from slippulse.timedomain.scan import load_scan
     try:
-        rows = _rows(name)
+        scan = load_scan(os.path.join("dynamic", "scans", name + ".toml"))
+        rows = scan_rows(scan)
     except Exception:
         return []
-    scan = load_scan(os.path.join("dynamic", "scans", name + ".toml"))
     paths = {c.id: scan.out_file(c) for c in scan.cases}
     out = []
     for plus, minus in pair_rows(rows):

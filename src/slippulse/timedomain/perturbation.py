@@ -742,6 +742,41 @@ def read_series(out_path: str) -> dict:
     return s
 
 
+def scan_rows(scan) -> list[dict]:
+    """Rows of the finished cases of ``scan`` (:class:`.scan.Scan`): the case keys, then
+    :func:`read_row` and the case id, in case order. Unfinished cases are skipped, so a report
+    can be drawn while the scan runs."""
+    from .scan import case_state
+    out = []
+    for c in scan.cases:
+        path = scan.out_file(c)
+        if case_state(path, c) != "done":
+            continue
+        row = dict(c.params)
+        row.update(read_row(path))
+        row["id"] = c.id
+        out.append(row)
+    return out
+
+
+def pair_variant(p: dict, base: dict) -> str:
+    """Which settings of a pair (a :func:`pair_table` row) differ from the scan's base pair:
+    ε, the grid (Δx, ξ_s), the domain, the history, the perturbation; "base" when none."""
+    diffs = []
+    if abs(p["eps"] - base["eps"]) > 1e-12:
+        diffs.append(f"ε = {p['eps']:g}")
+    if abs(float(p["dx"]) - float(base["dx"])) > 1e-12 or \
+            abs(float(p["xi_stab"]) - float(base["xi_stab"])) > 1e-12:
+        diffs.append(f"Δx = {float(p['dx']) * 1e3:g} mm, ξ_s = {float(p['xi_stab']):g}")
+    if float(p["ahead"]) != float(base["ahead"]) or float(p["behind"]) != float(base["behind"]):
+        diffs.append(f"domain {float(p['behind']):g}+{float(p['ahead']):g} L")
+    if p["history"] != base["history"]:
+        diffs.append(f"history {p['history']}")
+    if p.get("perturbation") != base.get("perturbation"):
+        diffs.append(f"perturbation {p['perturbation']}")
+    return "; ".join(diffs) or "base"
+
+
 #: Case keys that do not distinguish the two members of a ±ε pair.
 _PAIR_IGNORE = ("eps", "id", "status", "file")
 
