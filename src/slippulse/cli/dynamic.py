@@ -112,6 +112,8 @@ def register(subparsers) -> None:
     from . import fate as cli_fate         # ``dynamic fate`` (cli/fate.py)
     cli_fate.register(sub)
     cli_fate.register_compare(sub)
+    from . import growth as cli_growth     # ``dynamic growth-report`` (cli/growth.py)
+    cli_growth.register(sub)
 
 
 def _mode_args(p) -> None:

@@ -117,6 +117,31 @@ def stability_figures(rows, pairs, out_dir, dpi=130, prefix="stab_", extra_stead
     return written
 
 
+def growth_figure(pairs, path: str, dpi=130) -> str:
+    """The measured growth rates of ±ε pairs (:func:`pair_table` rows with ``variant``) against
+    τ_d: per pulse length (left) and per second (right); the base pair of each τ_d in black,
+    its variants (grid, ε, domain, history) in orange. Returns ``path``."""
+    fig = Figure(figsize=(6.4, 4.0))
+    ax, bx = fig.subplots(1, 2)
+    for p in pairs:
+        if not np.isfinite(p["s_per_L"]):
+            continue
+        base = p["variant"] == "base"
+        for a, k in ((ax, "s_per_L"), (bx, "s_per_s")):
+            a.errorbar(p["tau_d_ratio"], p[k], yerr=p[k + "_err"], fmt="o" if base else ".",
+                       ms=5, color="k" if base else "C1")
+    for a, lab in ((ax, "growth rate s·L/c_p (per pulse length)"), (bx, "growth rate s (1/s)")):
+        a.axhline(0, color="0.6", lw=0.8)
+        a.set_xlabel("τ_d/τ_min")
+        a.set_ylabel(lab)
+    ax.plot([], [], "ko", label="base pair")
+    ax.plot([], [], ".", color="C1", label="refined / other ε, domain, history")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path, dpi=dpi)
+    return path
+
+
 def plot_verify_result(path_png: str, res: VerifyResult, pulse, params) -> None:
     """The verification figure (PNG), three panels against the steady pulse:
 
