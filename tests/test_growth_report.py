@@ -92,3 +92,21 @@ def test_attractor_pairs_of_a_real_pair_against_its_mode(mode_scan):
     assert float(v["eigen_s_per_L"]) == pytest.approx(eigen, rel=1e-4)
     assert abs(float(v["s_fit_all"]) / eigen - 1) < 0.03
     assert float(v["dL_per_dv_sbi"]) == pytest.approx(float(v["dL_per_dv_mode"]), rel=0.05)
+
+
+def test_spectrum_report_sets_the_scan_pair_beside_the_eigenvalue(tmp_path, mode_scan):
+    """``dynamic spectrum-report`` on the pulse's file and the scan: the eigenvalue row is the
+    stored one, the pair's rate (timedomain.sbi_rates.scan_pair_rates) within 3 % of it (as
+    above), and both figures are drawn (the pair has a mode shape)."""
+    from slippulse.timedomain.sbi_rates import scan_pair_rates
+    from slippulse.timedomain.scan import load_scan
+    toml, out, eigen = mode_scan
+    (rate,) = scan_pair_rates(load_scan(str(toml)))
+    assert abs(rate["s"] / eigen - 1) < 0.03 and rate["mode"] is not None
+    steady = str(out.parent / "st.h5")
+    r = cli(["dynamic", "spectrum-report", steady, "--scans", toml, "--figdir", tmp_path])
+    assert r.returncode == 0, r.stderr
+    row = next(x for x in r.stdout.splitlines() if x.startswith("| 1.2000 |"))
+    assert float(row.split("|")[4]) == pytest.approx(eigen, abs=1e-4)
+    for name in ("spectrum_growth.png", "spectrum_modes.png"):
+        assert (tmp_path / name).stat().st_size > 1000
