@@ -125,3 +125,18 @@ def test_overlap_of_the_1p2_pulse_against_its_own_tangent(tmp_path, steady12_wit
     # the 1.2 pulse's mode changes c_p much more than L (docs/stability.md §4: f ≈ 1 there)
     assert abs(row["dc_over_c"]) > 5 * abs(row["dL_over_L"])
     assert fig.stat().st_size > 1000
+
+
+def test_figure_from_overlap_tables_with_named_series(tmp_path):
+    """``attractor figure`` draws several tables, one name each; more names than tables is
+    refused before any drawing."""
+    rows = [dict({k: 0.5 for k in OVERLAP_COLUMNS}, label=f"td{q}", tau_d_ratio=q,
+                 departure_fraction=0.2 * i) for i, q in enumerate((1.05, 1.1, 1.2))]
+    a = write_overlap_csv(rows, str(tmp_path / "a.csv"))
+    b = write_overlap_csv(rows[:2], str(tmp_path / "b.csv"))
+    out = tmp_path / "f.png"
+    r = cli(["dynamic", "attractor", "figure", out, "--csv", a, b, "--names", "N=2000", "N=3000"])
+    assert r.returncode == 0, r.stderr
+    assert out.stat().st_size > 1000
+    r = cli(["dynamic", "attractor", "figure", tmp_path / "g.png", "--csv", a, "--names", "x", "y"])
+    assert r.returncode == 2 and "--names" in r.stderr and not (tmp_path / "g.png").exists()
