@@ -114,6 +114,10 @@ def register(subparsers) -> None:
     cli_fate.register_compare(sub)
     from . import growth as cli_growth     # ``dynamic growth-report`` (cli/growth.py)
     cli_growth.register(sub)
+    from . import attractor as cli_attractor   # ``dynamic attractor`` (cli/attractor.py)
+    cli_attractor.register(sub)
+    from . import spectrum_report as cli_spectrum_report   # ``dynamic spectrum-report``
+    cli_spectrum_report.register(sub)
 
 
 def _mode_args(p) -> None:

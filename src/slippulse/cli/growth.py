@@ -3,7 +3,6 @@ the table of measured growth rates s(τ_d) with each pair's variant against its 
 how closely the runs follow the steady line c_p⁰(L), and the figures."""
 from __future__ import annotations
 
-import math
 import os
 
 
@@ -20,10 +19,10 @@ def _table(pairs) -> None:
 
 
 def _line_table(by_scan, curve) -> None:
-    """The base pair's runs and the ε ≥ 0.01 variants against the steady line c_p⁰(L)."""
-    import numpy as np
-
-    from ..timedomain.perturbation import line_deviation, read_series, smoothed_c_p
+    """The base pair's runs and the ε ≥ 0.01 variants against the steady line c_p⁰(L)
+    (:func:`slippulse.timedomain.attractor.line_departure`)."""
+    from ..timedomain.attractor import line_departure
+    from ..timedomain.perturbation import read_series
     print("\n| τ_d/τ_min | run | fate | L range (m) | c_p/c_s range | median of "
           "abs(c_p/c_p⁰(L) − 1) | max | fraction of samples in the line's L range |")
     print("|---|---|---|---|---|---|---|---|")
@@ -31,20 +30,12 @@ def _line_table(by_scan, curve) -> None:
         for tag, key in (("+ε", "_file_plus"), ("−ε", "_file_minus")):
             for p in sel[:1] + [q for q in sel if q["variant"].startswith("ε = ") and
                                 q["eps"] >= 0.01 - 1e-12]:
-                s = read_series(p[key])
-                cs = float(s["attrs"]["c_p"]) / float(s["attrs"]["beta"])
-                cp = smoothed_c_p(s)
-                i = np.arange(cp.size)
-                keep = (s["distance"] >= 0.1) & (i >= 2) & (i < cp.size - 2)
-                dev = line_deviation(s["L"][keep], cp[keep], curve)
-                ok = np.isfinite(dev)
+                d = line_departure(read_series(p[key]), curve)
                 print(f"| {p['tau_d_ratio']:.4g} | {tag}, ε = {p['eps']:g} | "
                       f"{p['fate_plus' if tag == '+ε' else 'fate_minus']} | "
-                      f"{s['L'][keep].min():.3g}–{s['L'][keep].max():.3g} | "
-                      f"{cp[keep].min() / cs:.3g}–{cp[keep].max() / cs:.3g} | "
-                      f"{np.median(np.abs(dev[ok])) if ok.any() else math.nan:.2g} | "
-                      f"{np.max(np.abs(dev[ok])) if ok.any() else math.nan:.2g} | "
-                      f"{ok.mean():.2f} |")
+                      f"{d['L_min']:.3g}–{d['L_max']:.3g} | "
+                      f"{d['beta_min']:.3g}–{d['beta_max']:.3g} | {d['median']:.2g} | "
+                      f"{d['max']:.2g} | {d['fraction']:.2f} |")
 
 
 def cmd_growth_report(args) -> int:

@@ -4,21 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.atomic import save_figure
-
-
-def family_spectra(path):
-    """Stored spectra of a file, by decreasing τ_d: list of dicts (see spectrum.read_spectrum)."""
-    from ..spectrum.pulse import read_spectrum
-    from ..core.h5io import labels_in, open_h5
-    with open_h5(path) as h5:
-        labels = [k for k in labels_in(h5, path) if "spectrum" in h5["pulses"][k]]
-    out = []
-    for lab in labels:
-        o = read_spectrum(path, lab)
-        if o is not None and o.get("status") == "converged":
-            o["label"] = lab                 # labelled before filtering: a failed pulse shifts none
-            out.append(o)
-    return sorted(out, key=lambda o: -o["tau_d_ratio"])
+from ..spectrum.report import family_spectra  # noqa: F401  (the figures' input; moved to spectrum)
 
 
 def front_position(xi, lnv0):
@@ -118,4 +104,102 @@ def plot_family_spectrum(path, out, mode_labels=None):
     fig.tight_layout()
     save_figure(fig, out, dpi=120)
     plt.close(fig)
+    return out
+
+
+def spectrum_growth_figure(rows, refined, out, fits=(), sbi=(), scans=(), dpi=120) -> str:
+    """s L/c_p against τ_d/τ_min (left) and against τ_d/τ_min − 1 on log axes (right): the
+    leading eigenvalue on the family's grids and |translation eigenvalue| (exact 0: the error
+    indicator) (:func:`slippulse.spectrum.report.spectrum_rows`), the refined values ± s_err
+    (``refined_rows``), the first power law of ``fits`` (``near_min_fits``), and the SBI's
+    measured rates: ``sbi`` of a rates file (circles) and ``scans`` of finished scan pairs
+    (diamonds) (:mod:`slippulse.timedomain.sbi_rates`). Rates ≤ 0 cannot sit on the log axis:
+    the right panel counts them. Returns ``out``."""
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(11, 4.3))
+    axes = fig.subplots(1, 2)
+    q = np.array([r["tau_d_ratio"] for r in rows])
+    s = np.array([r["s_per_L"] for r in rows])
+    st = np.abs(np.array([r["translation_s_per_L"] for r in rows]))
+    domains = sorted({r["domain"] for r in sbi})
+    for a, logy in zip(axes, (False, True)):
+        def xf(t):
+            return np.asarray(t, float) - 1.0 if logy else np.asarray(t, float)
+        a.plot(xf(q), s, ".-", color="C0", lw=1.5, ms=4, label="eigenvalue on the family grids")
+        a.plot(xf(q), st, ":", color="0.5", lw=1,
+               label="|translation eigenvalue| (exact 0: error indicator)")
+        if refined:
+            a.errorbar(xf([r["tau_d_ratio"] for r in refined]), [r["s_per_L"] for r in refined],
+                       yerr=[r["s_err_per_L"] for r in refined], fmt="s", color="C0", ms=5,
+                       capsize=3, label="eigenvalue ± s_err (slippulse steady stability)")
+        for kind, pts, style, colour in (("rates file", sbi, "o", "C3"),
+                                         ("scans", scans, "D", "C2")):
+            shown = [r for r in pts if not (logy and r["s"] <= 0)]
+            if shown:
+                a.errorbar(xf([r["tau_d_ratio"] for r in shown]), [r["s"] for r in shown],
+                           yerr=[r["err"] for r in shown], fmt=style, color=colour, ms=5,
+                           capsize=2, mfc="none", ls="none",
+                           label=f"SBI ±ε pairs ({kind}"
+                                 + (f": {'; '.join(domains)})" if kind == "rates file" else ")"))
+        a.grid(alpha=0.3, which="both")
+        a.set_ylabel(r"$s\,L/c_p$ (e-folds per pulse length)")
+        if logy:
+            a.set_xscale("log")
+            a.set_yscale("log")
+            a.set_xlabel(r"$\tau_d/\tau_{min} - 1$")
+            if fits:
+                law = fits[0]["law"]
+                xx = np.geomspace(*law.x_range, 50)
+                a.plot(xx, law(xx), "--", color="k", lw=1,
+                       label=f"fit {law.A:.2g} (τ_d/τ_min − 1)^({law.n:.2f} ± {law.n_err:.2f})")
+            hidden = sum(r["s"] <= 0 for r in list(sbi) + list(scans))
+            if hidden:
+                a.set_title(f"{hidden} SBI rate(s) ≤ 0 not shown (log axis)", fontsize=8)
+            a.legend(fontsize=6, loc="lower right")
+        else:
+            a.set_xlabel(r"$\tau_d/\tau_{min}$")
+            a.legend(fontsize=6)
+    fig.tight_layout()
+    save_figure(fig, out, dpi=dpi)
+    return out
+
+
+def sbi_modes_figure(path, spectra, modes, out, dpi=120) -> str:
+    """One panel per τ_d: the mode shapes SBI pairs measured (``scan_pair_rates`` rows with a
+    mode: antisymmetric deviation of ln(v/v*+1), docs/stability.md §2) with the eigenmode of the
+    same pulse of ``path`` in the front's frame (:func:`front_frame_mode`) drawn over them, each
+    scaled to unit largest modulus (the eigenmode on its body |ξ − ξ_f| > 0.02 L: the front cells
+    carry the unresolved remainder of the displacement). Returns ``out``."""
+    from matplotlib.figure import Figure
+
+    from ..core.h5io import read_pulse
+    by = {round(o["tau_d_ratio"], 4): o for o in spectra}
+    taus = sorted({r["tau_d_ratio"] for r in modes}, reverse=True)
+    fig = Figure(figsize=(4.2 * len(taus), 3.6))
+    axes = np.atleast_1d(fig.subplots(1, len(taus)))
+    for a, t in zip(axes, taus):
+        for i, r in enumerate([m for m in modes if m["tau_d_ratio"] == t]):
+            m = np.asarray(r["mode"])
+            a.plot(r["mode_xi"], m / np.abs(m).max(), color=("C3", "C1", "C2")[i % 3], lw=2.5,
+                   alpha=0.6, label=f"SBI pair ({r['domain']})")
+        o = by.get(round(t, 4))
+        if o is not None and o["sigma"].size:
+            pulse, params = read_pulse(path, o["label"])
+            y0 = np.log(pulse.v / params.v_star + 1.0)
+            y1 = np.interp(pulse.xi, o["xi"], o["lnv"][0].real)
+            eta, e = front_frame_mode(pulse.xi, y0, y1, pulse.L)
+            x = eta / pulse.L
+            sel = (x > -1.6) & (x < 0.6)
+            body = sel & (np.abs(x) > 0.02)
+            norm = e[body][np.argmax(np.abs(e[body]))]
+            s = o["sigma"][0].real / o["rate_unit_c_over_L"]
+            a.plot(x[sel], np.clip(e[sel] / norm, -0.3, 1.3), color="k", lw=1,
+                   label=f"eigenmode in the front frame, s L/c = {s:.3g}")
+        a.set_title(f"τ_d = {t:.2f} τ_min", fontsize=10)
+        a.set_xlabel(r"$(\xi - \xi_{front})/L$")
+        a.grid(alpha=0.3)
+        a.legend(fontsize=7)
+    axes[0].set_ylabel(r"mode of $\ln(v/v_*+1)$ (max |.| = 1)")
+    fig.tight_layout()
+    save_figure(fig, out, dpi=dpi)
     return out

@@ -224,3 +224,60 @@ def plot_verify_result(path_png: str, res: VerifyResult, pulse, params) -> None:
 def _wrap(text: str, width: int) -> str:
     import textwrap
     return "\n".join(textwrap.wrap(text, width))
+
+
+# --------------------------------------------------------------------------------------------
+# the steady line as attractor (``slippulse dynamic attractor``)
+
+def attractor_figure(series, path: str, sbi=(), line=(), clip: float = 1.5, dpi=110) -> str:
+    """Overlap of the unstable mode with the family tangent (left) and the departure fraction
+    f (right) against τ_d (docs/stability.md §4). Returns ``path``.
+
+    series : list of (name, rows)
+        :func:`slippulse.timedomain.eigenmode.family_overlaps` rows (or those of
+        ``attractor.read_overlap_csv``), one style per series; with one series the overlap of
+        y = ln(v/v*+1) alone is drawn too.
+    sbi : list of dict
+        :func:`slippulse.timedomain.attractor.sbi_departures`: f measured by eigenmode-seeded pairs.
+    line : list of dict
+        :func:`slippulse.timedomain.attractor.base_pair_departures`: the median
+        |c_p/c_p⁰(L) − 1| of a scan's base ±ε runs along their whole trajectory.
+    clip : f is drawn clipped to [−clip, clip] (it diverges where the mode leaves c_p unchanged).
+    """
+    fig = Figure(figsize=(11, 4.3))
+    ax, bx = fig.subplots(1, 2)
+    marks = ["o-", "s-", "^-", "d-"]
+    for i, (name, rows) in enumerate(series):
+        rows = sorted(rows, key=lambda r: float(r["tau_d_ratio"]))
+        q = np.array([float(r["tau_d_ratio"]) for r in rows])
+        ax.plot(q, [float(r["overlap"]) for r in rows], marks[i % 4], ms=5,
+                label=f"{name}: y and ln φ" if len(series) == 1 else name)
+        if len(series) == 1:
+            ax.plot(q, [float(r["overlap_y"]) for r in rows], "s--", ms=4,
+                    label=f"{name}: y = ln(v/v*+1) only")
+        f = np.array([float(r["departure_fraction"]) for r in rows])
+        bx.plot(q, np.clip(f, -clip, clip), marks[i % 4], ms=5, label=f"eigenmode, {name}")
+    if sbi:
+        bx.plot([r["tau_d_ratio"] for r in sbi],
+                np.clip([r["departure_fraction"] for r in sbi], -clip, clip), "k*", ms=12,
+                label="SBI, eigenmode-seeded ±ε pairs (measured)")
+    line = [r for r in line if np.isfinite(r["plus"]) or np.isfinite(r["minus"])]
+    for i, r in enumerate(line):
+        bx.plot([r["tau_d_ratio"]] * 2, [r["plus"], r["minus"]], "rv", ms=6,
+                label="SBI ±ε runs: median |c_p/c_p⁰(L) − 1| to the fate" if i == 0 else None)
+    ax.set_xlabel("τ_d/τ_min")
+    ax.set_ylabel("overlap |⟨m, t⟩| / (‖m‖ ‖t‖)")
+    ax.set_ylim(0, 1.05)
+    ax.set_title("unstable eigenmode m vs family tangent t = d(y, ln φ)/dτ_d\n"
+                 "(front frame, translation removed, ζ ∈ [−1.5, 0.5] L)", fontsize=9)
+    ax.legend(fontsize=8)
+    bx.axhline(0, color="0.6", lw=0.6)
+    bx.axhline(1, color="0.8", lw=0.6, ls=":")
+    bx.set_xlabel("τ_d/τ_min")
+    bx.set_ylabel(f"departure fraction f (drawn within ±{clip:g})")
+    bx.set_title("c_p/c_p⁰(L) − 1 ≈ f · δ ln c_p (0: along the steady line;\n"
+                 "1: c_p changes at fixed L; > 1: L and c_p move oppositely)", fontsize=9)
+    bx.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path, dpi=dpi)
+    return path

@@ -522,10 +522,9 @@ def family_overlaps(path: str, compute: bool = False, local_h: float | None = No
     (or, with ``local_h``, the pulses at τ_d ± local_h solved on its grid,
     :func:`local_neighbours`). ``labels``: only these pulses."""
     from ..core.h5io import list_pulses, read_pulse
-    labels = list_pulses(path)
     pulses = []
     params = None
-    for lab in labels:
+    for lab in list_pulses(path):
         pu, params = read_pulse(path, lab)
         if pu.converged and pu.mode == "III":
             pulses.append(pu)
