@@ -126,10 +126,11 @@ def cmd_fate_compare(args) -> int:
     (L, c_p) figure, and with --law the time to the fate against ln|eps| beside -1/s."""
     from ..plotting.motion import motion_figure
     from ..timedomain.fate import read_fate, time_law
-    from ..timedomain.motion import SteadyLine, compare
+    from ..timedomain.motion import compare
+    from .motion import steady_line
     start = finite(args.start, "--start", lo=0.0, unit="of L*")
     check_writable(args.figure, "FIGURE")
-    line = SteadyLine.from_family(args.family)
+    line = steady_line(args.family, args.records)
     runs = [read_fate(p) for p in args.runs]
     law = [read_fate(p) for p in args.law]
     if law and len(law) < 3:
@@ -172,7 +173,11 @@ def register_compare(sub) -> None:
                                    "(docs/motion.md).")
     p.add_argument("figure", metavar="FIGURE", help="output PNG")
     p.add_argument("--family", nargs="+", required=True, metavar="FILE",
-                   help="HDF5 family file(s) with stored spectra")
+                   help="HDF5 family file(s) with stored spectra, or the family's CSV tables "
+                        "with --records")
+    p.add_argument("--records", default=None, metavar="TOML",
+                   help="with CSV tables as --family (steady/seeds/deep_family_*.csv): the "
+                        "growth rates of record (e.g. docs/results/records.toml)")
     p.add_argument("--runs", nargs="+", required=True, metavar="FATE.h5", help="fate runs")
     p.add_argument("--start", type=float, default=0.01,
                    help="start the model where L first departs from L* by this (default 0.01)")

@@ -15,27 +15,27 @@ def _default_out(args) -> str:
     return os.path.join("runs", "motion", f"{base}_td{args.tau_d:.4f}_L{args.length:.4g}.h5")
 
 
-def _line(args):
+def steady_line(files, records=None):
     """The steady line: family HDF5 files with stored spectra, or the family's CSV tables with
     the rates of record (--records)."""
     from ..timedomain.motion import SteadyLine, line_from_tables
-    csv = [str(f).endswith(".csv") for f in args.file]
+    csv = [str(f).endswith(".csv") for f in files]
     if any(csv) and not all(csv):
         raise UsageError("FILE: give either HDF5 family files or CSV tables, not both")
     if all(csv):
-        if not args.records:
+        if not records:
             raise UsageError("CSV tables hold no growth rates: give --records TOML "
                              "(e.g. docs/results/records.toml)")
-        for f in (*args.file, args.records):
+        for f in (*files, records):
             if not os.path.exists(f):
                 raise UsageError(f"{f!r} does not exist")
         try:
-            return line_from_tables(args.file, args.records)
+            return line_from_tables(files, records)
         except (KeyError, ValueError) as exc:
             raise UsageError(f"--records/FILE: {exc}")
-    if args.records:
+    if records:
         raise UsageError("--records goes with CSV tables; HDF5 files use their stored spectra")
-    return SteadyLine.from_family(args.file)
+    return SteadyLine.from_family(files)
 
 
 def limits_line(lim) -> str:
@@ -64,7 +64,7 @@ def cmd_motion(args) -> int:
     if os.path.exists(out) and not args.overwrite:
         raise UsageError(f"--out={out!r} exists; give --overwrite to replace it")
     check_writable(out, "--out")
-    line = _line(args)
+    line = steady_line(args.file, args.records)
     duration = args.duration
     if duration is None:                       # ten e-folds of the steady pulse at tau_d
         lo, hi = line.tau_range
