@@ -77,3 +77,17 @@ def test_time_law_recovers_minus_one_over_s():
     eps = np.array([1e-2, 3e-3, 1e-3, 3e-4])
     a, b, e = time_law(eps, 0.01 - np.log(eps) / 400.0)
     assert b == pytest.approx(-1 / 400.0, rel=1e-10) and e < 1e-12
+
+
+def test_departure_time_is_the_linear_stage_of_a_mode_growing_as_exp_st():
+    """L = L0 (1 + ε e^{st}) departs by 1 % at t = ln(0.01/ε)/s (interpolated between samples):
+    the departure times of several ε follow −1/s exactly."""
+    from slippulse.timedomain.fate import departure_time, time_law
+    s, L0 = 800.0, 2.5
+    t = np.linspace(0.0, 0.02, 2001)
+    eps = np.array([1e-3, 3e-4, 1e-4, 3e-5])
+    dep = [departure_time(t, L0 * (1 - e * np.exp(s * t)), L0, 0.01) for e in eps]
+    assert np.allclose(dep, np.log(0.01 / eps) / s, rtol=1e-3)
+    a, b, err = time_law(-eps, dep)
+    assert b * s == pytest.approx(-1.0, abs=1e-3)
+    assert np.isnan(departure_time(t, np.full_like(t, L0), L0, 0.01))

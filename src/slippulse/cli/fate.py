@@ -124,8 +124,11 @@ def _row(r, line, c) -> str:
 def cmd_fate_compare(args) -> int:
     """The fate runs against the equation of motion along the family's steady line: a table, the
     (L, c_p) figure, and with --law the time to the fate against ln|eps| beside -1/s."""
+    import math
+
+    import numpy as np
     from ..plotting.motion import motion_figure
-    from ..timedomain.fate import read_fate, time_law
+    from ..timedomain.fate import departure_time, read_fate, time_law
     from ..timedomain.motion import compare
     from .motion import steady_line
     start = finite(args.start, "--start", lo=0.0, unit="of L*")
@@ -155,7 +158,15 @@ def cmd_fate_compare(args) -> int:
         print(f"time to fate ({', '.join(sorted(set(r['fate'] for r in law)))}) at "
               f"{law[0]['tau_d_ratio']:.4g} tau_min, eps = "
               f"{', '.join(format(r['eps'], '+.0e') for r in law)}: t = {A:.4g} + ({B:.4g} ± "
-              f"{E:.1g}) ln|eps| s; -1/s = {-1 / s:.4g} s (b s = {-B * s:.3f})")
+              f"{E:.1g}) ln|eps| s; -1/s = {-1 / s:.4g} s (b s = {B * s:.3f} ± {E * s:.2g})")
+        # the linear stage alone: the time to a departure of --start from the steady L
+        dep = [departure_time(r["t"], r["L"], float(r["L0"]), start) for r in law]
+        if all(math.isfinite(d) for d in dep):
+            A2, B2, E2 = time_law([r["eps"] for r in law], dep)
+            rest = np.array([r["t_fate"] for r in law]) - np.array(dep)
+            print(f"time to |L/L0 - 1| = {start:g}: t = {A2:.4g} + ({B2:.4g} ± {E2:.1g}) ln|eps| s "
+                  f"(b s = {B2 * s:.3f} ± {E2 * s:.2g}); from there to the fate: "
+                  + ", ".join(f"{x * 1e3:.4g}" for x in rest) + " ms")
     motion_figure(args.figure, line, cmps, title="fate runs (SBI, load tau_d at infinity) and "
                                                  "the equation of motion from the same L")
     print(f"{len(cmps)} of {len(runs)} runs against the model -> {args.figure}")

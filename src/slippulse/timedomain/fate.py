@@ -196,3 +196,18 @@ def time_law(eps, t_fate):
     r = y - A @ coef
     cov = np.linalg.inv(A.T @ A) * (r @ r) / max(x.size - 2, 1)
     return float(coef[0]), float(coef[1]), float(np.sqrt(cov[1, 1]))
+
+
+def departure_time(t, L, L_ref: float, start: float = 0.01) -> float:
+    """The first time |L/L_ref − 1| ≥ ``start`` (linear in t between samples; nan: never). With
+    the time law it splits the time to a fate into the linear stage (to the departure, ∝ −ln|ε|/s)
+    and the rest (the nonlinear stage and the fate rule's threshold, ε-independent if the
+    picture holds)."""
+    t, d = np.asarray(t, float), np.abs(np.asarray(L, float) / L_ref - 1.0)
+    k = np.flatnonzero(d >= start)
+    if not k.size:
+        return float("nan")
+    i = int(k[0])
+    if i == 0:
+        return float(t[0])
+    return float(t[i - 1] + (start - d[i - 1]) / (d[i] - d[i - 1]) * (t[i] - t[i - 1]))
