@@ -248,6 +248,12 @@ def test_fate_compare_follows_the_exact_dynamics_and_splits_from_a_pulse_off_the
     split_off = [float(v) for v in rows[1][11].split(",")]
     assert all(math.isnan(v) for v in split_on)
     assert math.isfinite(split_off[0]) and split_off[0] > 0
+    # dL/dt / c_p: on the family's own dynamics the run's range is the model's; twice as fast
+    # it goes well beyond the model's
+    spans = [[[float(x) for x in part.strip().split("–")] for part in row[13].split(";")]
+             for row in rows]
+    assert spans[0][0] == pytest.approx(spans[0][1], rel=0.02, abs=1e-3)
+    assert spans[1][0][1] > 1.2 * spans[1][1][1]
     assert fig.exists() and fig.stat().st_size > 0
 
 

@@ -111,14 +111,23 @@ def _row(r, line, c) -> str:
             f"{r['ahead']:g}+{r['behind']:g} | {r['far_field']} | {r['fate']} | "
             f"{r.get('distance_fate', math.nan):.3g} | ")
     if isinstance(c, str):
-        return head + f"– | – | – | model not run: {c} | – | – |"
+        return head + f"– | – | – | model not run: {c} | – | – | – |"
     cp = c.c_p[np.isfinite(c.c_p)]
     d = c.line_distance[np.isfinite(c.line_distance)]
+    from ..timedomain.motion import smoothed_speed
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = smoothed_speed(c.t, c.L) / c.c_p              # dL/dt over c_p: measured
+        qm = smoothed_speed(c.t, c.model.L) / c.model.c_p  # and in the model from the same L
+    q, qm = q[c.skip:], qm[c.skip:]
+
+    def span(a):
+        a = a[np.isfinite(a)]
+        return f"{a.min():.2g}–{a.max():.2g}" if a.size else "–"
     return head + (f"{np.nanmin(c.L):.4g}–{np.nanmax(c.L):.4g} | "
                    f"{cp.min() / line.c_s:.3g}–{cp.max() / line.c_s:.3g} | "
                    f"{c.x[c.skip] / c.L[0]:.3g} | {c.model.fate} | {c.distance_split_L:.3g}, "
                    f"{c.distance_split_c:.3g} | "
-                   f"{np.median(np.abs(d)) if d.size else math.nan:.3g} |")
+                   f"{np.median(np.abs(d)) if d.size else math.nan:.3g} | {span(q)}; {span(qm)} |")
 
 
 def cmd_fate_compare(args) -> int:
@@ -140,8 +149,8 @@ def cmd_fate_compare(args) -> int:
         raise UsageError(f"--law needs at least 3 runs; got {len(law)}")
     print("| tau_d/tau_min | eps | seed | domain (L) | far field | SBI fate | after (L0) | "
           "L range (m) | c_p/c_s range | model from (L0) | model fate | 5 % split after (L0): "
-          "L, c_p | median abs(c_p/c_p0(L) - 1) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "L, c_p | median abs(c_p/c_p0(L) - 1) | dL/dt / c_p from there: SBI; model |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     cmps = {}
     for r in runs:
         try:
