@@ -91,3 +91,17 @@ def test_departure_time_is_the_linear_stage_of_a_mode_growing_as_exp_st():
     a, b, err = time_law(-eps, dep)
     assert b * s == pytest.approx(-1.0, abs=1e-3)
     assert np.isnan(departure_time(t, np.full_like(t, L0), L0, 0.01))
+
+
+def test_offset_law_recovers_the_seed_projection_and_the_rate():
+    """Runs whose mode amplitude is |ε| − ε₀ (the seed's own error against ε): the plain law's
+    slope is steeper than −1/s; the offset law with s fixed recovers ε₀ and leaves no residual."""
+    from slippulse.timedomain.fate import time_law, time_law_offset
+    s, e0 = 850.0, -6e-4
+    eps = -np.array([1e-2, 3e-3, 1e-3, 8e-4])
+    t = 0.005 - np.log(np.abs(eps) + e0) / s
+    a, b, _ = time_law(eps, t)
+    assert b * s < -1.3
+    a, off, err, rms = time_law_offset(eps, t, s)
+    assert off == pytest.approx(e0, rel=1e-4) and rms < 1e-8
+    assert a == pytest.approx(0.005, rel=1e-6)

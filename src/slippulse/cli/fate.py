@@ -137,7 +137,7 @@ def cmd_fate_compare(args) -> int:
 
     import numpy as np
     from ..plotting.motion import motion_figure
-    from ..timedomain.fate import departure_time, read_fate, time_law
+    from ..timedomain.fate import departure_time, read_fate, time_law, time_law_offset
     from ..timedomain.motion import compare
     from .motion import steady_line
     start = finite(args.start, "--start", lo=0.0, unit="of L*")
@@ -168,6 +168,14 @@ def cmd_fate_compare(args) -> int:
               f"{law[0]['tau_d_ratio']:.4g} tau_min, eps = "
               f"{', '.join(format(r['eps'], '+.0e') for r in law)}: t = {A:.4g} + ({B:.4g} ± "
               f"{E:.1g}) ln|eps| s; -1/s = {-1 / s:.4g} s (b s = {B * s:.3f} ± {E * s:.2g})")
+        try:
+            A3, E0, E0e, rms = time_law_offset([r["eps"] for r in law],
+                                               [r["t_fate"] for r in law], s)
+            print(f"with the rate fixed at s and the seed's own projection eps0 fitted: "
+                  f"t = {A3:.4g} - ln(|eps| + eps0)/s, eps0 = {E0:.2g} ± {E0e:.1g}, "
+                  f"rms residual {rms * 1e3:.3g} ms")
+        except ValueError as exc:
+            print(f"offset law: not fitted ({exc})")
         # the linear stage alone: the time to a departure of --start from the steady L
         dep = [departure_time(r["t"], r["L"], float(r["L0"]), start) for r in law]
         if all(math.isfinite(d) for d in dep):
