@@ -94,14 +94,19 @@ def test_departure_time_is_the_linear_stage_of_a_mode_growing_as_exp_st():
 
 
 def test_offset_law_recovers_the_seed_projection_and_the_rate():
-    """Runs whose mode amplitude is |ε| − ε₀ (the seed's own error against ε): the plain law's
-    slope is steeper than −1/s; the offset law with s fixed recovers ε₀ and leaves no residual."""
+    """Departure times of runs whose mode amplitude is ε + ε₀ (the seed's own error): the plain
+    law's slope is steeper than −1/s, an ε below |ε₀| meets the other fate; the offset law
+    recovers ε₀ with s fixed, and s itself when it is free."""
     from slippulse.timedomain.fate import time_law, time_law_offset
-    s, e0 = 850.0, -6e-4
-    eps = -np.array([1e-2, 3e-3, 1e-3, 8e-4])
-    t = 0.005 - np.log(np.abs(eps) + e0) / s
-    a, b, _ = time_law(eps, t)
+    s, e0 = 850.0, 8e-4
+    eps = -np.array([1e-2, 3e-3, 1e-3, 3e-4, 2e-3])
+    t = 0.005 - np.log(np.abs(eps + e0)) / s
+    a, b, _ = time_law(eps[:3], t[:3])
     assert b * s < -1.3
-    a, off, err, rms = time_law_offset(eps, t, s)
-    assert off == pytest.approx(e0, rel=1e-4) and rms < 1e-8
-    assert a == pytest.approx(0.005, rel=1e-6)
+    f = time_law_offset(eps, t, s)
+    assert f["eps0"] == pytest.approx(e0, rel=1e-4) and f["rms"] < 1e-8
+    assert f["a"] == pytest.approx(0.005, rel=1e-6)
+    f = time_law_offset(eps, t * 1.05 - 0.005 * 0.05)         # a rate 5 % lower: s' = s/1.05
+    assert f["rate"] == pytest.approx(s / 1.05, rel=1e-4) and f["eps0"] == pytest.approx(e0, rel=1e-3)
+    with pytest.raises(ValueError):
+        time_law_offset(eps[:3], t[:3])

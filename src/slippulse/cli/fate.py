@@ -162,28 +162,37 @@ def cmd_fate_compare(args) -> int:
                  f"({r['ahead']:g}+{r['behind']:g} L, {r['far_field']})"] = c
         print(_row(r, line, c))
     if law:
-        A, B, E = time_law([r["eps"] for r in law], [r["t_fate"] for r in law])
         s = float(line.functions()[3](line.equilibrium(float(law[0]["tau_d_ratio"]))))
-        print(f"time to fate ({', '.join(sorted(set(r['fate'] for r in law)))}) at "
-              f"{law[0]['tau_d_ratio']:.4g} tau_min, eps = "
-              f"{', '.join(format(r['eps'], '+.0e') for r in law)}: t = {A:.4g} + ({B:.4g} ± "
-              f"{E:.1g}) ln|eps| s; -1/s = {-1 / s:.4g} s (b s = {B * s:.3f} ± {E * s:.2g})")
-        try:
-            A3, E0, E0e, rms = time_law_offset([r["eps"] for r in law],
-                                               [r["t_fate"] for r in law], s)
-            print(f"with the rate fixed at s and the seed's own projection eps0 fitted: "
-                  f"t = {A3:.4g} - ln(|eps| + eps0)/s, eps0 = {E0:.2g} ± {E0e:.1g}, "
-                  f"rms residual {rms * 1e3:.3g} ms")
-        except ValueError as exc:
-            print(f"offset law: not fitted ({exc})")
-        # the linear stage alone: the time to a departure of --start from the steady L
-        dep = [departure_time(r["t"], r["L"], float(r["L0"]), start) for r in law]
-        if all(math.isfinite(d) for d in dep):
-            A2, B2, E2 = time_law([r["eps"] for r in law], dep)
-            rest = np.array([r["t_fate"] for r in law]) - np.array(dep)
-            print(f"time to |L/L0 - 1| = {start:g}: t = {A2:.4g} + ({B2:.4g} ± {E2:.1g}) ln|eps| s "
-                  f"(b s = {B2 * s:.3f} ± {E2 * s:.2g}); from there to the fate: "
-                  + ", ".join(f"{x * 1e3:.4g}" for x in rest) + " ms")
+        fates = [r["fate"] for r in law]
+        main_fate = max(set(fates), key=fates.count)      # the plain law: runs of one fate
+        same = [r for r in law if r["fate"] == main_fate]
+        if len(same) >= 3:
+            A, B, E = time_law([r["eps"] for r in same], [r["t_fate"] for r in same])
+            print(f"time to fate ({main_fate}) at {law[0]['tau_d_ratio']:.4g} tau_min, eps = "
+                  f"{', '.join(format(r['eps'], '+.0e') for r in same)}: t = {A:.4g} + ({B:.4g} ± "
+                  f"{E:.1g}) ln|eps| s; -1/s = {-1 / s:.4g} s (b s = {B * s:.3f} ± {E * s:.2g})")
+        else:
+            print(f"time to fate: fewer than 3 runs share a fate ({', '.join(fates)}); no plain law")
+        # the linear stage alone: the time to a departure of --start from the steady L, for
+        # runs of either fate, with the seed's own projection eps0 on the mode fitted
+        dep = np.array([departure_time(r["t"], r["L"], float(r["L0"]), start) for r in law])
+        e = np.array([r["eps"] for r in law])
+        ok = np.isfinite(dep)
+        rest = np.array([r["t_fate"] for r in law]) - dep
+        print(f"time to |L/L0 - 1| = {start:g} (the linear stage), eps = "
+              + ", ".join(f"{x:+.0e} ({r['fate']}, {d * 1e3:.4g} ms)" for x, r, d in zip(e, law, dep))
+              + "; from there to the fate: " + ", ".join(f"{x * 1e3:.4g}" for x in rest) + " ms")
+        for fixed in (s, None):
+            try:
+                f = time_law_offset(e[ok], dep[ok], fixed)
+            except ValueError as exc:
+                print(f"offset law ({'s fixed' if fixed else 's free'}): not fitted ({exc})")
+                continue
+            print(f"t_dep = a - ln|eps + eps0|/s' ({'s fixed at the eigenvalue' if fixed else 's free'}"
+                  f"): eps0 = {f['eps0']:.3g} ± {f['eps0_err']:.1g}"
+                  + (f", b s = -s/s' = {-s / f['rate']:.3f} ± "
+                     f"{s * f['rate_err'] / f['rate'] ** 2:.2g}" if not fixed else "")
+                  + f", rms {f['rms'] * 1e3:.3g} ms")
     motion_figure(args.figure, line, cmps, title="fate runs (SBI, load tau_d at infinity) and "
                                                  "the equation of motion from the same L")
     print(f"{len(cmps)} of {len(runs)} runs against the model -> {args.figure}")

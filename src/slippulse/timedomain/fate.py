@@ -213,31 +213,47 @@ def departure_time(t, L, L_ref: float, start: float = 0.01) -> float:
     return float(t[i - 1] + (start - d[i - 1]) / (d[i] - d[i - 1]) * (t[i] - t[i - 1]))
 
 
-def time_law_offset(eps, t_fate, s: float):
-    """t = a − (1/s) ln|ε + ε₀| with the rate s fixed (the eigenvalue) and a, ε₀ fitted (≥ 3
-    runs of one sign): ε₀ is the seed's own projection on the mode in units of ε (the grid's and
-    the period's error of the seeded pulse), which adds to every ε; a plain fit of
-    t = a + b ln|ε| then finds |b s| ≠ 1 when ε₀ is not ≪ the smallest |ε|. Returns (a, ε₀,
-    ε₀'s standard error, rms residual in s); ε₀ has the sign of ε where it helps it."""
+def time_law_offset(eps, t, s: float | None = None):
+    """t = a − ln|ε + ε₀|/s' fitted to runs of either sign of ε (the time to a departure from
+    the steady L is the same linear stage for both): ε₀ is the seed's own projection on the mode
+    in units of ε (the grid's and the period's error of the seeded pulse), which adds to every
+    ε, so that a plain fit of t = a + b ln|ε| finds |b s| ≠ 1 when ε₀ is not ≪ the smallest
+    |ε|, and an ε below |ε₀| of the opposite sign meets the other fate. With ``s`` given, s' = s
+    (≥ 3 runs); without, s' is fitted too (≥ 4 runs). Returns a dict: a, eps0, eps0_err, rate
+    (s'), rate_err (0 when fixed), rms (s); errors from the residuals (nan with no degree of
+    freedom left)."""
     from scipy.optimize import least_squares
-    e, y = np.asarray(eps, float), np.asarray(t_fate, float)
-    if e.size < 3 or not (np.all(e > 0) or np.all(e < 0)):
-        raise ValueError("the offset law needs at least 3 runs of one sign of eps")
-    a_ = np.abs(e)
+    e, y = np.asarray(eps, float), np.asarray(t, float)
+    free = s is None
+    need = 4 if free else 3
+    if e.size < need:
+        raise ValueError(f"the offset law needs at least {need} runs; got {e.size}")
+    s0 = float(s) if not free else float(np.log(np.abs(e).max() / np.abs(e).min())
+                                         / max(np.ptp(y), 1e-300))
 
     def res(p):
-        return p[0] - np.log(np.maximum(a_ + p[1], 1e-300)) / s - y
+        rate = p[2] if free else s0
+        return p[0] - np.log(np.maximum(np.abs(e + p[1]), 1e-300)) / rate - y
 
-    lo = -0.999 * a_.min()
-    fit = least_squares(res, [float(np.mean(y + np.log(a_) / s)), 0.0],
-                        bounds=([-np.inf, lo], [np.inf, np.inf]), x_scale="jac", xtol=1e-14,
-                        ftol=1e-14, gtol=1e-14)
-    r = fit.fun
-    dof = max(e.size - 2, 1)
-    J = fit.jac
+    # |ε + ε₀| is singular where ε₀ = −ε: start on each side of every run's |ε| (and at 0) and
+    # keep the best fit
+    m = np.sort(np.abs(e))
+    cuts = np.r_[0.0, 0.5 * m[0], np.sqrt(m[1:] * m[:-1]), 2.0 * m[-1]]
+    fit = None
+    for c in np.r_[cuts, -cuts[1:]]:
+        p0 = [float(np.mean(y + np.log(np.abs(e + c) + 1e-300) / s0)), float(c)] + \
+             ([s0] if free else [])
+        f = least_squares(res, p0, x_scale="jac", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+        if fit is None or f.cost < fit.cost:
+            fit = f
+    r, J = fit.fun, fit.jac
+    dof = e.size - fit.x.size
     try:
-        cov = np.linalg.inv(J.T @ J) * (r @ r) / dof
-        err = float(np.sqrt(cov[1, 1]))
+        cov = np.linalg.inv(J.T @ J) * ((r @ r) / dof if dof > 0 else np.nan)
+        errs = np.sqrt(np.diag(cov))
     except np.linalg.LinAlgError:
-        err = float("nan")
-    return float(fit.x[0]), float(fit.x[1]), err, float(np.sqrt(np.mean(r ** 2)))
+        errs = np.full(fit.x.size, np.nan)
+    return {"a": float(fit.x[0]), "eps0": float(fit.x[1]), "eps0_err": float(errs[1]),
+            "rate": float(fit.x[2]) if free else s0,
+            "rate_err": float(errs[2]) if free else 0.0,
+            "rms": float(np.sqrt(np.mean(r ** 2)))}
