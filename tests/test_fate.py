@@ -23,10 +23,23 @@ def test_the_rule_names_each_fate_at_its_threshold():
     X = 9.95 * np.arange(8.0)                      # c_p = 9.95 > 0.99 c_s
     assert r.check(_rows([1] * 8, [1] * 8, X=X), 1.0, 1.0, 10.0) == "near c_s"
     assert r.check(_rows([1] * 8, [1] * 8, X=9.85 * np.arange(8.0)), 1.0, 1.0, 10.0) is None
+    assert FateRule(growth=10).check(_rows([1, 10.5], [1, 1]), 1.0, 1.0, 10.0) == "grew x10"
+    # the rear edge X − L runs backward at 0.2 c_s (front at 0.5 c_s, L growing at 0.7 c_s)
+    # while the peak grows: crack-like; not when the peak has fallen, nor at 0.05 c_s
+    t = np.arange(8.0)
+    grow = _rows(1 + 0.7 * t, [1.5] * 8, X=0.5 * t, t=t * 0.1)
+    g = FateRule(growth=100)
+    assert g.check(grow, 1.0, 1.0, 10.0) == "crack-like"
+    assert g.check(_rows(1 + 0.7 * t, [0.9] * 8, X=0.5 * t, t=t * 0.1),
+                   1.0, 1.0, 10.0) is None
+    assert g.check(_rows(1 + 0.55 * t, [1.5] * 8, X=0.5 * t, t=t * 0.1),
+                   1.0, 1.0, 10.0) is None
+    assert FateRule(growth=100, backward=0).check(grow, 1.0, 1.0, 10.0) is None
 
 
 def test_the_status_of_a_run_names_its_fate():
     assert fate_of("stopped: grew x3") == "grew x3"
+    assert fate_of("stopped: grew x10") == "grew x10"
     assert fate_of("stopped: arrested") == "arrested"
     assert fate_of("pulse lost: grew: the FWHM ... at t = 1 s") == "crack-like"
     assert fate_of("pulse lost: arrested: max V < v_max0/1000 at t = 1 s") == "arrested"

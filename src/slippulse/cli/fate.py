@@ -1,5 +1,5 @@
 """``slippulse dynamic fate``: run an eigenmode-seeded pulse under the uniform load until its fate
-(arrested, grew x3, near c_s, crack-like) and store the trajectory (timedomain/fate.py,
+(arrested, grew xG, near c_s, crack-like) and store the trajectory (timedomain/fate.py,
 docs/motion.md)."""
 from __future__ import annotations
 
@@ -44,7 +44,8 @@ def cmd_fate(args) -> int:
         eigen = leading_mode(pulse, params, path=args.steady, compute=False)
     except (SpectrumError, ParameterError) as exc:
         raise UsageError(str(exc))
-    rule = FateRule(arrest=args.arrest, growth=args.growth)
+    finite(args.backward, "--backward", 0.0, 1.0, lo_open=False, unit="c_s")
+    rule = FateRule(arrest=args.arrest, growth=args.growth, backward=args.backward)
     try:
         fr = run_fate(pulse, params, eigen, args.eps,
                       DomainSpec(dx=dx, ahead=args.ahead, behind=args.behind), args.distance,
@@ -64,9 +65,10 @@ def register(sub) -> None:
                        description="Seed the steady pulse LABEL of FILE with eps x its stored "
                                    "unstable eigenmode (and the mode's growing past), load it "
                                    "with tau_d at infinity, follow it and "
-                                   "stop at its fate: arrested (v_max < v_max0/ARREST), grew x3 "
+                                   "stop at its fate: arrested (v_max < v_max0/ARREST), grew xGROWTH "
                                    "(L > GROWTH L0), near c_s (c_p > 0.99 c_s), crack-like (the "
-                                   "FWHM no longer closes behind a growing peak), or undecided "
+                                   "rear half-maximum edge runs backward, or the FWHM no longer "
+                                   "closes behind a growing peak), or undecided "
                                    "after DISTANCE pulse lengths. Writes the trajectory, the fate "
                                    "and the time to it (verify layout + fate attributes).")
     p.add_argument("--steady", required=True, metavar="FILE",
@@ -92,6 +94,9 @@ def register(sub) -> None:
                         "where the front's displacement takes eps and the body gets far less "
                         "(docs/stability.md section 2)")
     p.add_argument("--growth", type=float, default=3.0, help="grew when L > GROWTH L0 (3)")
+    p.add_argument("--backward", type=float, default=0.1,
+                   help="crack-like when the rear half-maximum edge runs backward faster than "
+                        "BACKWARD c_s with v_max > v_max0 (default 0.1; 0: off)")
     p.add_argument("--arrest", type=float, default=10.0,
                    help="arrested when v_max < v_max0/ARREST (10)")
     p.add_argument("--samples-per-L", type=int, default=200,

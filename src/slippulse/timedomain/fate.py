@@ -17,8 +17,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-#: Fates, in the order they are checked at each sample.
+#: Fates, in the order they are checked at each sample ("grew xG" names the rule's growth G).
 FATES = ("arrested", "grew x3", "near c_s", "crack-like", "outgrew the domain", "undecided")
+_GREW = re.compile(r"grew x[0-9.e+-]+$")
 
 
 @dataclass(frozen=True)
@@ -28,11 +29,14 @@ class FateRule:
     samples):
 
     * ``arrested``: v_max < v_max⁰/arrest (the slip rate falls toward creep);
-    * ``grew x3``: L > growth·L⁰;
+    * ``grew xG``: L > growth·L⁰ (G = growth);
     * ``near c_s``: c_p > (1 − near_cs)·c_s;
-    * ``crack-like``: the FWHM no longer closes behind the peak with v_max > v_max⁰ (the slip
-      rate behind the front stays above half the peak's ln: an expanding rupture), or
-      max V > lost·v_max⁰ (the verify run's own stop; set far above the others);
+    * ``crack-like``: the rear half-maximum edge runs backward in the lab, c_p − dL/dt <
+      −backward·c_s over the last ``smooth`` samples with v_max > v_max⁰ (the slipping region
+      expands at both ends: nothing heals; backward = 0 turns this off), or the FWHM no longer
+      closes behind the peak with v_max > v_max⁰ (the slip rate behind the front stays above
+      half the peak's ln), or max V > lost·v_max⁰ (the verify run's own stop; set far above
+      the others);
     * ``outgrew the domain``: the slip rate nowhere on the ring falls below half the peak's ln
       (the pulse, or rupture, is longer than the domain: a bigger domain decides);
     * ``undecided``: the distance limit came first.
@@ -43,6 +47,7 @@ class FateRule:
     near_cs: float = 0.01
     smooth: int = 5
     lost: float = 1e3
+    backward: float = 0.1
 
     def check(self, rows, L0: float, v_max0: float, c_s: float) -> str | None:
         """The fate decided by the measured rows (t, X, L, v_max, ...), or None."""
@@ -50,10 +55,14 @@ class FateRule:
         if vmax[-1] < v_max0 / self.arrest:
             return "arrested"
         if L[-1] > self.growth * L0:
-            return "grew x3"
+            return f"grew x{self.growth:g}"
         k = min(self.smooth, t.size - 1)
         if k >= 1 and (X[-1] - X[-1 - k]) / (t[-1] - t[-1 - k]) > (1 - self.near_cs) * c_s:
             return "near c_s"
+        rear = X - L                               # the rear half-maximum edge, lab frame
+        if (self.backward > 0 and k >= 1 and vmax[-1] > v_max0
+                and (rear[-1] - rear[-1 - k]) / (t[-1] - t[-1 - k]) < -self.backward * c_s):
+            return "crack-like"
         return None
 
 
@@ -72,7 +81,7 @@ def fate_of(status: str) -> str:
     """The fate named by a verify run's status: a FateRule stop, the run's own stops (crack-like
     for a pulse that grew past measure, arrested for one that faded), or undecided."""
     m = re.match(r"stopped: (.*)$", status)
-    if m and m.group(1) in FATES:
+    if m and (m.group(1) in FATES or _GREW.match(m.group(1))):
         return m.group(1)
     if status.startswith("pulse lost: grew"):
         # the FWHM found no fall below half the maximum anywhere on the ring: the pulse is longer
