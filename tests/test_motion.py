@@ -240,8 +240,11 @@ def test_fate_compare_follows_the_exact_dynamics_and_splits_from_a_pulse_off_the
     on = _fate_file(tmp_path / "on.h5", tau_d, 4.1)
     off = _fate_file(tmp_path / "off.h5", tau_d, 4.1, speedup=2.0)
     fig = tmp_path / "m.png"
-    r = cli(["dynamic", "fate-compare", fig, "--family", fam, "--runs", on, off])
+    prof = tmp_path / "p.png"
+    r = cli(["dynamic", "fate-compare", fig, "--family", fam, "--runs", on, off,
+             "--profiles", prof])
     assert r.returncode == 0, r.stderr
+    assert prof.exists() and prof.stat().st_size > 0
     rows = [ln.split("|")[1:-1] for ln in r.stdout.splitlines() if ln.startswith("| 1.")]
     assert len(rows) == 2
     split_on = [float(v) for v in rows[0][11].split(",")]

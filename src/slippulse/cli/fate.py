@@ -147,6 +147,8 @@ def cmd_fate_compare(args) -> int:
     from .motion import steady_line
     start = finite(args.start, "--start", lo=0.0, unit="of L*")
     check_writable(args.figure, "FIGURE")
+    if args.profiles:
+        check_writable(args.profiles, "--profiles")
     line = steady_line(args.family, args.records)
     runs = [read_fate(p) for p in args.runs]
     law = [read_fate(p) for p in args.law]
@@ -200,6 +202,13 @@ def cmd_fate_compare(args) -> int:
                   + f", rms {f['rms'] * 1e3:.3g} ms")
     motion_figure(args.figure, line, cmps, title="fate runs (SBI, load tau_d at infinity) and "
                                                  "the equation of motion from the same L")
+    if args.profiles:
+        from ..core.params import DEFAULT
+        from ..plotting.motion import profiles_figure
+        r = runs[0]
+        profiles_figure(args.profiles, r, DEFAULT.v_star, line.c_s,
+                        title=f"{r['tau_d_ratio']:.4g} tau_min, eps = {r['eps']:+.0e}: {r['fate']}")
+        print(f"profiles of {r['path']} -> {args.profiles}")
     print(f"{len(cmps)} of {len(runs)} runs against the model -> {args.figure}")
     return 0
 
@@ -221,6 +230,9 @@ def register_compare(sub) -> None:
                    help="with CSV tables as --family (steady/seeds/deep_family_*.csv): the "
                         "growth rates of record (e.g. docs/results/records.toml)")
     p.add_argument("--runs", nargs="+", required=True, metavar="FATE.h5", help="fate runs")
+    p.add_argument("--profiles", default=None, metavar="PNG",
+                   help="also draw the first run's slip-rate snapshots and its front and rear "
+                        "edges in the lab frame (Table I's v*)")
     p.add_argument("--start", type=float, default=0.01,
                    help="start the model where L first departs from L* by this (default 0.01)")
     p.add_argument("--law", nargs="+", default=(), metavar="FATE.h5",

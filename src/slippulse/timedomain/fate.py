@@ -161,7 +161,8 @@ def summary(fr: FateResult) -> str:
 
 def read_fate(path: str) -> dict:
     """A fate (or verify) file's trajectory and description: arrays t (s), x_front (m), L (m),
-    v_max (m/s) and the root attributes (tau_d_ratio, eps, fate, distance_fate, ahead, behind,
+    v_max (m/s), the slip-rate ``snapshots`` (dict t, xi_rel, v) where stored, and the root
+    attributes (tau_d_ratio, eps, fate, distance_fate, ahead, behind,
     n, ...; the steady pulse's L as L0)."""
     from ..core.h5io import open_h5
     with open_h5(path, "fate file") as h5:
@@ -169,6 +170,9 @@ def read_fate(path: str) -> dict:
         out = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()}
         out["L0"] = out.get("L")                   # the steady pulse's; the series below
         out.update({k: np.asarray(s[k][...], float) for k in ("t", "x_front", "L", "v_max")})
+        if "snapshots" in h5 and "xi_rel" in h5["snapshots"]:
+            g = h5["snapshots"]
+            out["snapshots"] = {k: np.asarray(g[k][...], float) for k in ("t", "xi_rel", "v")}
     if "status" in out:                     # the fate as this version names it
         out["fate"] = fate_of(str(out["status"]))
     out["path"] = path
