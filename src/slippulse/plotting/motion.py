@@ -76,8 +76,11 @@ def profiles_figure(path: str, run: dict, v_star: float, c_s: float, title: str 
             a.axhline(0.5 * y.max(), color=col, lw=0.5, ls=":")
     a.set_xlabel("(x − x_front) / L⁰")
     a.set_ylabel("ln(v/v* + 1)")
-    a.legend(fontsize=7)
-    a.set_title("slip-rate snapshots (dotted: half maximum)", fontsize=9)
+    if snaps is not None and len(snaps["t"]):
+        a.legend(fontsize=7)
+        a.set_title("slip-rate snapshots (dotted: half maximum)", fontsize=9)
+    else:
+        a.set_title("no slip-rate snapshots stored", fontsize=9)
     t, x, L = run["t"] * 1e3, run["x_front"], run["L"]
     b.plot(t, (x - x[0]) / L0, label="front")
     b.plot(t, (x - L - x[0]) / L0, label="rear half-maximum edge")
