@@ -240,14 +240,23 @@ def test_fate_compare_follows_the_exact_dynamics_and_splits_from_a_pulse_off_the
     on = _fate_file(tmp_path / "on.h5", tau_d, 4.1)
     off = _fate_file(tmp_path / "off.h5", tau_d, 4.1, speedup=2.0)
     fig = tmp_path / "m.png"
-    r = cli(["dynamic", "fate-compare", fig, "--family", fam, "--runs", on, off])
+    prof = tmp_path / "p.png"
+    r = cli(["dynamic", "fate-compare", fig, "--family", fam, "--runs", on, off,
+             "--profiles", prof])
     assert r.returncode == 0, r.stderr
+    assert prof.exists() and prof.stat().st_size > 0
     rows = [ln.split("|")[1:-1] for ln in r.stdout.splitlines() if ln.startswith("| 1.")]
     assert len(rows) == 2
     split_on = [float(v) for v in rows[0][11].split(",")]
     split_off = [float(v) for v in rows[1][11].split(",")]
     assert all(math.isnan(v) for v in split_on)
     assert math.isfinite(split_off[0]) and split_off[0] > 0
+    # dL/dt / c_p: on the family's own dynamics the run's range is the model's; twice as fast
+    # it goes well beyond the model's
+    spans = [[[float(x) for x in part.strip().split("–")] for part in row[13].split(";")]
+             for row in rows]
+    assert spans[0][0] == pytest.approx(spans[0][1], rel=0.02, abs=1e-3)
+    assert spans[1][0][1] > 1.2 * spans[1][1][1]
     assert fig.exists() and fig.stat().st_size > 0
 
 
@@ -257,3 +266,81 @@ def test_fate_compare_refuses_a_missing_run_with_one_line(tmp_path):
              tmp_path / "none.h5"])
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert not (tmp_path / "m.png").exists()
+
+
+# ------------------------------------------------------------------ where the model ends
+def _power_line(q, n=80, hi=1000.0):
+    """The synthetic steady line with dynamics dL/dt = k L^q (τ_d − τ⁰(L)) (s = −k L^q τ⁰′):
+    beyond L ≈ 100 τ⁰ is nearly flat and dL/dt ∝ L^q."""
+    L = np.geomspace(1.0, hi, n)
+    s = -0.5 * L ** q * dtau0(L)
+    return SteadyLine.from_arrays(L, tau0(L), c0(L), L, s, 0 * s, tau_min=3.4e5, c_s=C_S)
+
+
+@pytest.mark.parametrize("q", [2.2, 0.5])
+def test_limits_time_and_exponent_match_the_exact_dynamics(q):
+    """Time to the long end against the exact dynamics' own event time; the exponent of dL/dt at
+    the end, and the time left to L = ∞, finite only for q > 1 (∫ dL/(k L^q Δτ))."""
+    from scipy.integrate import quad
+    from slippulse.timedomain.motion import limits
+    tau_d = float(tau0(4.0))
+    line = _power_line(q)
+    lim = limits(line, tau_d, start=0.01)
+
+    def exact(L):
+        return 0.5 * L ** q * (tau_d - tau0(L))
+    ref = quad(lambda L: 1.0 / exact(L), 4.04, 1000.0, limit=200, epsrel=1e-10)[0]
+    assert lim.L[0] == pytest.approx(4.04, rel=1e-6)
+    assert lim.t_end == pytest.approx(ref, rel=2e-3)
+    assert lim.exponent_end == pytest.approx(q, abs=0.03)
+    assert lim.finite_time_divergence == (q > 1)
+    if q > 1:
+        rest = quad(lambda L: 1.0 / exact(L), 1000.0, np.inf, epsrel=1e-8)[0]
+        assert lim.t_rest == pytest.approx(rest, rel=0.05)
+    else:
+        assert math.isinf(lim.t_rest)
+
+
+def test_limits_find_where_the_rear_front_stops():
+    """The rear front's speed c_p⁰ − dL/dt against the exact dynamics; its first zero by root
+    finding on the exact law (the synthetic line's rate exceeds c_p⁰ over a window)."""
+    from scipy.optimize import brentq
+    from slippulse.timedomain.motion import limits
+    tau_d = float(tau0(4.0))
+    line = synthetic_line(60)
+    lim = limits(line, tau_d, start=0.01, n=20000)
+    heal = c0(lim.L) - exact_rate(lim.L, tau_d)
+    assert np.allclose(lim.healing_speed, heal, rtol=1e-3, atol=1e-3 * C_S)
+    assert heal[0] > 0 and heal.min() < 0                  # the case is a real test
+    root = brentq(lambda L: c0(L) - exact_rate(L, tau_d), lim.L[0], lim.L[np.argmin(heal)])
+    assert lim.L_heal_stops == pytest.approx(root, rel=2e-3)
+    # R c_p (τ_d − τ⁰) is the rate: R = s L/c_p / |dτ⁰/d ln L| = γ/c_p here
+    assert np.allclose(lim.mobility, gamma(lim.L) / c0(lim.L), rtol=1e-3)
+
+
+def test_line_from_the_committed_tables_and_the_rates_of_record():
+    """The family's tables (1 m – 10 km) and the rates of record give a line on which s at
+    1.1 τ_min is s L/c_p × c_p/L of record, and τ⁰ falls with L."""
+    import glob
+    from pathlib import Path
+    from slippulse.timedomain.motion import line_from_tables
+    root = Path(__file__).resolve().parents[1]
+    tables = sorted(glob.glob(str(root / "steady" / "seeds" / "deep_family_*.csv")))
+    line = line_from_tables(tables, root / "docs" / "results" / "records.toml")
+    assert np.all(np.diff(line.tau_ratio) < 0) and line.L[-1] > 1e4
+    k = np.argmin(np.abs(line.L_rated - 2.50144))
+    assert line.s[k] == pytest.approx(7.994885 * 0.096902318 * C_S / 2.50144, rel=1e-4)
+
+
+def test_command_takes_the_tables_only_with_the_rates_of_record(tmp_path):
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    table = root / "steady" / "seeds" / "deep_family_1m-2550m.csv"
+    out = tmp_path / "m.h5"
+    r = cli(["steady", "motion", table, "--tau-d", "1.1", "--length", "2.6", "--out", out])
+    assert r.returncode == 2 and "--records" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+    r = cli(["steady", "motion", table, "--records", root / "docs" / "results" / "records.toml",
+             "--tau-d", "1.1", "--length", "2.6", "--duration", "1e-3", "--out", out])
+    assert r.returncode == 0, r.stderr
+    assert out.exists() and "model limits: growing side" in r.stdout

@@ -1,5 +1,5 @@
 """``slippulse dynamic fate``: run an eigenmode-seeded pulse under the uniform load until its fate
-(arrested, grew x3, near c_s, crack-like) and store the trajectory (timedomain/fate.py,
+(arrested, grew xG, near c_s, crack-like) and store the trajectory (timedomain/fate.py,
 docs/motion.md)."""
 from __future__ import annotations
 
@@ -44,7 +44,8 @@ def cmd_fate(args) -> int:
         eigen = leading_mode(pulse, params, path=args.steady, compute=False)
     except (SpectrumError, ParameterError) as exc:
         raise UsageError(str(exc))
-    rule = FateRule(arrest=args.arrest, growth=args.growth)
+    finite(args.backward, "--backward", 0.0, 1.0, lo_open=False, unit="c_s")
+    rule = FateRule(arrest=args.arrest, growth=args.growth, backward=args.backward)
     try:
         fr = run_fate(pulse, params, eigen, args.eps,
                       DomainSpec(dx=dx, ahead=args.ahead, behind=args.behind), args.distance,
@@ -64,9 +65,10 @@ def register(sub) -> None:
                        description="Seed the steady pulse LABEL of FILE with eps x its stored "
                                    "unstable eigenmode (and the mode's growing past), load it "
                                    "with tau_d at infinity, follow it and "
-                                   "stop at its fate: arrested (v_max < v_max0/ARREST), grew x3 "
+                                   "stop at its fate: arrested (v_max < v_max0/ARREST), grew xGROWTH "
                                    "(L > GROWTH L0), near c_s (c_p > 0.99 c_s), crack-like (the "
-                                   "FWHM no longer closes behind a growing peak), or undecided "
+                                   "rear half-maximum edge runs backward, or the FWHM no longer "
+                                   "closes behind a growing peak), or undecided "
                                    "after DISTANCE pulse lengths. Writes the trajectory, the fate "
                                    "and the time to it (verify layout + fate attributes).")
     p.add_argument("--steady", required=True, metavar="FILE",
@@ -92,6 +94,9 @@ def register(sub) -> None:
                         "where the front's displacement takes eps and the body gets far less "
                         "(docs/stability.md section 2)")
     p.add_argument("--growth", type=float, default=3.0, help="grew when L > GROWTH L0 (3)")
+    p.add_argument("--backward", type=float, default=0.1,
+                   help="crack-like when the rear half-maximum edge runs backward faster than "
+                        "BACKWARD c_s with v_max > v_max0 (default 0.1; 0: off)")
     p.add_argument("--arrest", type=float, default=10.0,
                    help="arrested when v_max < v_max0/ARREST (10)")
     p.add_argument("--samples-per-L", type=int, default=200,
@@ -111,33 +116,48 @@ def _row(r, line, c) -> str:
             f"{r['ahead']:g}+{r['behind']:g} | {r['far_field']} | {r['fate']} | "
             f"{r.get('distance_fate', math.nan):.3g} | ")
     if isinstance(c, str):
-        return head + f"– | – | – | model not run: {c} | – | – |"
+        return head + f"– | – | – | model not run: {c} | – | – | – |"
     cp = c.c_p[np.isfinite(c.c_p)]
     d = c.line_distance[np.isfinite(c.line_distance)]
+    from ..timedomain.motion import smoothed_speed
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = smoothed_speed(c.t, c.L) / c.c_p              # dL/dt over c_p: measured
+        qm = smoothed_speed(c.t, c.model.L) / c.model.c_p  # and in the model from the same L
+    q, qm = q[c.skip:], qm[c.skip:]
+
+    def span(a):
+        a = a[np.isfinite(a)]
+        return f"{a.min():.2g}–{a.max():.2g}" if a.size else "–"
     return head + (f"{np.nanmin(c.L):.4g}–{np.nanmax(c.L):.4g} | "
                    f"{cp.min() / line.c_s:.3g}–{cp.max() / line.c_s:.3g} | "
                    f"{c.x[c.skip] / c.L[0]:.3g} | {c.model.fate} | {c.distance_split_L:.3g}, "
                    f"{c.distance_split_c:.3g} | "
-                   f"{np.median(np.abs(d)) if d.size else math.nan:.3g} |")
+                   f"{np.median(np.abs(d)) if d.size else math.nan:.3g} | {span(q)}; {span(qm)} |")
 
 
 def cmd_fate_compare(args) -> int:
     """The fate runs against the equation of motion along the family's steady line: a table, the
     (L, c_p) figure, and with --law the time to the fate against ln|eps| beside -1/s."""
+    import math
+
+    import numpy as np
     from ..plotting.motion import motion_figure
-    from ..timedomain.fate import read_fate, time_law
-    from ..timedomain.motion import SteadyLine, compare
+    from ..timedomain.fate import departure_time, read_fate, time_law, time_law_offset
+    from ..timedomain.motion import compare
+    from .motion import steady_line
     start = finite(args.start, "--start", lo=0.0, unit="of L*")
     check_writable(args.figure, "FIGURE")
-    line = SteadyLine.from_family(args.family)
+    if args.profiles:
+        check_writable(args.profiles, "--profiles")
+    line = steady_line(args.family, args.records)
     runs = [read_fate(p) for p in args.runs]
     law = [read_fate(p) for p in args.law]
     if law and len(law) < 3:
         raise UsageError(f"--law needs at least 3 runs; got {len(law)}")
     print("| tau_d/tau_min | eps | seed | domain (L) | far field | SBI fate | after (L0) | "
           "L range (m) | c_p/c_s range | model from (L0) | model fate | 5 % split after (L0): "
-          "L, c_p | median abs(c_p/c_p0(L) - 1) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "L, c_p | median abs(c_p/c_p0(L) - 1) | dL/dt / c_p from there: SBI; model |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     cmps = {}
     for r in runs:
         try:
@@ -149,14 +169,46 @@ def cmd_fate_compare(args) -> int:
                  f"({r['ahead']:g}+{r['behind']:g} L, {r['far_field']})"] = c
         print(_row(r, line, c))
     if law:
-        A, B, E = time_law([r["eps"] for r in law], [r["t_fate"] for r in law])
         s = float(line.functions()[3](line.equilibrium(float(law[0]["tau_d_ratio"]))))
-        print(f"time to fate ({', '.join(sorted(set(r['fate'] for r in law)))}) at "
-              f"{law[0]['tau_d_ratio']:.4g} tau_min, eps = "
-              f"{', '.join(format(r['eps'], '+.0e') for r in law)}: t = {A:.4g} + ({B:.4g} ± "
-              f"{E:.1g}) ln|eps| s; -1/s = {-1 / s:.4g} s (b s = {-B * s:.3f})")
+        fates = [r["fate"] for r in law]
+        main_fate = max(set(fates), key=fates.count)      # the plain law: runs of one fate
+        same = [r for r in law if r["fate"] == main_fate]
+        if len(same) >= 3:
+            A, B, E = time_law([r["eps"] for r in same], [r["t_fate"] for r in same])
+            print(f"time to fate ({main_fate}) at {law[0]['tau_d_ratio']:.4g} tau_min, eps = "
+                  f"{', '.join(format(r['eps'], '+.0e') for r in same)}: t = {A:.4g} + ({B:.4g} ± "
+                  f"{E:.1g}) ln|eps| s; -1/s = {-1 / s:.4g} s (b s = {B * s:.3f} ± {E * s:.2g})")
+        else:
+            print(f"time to fate: fewer than 3 runs share a fate ({', '.join(fates)}); no plain law")
+        # the linear stage alone: the time to a departure of --start from the steady L, for
+        # runs of either fate, with the seed's own projection eps0 on the mode fitted
+        dep = np.array([departure_time(r["t"], r["L"], float(r["L0"]), start) for r in law])
+        e = np.array([r["eps"] for r in law])
+        ok = np.isfinite(dep)
+        rest = np.array([r["t_fate"] for r in law]) - dep
+        print(f"time to |L/L0 - 1| = {start:g} (the linear stage), eps = "
+              + ", ".join(f"{x:+.0e} ({r['fate']}, {d * 1e3:.4g} ms)" for x, r, d in zip(e, law, dep))
+              + "; from there to the fate: " + ", ".join(f"{x * 1e3:.4g}" for x in rest) + " ms")
+        for fixed in (s, None):
+            try:
+                f = time_law_offset(e[ok], dep[ok], fixed)
+            except ValueError as exc:
+                print(f"offset law ({'s fixed' if fixed else 's free'}): not fitted ({exc})")
+                continue
+            print(f"t_dep = a - ln|eps + eps0|/s' ({'s fixed at the eigenvalue' if fixed else 's free'}"
+                  f"): eps0 = {f['eps0']:.3g} ± {f['eps0_err']:.1g}"
+                  + (f", b s = -s/s' = {-s / f['rate']:.3f} ± "
+                     f"{s * f['rate_err'] / f['rate'] ** 2:.2g}" if not fixed else "")
+                  + f", rms {f['rms'] * 1e3:.3g} ms")
     motion_figure(args.figure, line, cmps, title="fate runs (SBI, load tau_d at infinity) and "
                                                  "the equation of motion from the same L")
+    if args.profiles:
+        from ..core.params import DEFAULT
+        from ..plotting.motion import profiles_figure
+        r = runs[0]
+        profiles_figure(args.profiles, r, DEFAULT.v_star, line.c_s,
+                        title=f"{r['tau_d_ratio']:.4g} tau_min, eps = {r['eps']:+.0e}: {r['fate']}")
+        print(f"profiles of {r['path']} -> {args.profiles}")
     print(f"{len(cmps)} of {len(runs)} runs against the model -> {args.figure}")
     return 0
 
@@ -172,8 +224,15 @@ def register_compare(sub) -> None:
                                    "(docs/motion.md).")
     p.add_argument("figure", metavar="FIGURE", help="output PNG")
     p.add_argument("--family", nargs="+", required=True, metavar="FILE",
-                   help="HDF5 family file(s) with stored spectra")
+                   help="HDF5 family file(s) with stored spectra, or the family's CSV tables "
+                        "with --records")
+    p.add_argument("--records", default=None, metavar="TOML",
+                   help="with CSV tables as --family (steady/seeds/deep_family_*.csv): the "
+                        "growth rates of record (e.g. docs/results/records.toml)")
     p.add_argument("--runs", nargs="+", required=True, metavar="FATE.h5", help="fate runs")
+    p.add_argument("--profiles", default=None, metavar="PNG",
+                   help="also draw the first run's slip-rate snapshots and its front and rear "
+                        "edges in the lab frame (Table I's v*)")
     p.add_argument("--start", type=float, default=0.01,
                    help="start the model where L first departs from L* by this (default 0.01)")
     p.add_argument("--law", nargs="+", default=(), metavar="FATE.h5",

@@ -50,3 +50,51 @@ def motion_figure(path: str, line, comparisons: dict, title: str = "") -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
+
+
+def profiles_figure(path: str, run: dict, v_star: float, c_s: float, title: str = "") -> None:
+    """A fate run's shape: left, ln(v/v* + 1) of its stored snapshots against x − x_front (in
+    L⁰), the half-maximum of each marked; right, the front and the rear half-maximum edge
+    (x_front − L) in the lab frame against t, with ±c_s slopes: a rear edge running backward is
+    a slipping region growing at both ends (crack-like). ``run``: ``timedomain.fate.read_fate``
+    with ``snapshots`` (t, xi_rel, v)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
+    L0 = float(run["L0"])
+    snaps = run.get("snapshots")
+    cmap = plt.get_cmap("viridis")
+    if snaps is not None:
+        n = len(snaps["t"])
+        for i in range(n):
+            xi, y = snaps["xi_rel"][i] / L0, np.log(snaps["v"][i] / v_star + 1.0)
+            k = np.argsort(xi)
+            col = cmap(i / max(n - 1, 1))
+            a.plot(xi[k], y[k], color=col, lw=1, label=f"t = {snaps['t'][i] * 1e3:.3g} ms")
+            a.axhline(0.5 * y.max(), color=col, lw=0.5, ls=":")
+    a.set_xlabel("(x − x_front) / L⁰")
+    a.set_ylabel("ln(v/v* + 1)")
+    if snaps is not None and len(snaps["t"]):
+        a.legend(fontsize=7)
+        a.set_title("slip-rate snapshots (dotted: half maximum)", fontsize=9)
+    else:
+        a.set_title("no slip-rate snapshots stored", fontsize=9)
+    t, x, L = run["t"] * 1e3, run["x_front"], run["L"]
+    b.plot(t, (x - x[0]) / L0, label="front")
+    b.plot(t, (x - L - x[0]) / L0, label="rear half-maximum edge")
+    for end, sgn in ((x[-1], 1.0), (x[-1] - L[-1], -1.0)):     # ±c_s through the last points
+        tt = np.array([t[-1] - 0.1 * (t[-1] - t[0]), t[-1]])
+        b.plot(tt, (end - x[0] + sgn * c_s * (tt - t[-1]) / 1e3) / L0, color="0.6", lw=0.8,
+               ls="--")
+    b.set_ylim(((x - L).min() - x[0]) / L0 - 0.5, (x.max() - x[0]) / L0 + 0.5)
+    b.set_xlabel("t (ms)")
+    b.set_ylabel("lab position / L⁰")
+    b.legend(fontsize=7)
+    b.set_title("edges in the lab frame (dashed: ±c_s)", fontsize=9)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

@@ -17,8 +17,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-#: Fates, in the order they are checked at each sample.
+#: Fates, in the order they are checked at each sample ("grew xG" names the rule's growth G).
 FATES = ("arrested", "grew x3", "near c_s", "crack-like", "outgrew the domain", "undecided")
+_GREW = re.compile(r"grew x[0-9.e+-]+$")
 
 
 @dataclass(frozen=True)
@@ -28,11 +29,14 @@ class FateRule:
     samples):
 
     * ``arrested``: v_max < v_max⁰/arrest (the slip rate falls toward creep);
-    * ``grew x3``: L > growth·L⁰;
+    * ``grew xG``: L > growth·L⁰ (G = growth);
     * ``near c_s``: c_p > (1 − near_cs)·c_s;
-    * ``crack-like``: the FWHM no longer closes behind the peak with v_max > v_max⁰ (the slip
-      rate behind the front stays above half the peak's ln: an expanding rupture), or
-      max V > lost·v_max⁰ (the verify run's own stop; set far above the others);
+    * ``crack-like``: the rear half-maximum edge runs backward in the lab, c_p − dL/dt <
+      −backward·c_s over the last ``smooth`` samples with v_max > v_max⁰ (the slipping region
+      expands at both ends: nothing heals; backward = 0 turns this off), or the FWHM no longer
+      closes behind the peak with v_max > v_max⁰ (the slip rate behind the front stays above
+      half the peak's ln), or max V > lost·v_max⁰ (the verify run's own stop; set far above
+      the others);
     * ``outgrew the domain``: the slip rate nowhere on the ring falls below half the peak's ln
       (the pulse, or rupture, is longer than the domain: a bigger domain decides);
     * ``undecided``: the distance limit came first.
@@ -43,6 +47,7 @@ class FateRule:
     near_cs: float = 0.01
     smooth: int = 5
     lost: float = 1e3
+    backward: float = 0.1
 
     def check(self, rows, L0: float, v_max0: float, c_s: float) -> str | None:
         """The fate decided by the measured rows (t, X, L, v_max, ...), or None."""
@@ -50,10 +55,14 @@ class FateRule:
         if vmax[-1] < v_max0 / self.arrest:
             return "arrested"
         if L[-1] > self.growth * L0:
-            return "grew x3"
+            return f"grew x{self.growth:g}"
         k = min(self.smooth, t.size - 1)
         if k >= 1 and (X[-1] - X[-1 - k]) / (t[-1] - t[-1 - k]) > (1 - self.near_cs) * c_s:
             return "near c_s"
+        rear = X - L                               # the rear half-maximum edge, lab frame
+        if (self.backward > 0 and k >= 1 and vmax[-1] > v_max0
+                and (rear[-1] - rear[-1 - k]) / (t[-1] - t[-1 - k]) < -self.backward * c_s):
+            return "crack-like"
         return None
 
 
@@ -72,7 +81,7 @@ def fate_of(status: str) -> str:
     """The fate named by a verify run's status: a FateRule stop, the run's own stops (crack-like
     for a pulse that grew past measure, arrested for one that faded), or undecided."""
     m = re.match(r"stopped: (.*)$", status)
-    if m and m.group(1) in FATES:
+    if m and (m.group(1) in FATES or _GREW.match(m.group(1))):
         return m.group(1)
     if status.startswith("pulse lost: grew"):
         # the FWHM found no fall below half the maximum anywhere on the ring: the pulse is longer
@@ -152,7 +161,8 @@ def summary(fr: FateResult) -> str:
 
 def read_fate(path: str) -> dict:
     """A fate (or verify) file's trajectory and description: arrays t (s), x_front (m), L (m),
-    v_max (m/s) and the root attributes (tau_d_ratio, eps, fate, distance_fate, ahead, behind,
+    v_max (m/s), the slip-rate ``snapshots`` (dict t, xi_rel, v) where stored, and the root
+    attributes (tau_d_ratio, eps, fate, distance_fate, ahead, behind,
     n, ...; the steady pulse's L as L0)."""
     from ..core.h5io import open_h5
     with open_h5(path, "fate file") as h5:
@@ -160,6 +170,9 @@ def read_fate(path: str) -> dict:
         out = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()}
         out["L0"] = out.get("L")                   # the steady pulse's; the series below
         out.update({k: np.asarray(s[k][...], float) for k in ("t", "x_front", "L", "v_max")})
+        if "snapshots" in h5 and "xi_rel" in h5["snapshots"]:
+            g = h5["snapshots"]
+            out["snapshots"] = {k: np.asarray(g[k][...], float) for k in ("t", "xi_rel", "v")}
     if "status" in out:                     # the fate as this version names it
         out["fate"] = fate_of(str(out["status"]))
     out["path"] = path
@@ -196,3 +209,64 @@ def time_law(eps, t_fate):
     r = y - A @ coef
     cov = np.linalg.inv(A.T @ A) * (r @ r) / max(x.size - 2, 1)
     return float(coef[0]), float(coef[1]), float(np.sqrt(cov[1, 1]))
+
+
+def departure_time(t, L, L_ref: float, start: float = 0.01) -> float:
+    """The first time |L/L_ref − 1| ≥ ``start`` (linear in t between samples; nan: never). With
+    the time law it splits the time to a fate into the linear stage (to the departure, ∝ −ln|ε|/s)
+    and the rest (the nonlinear stage and the fate rule's threshold, ε-independent if the
+    picture holds)."""
+    t, d = np.asarray(t, float), np.abs(np.asarray(L, float) / L_ref - 1.0)
+    k = np.flatnonzero(d >= start)
+    if not k.size:
+        return float("nan")
+    i = int(k[0])
+    if i == 0:
+        return float(t[0])
+    return float(t[i - 1] + (start - d[i - 1]) / (d[i] - d[i - 1]) * (t[i] - t[i - 1]))
+
+
+def time_law_offset(eps, t, s: float | None = None):
+    """t = a − ln|ε + ε₀|/s' fitted to runs of either sign of ε (the time to a departure from
+    the steady L is the same linear stage for both): ε₀ is the seed's own projection on the mode
+    in units of ε (the grid's and the period's error of the seeded pulse), which adds to every
+    ε, so that a plain fit of t = a + b ln|ε| finds |b s| ≠ 1 when ε₀ is not ≪ the smallest
+    |ε|, and an ε below |ε₀| of the opposite sign meets the other fate. With ``s`` given, s' = s
+    (≥ 3 runs); without, s' is fitted too (≥ 4 runs). Returns a dict: a, eps0, eps0_err, rate
+    (s'), rate_err (0 when fixed), rms (s); errors from the residuals (nan with no degree of
+    freedom left)."""
+    from scipy.optimize import least_squares
+    e, y = np.asarray(eps, float), np.asarray(t, float)
+    free = s is None
+    need = 4 if free else 3
+    if e.size < need:
+        raise ValueError(f"the offset law needs at least {need} runs; got {e.size}")
+    s0 = float(s) if not free else float(np.log(np.abs(e).max() / np.abs(e).min())
+                                         / max(np.ptp(y), 1e-300))
+
+    def res(p):
+        rate = p[2] if free else s0
+        return p[0] - np.log(np.maximum(np.abs(e + p[1]), 1e-300)) / rate - y
+
+    # |ε + ε₀| is singular where ε₀ = −ε: start on each side of every run's |ε| (and at 0) and
+    # keep the best fit
+    m = np.sort(np.abs(e))
+    cuts = np.r_[0.0, 0.5 * m[0], np.sqrt(m[1:] * m[:-1]), 2.0 * m[-1]]
+    fit = None
+    for c in np.r_[cuts, -cuts[1:]]:
+        p0 = [float(np.mean(y + np.log(np.abs(e + c) + 1e-300) / s0)), float(c)] + \
+             ([s0] if free else [])
+        f = least_squares(res, p0, x_scale="jac", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+        if fit is None or f.cost < fit.cost:
+            fit = f
+    r, J = fit.fun, fit.jac
+    dof = e.size - fit.x.size
+    try:
+        cov = np.linalg.inv(J.T @ J) * ((r @ r) / dof if dof > 0 else np.nan)
+        errs = np.sqrt(np.diag(cov))
+    except np.linalg.LinAlgError:
+        errs = np.full(fit.x.size, np.nan)
+    return {"a": float(fit.x[0]), "eps0": float(fit.x[1]), "eps0_err": float(errs[1]),
+            "rate": float(fit.x[2]) if free else s0,
+            "rate_err": float(errs[2]) if free else 0.0,
+            "rms": float(np.sqrt(np.mean(r ** 2)))}

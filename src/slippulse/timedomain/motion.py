@@ -167,7 +167,7 @@ def integrate(line: SteadyLine, tau_d_ratio: float, L0: float, duration: float,
     family"). MotionInputError for τ_d outside the family's τ range, L0 outside its L range, or a
     duration that is not positive."""
     from scipy.integrate import solve_ivp
-    wall0 = time.perf_counter()
+    wall0, cpu0 = time.perf_counter(), time.process_time()
     lo, hi = line.L_range
     tlo, thi = line.tau_range
     if not (np.isfinite(tau_d_ratio) and tlo <= tau_d_ratio <= thi):
@@ -230,7 +230,7 @@ def integrate(line: SteadyLine, tau_d_ratio: float, L0: float, duration: float,
             "rules": ",".join(RULES), "rtol": rtol,
             "L_range_min": lo, "L_range_max": hi, "n_pulses": int(line.L.size),
             "n_rated": int(line.L_rated.size), "source": line.source,
-            "wall_time": time.perf_counter() - wall0}
+            "wall_time": time.perf_counter() - wall0, "cpu_time": time.process_time() - cpu0}
     return Trajectory(t_out, L, L_lo, L_hi, cp, c_lo, c_hi, x, fate, t_f, info)
 
 
@@ -358,3 +358,111 @@ def compare(line: SteadyLine, tau_d_ratio: float, t, x_front, L, tol: float = 0.
                        tr.t_fate + t0 if np.isfinite(tr.t_fate) else tr.t_fate, tr.info)
     return Comparison(t, L, cp, x_front - x_front[0], model, t_split, d_split, dist, tol, skip,
                       d_L, d_c)
+
+
+# ------------------------------------------------------------------ where the model ends
+def read_tables(paths):
+    """The steady line of the family's committed tables (CSV columns ``tau_d_ratio``, ``beta``,
+    ``L``; e.g. steady/seeds/deep_family_*.csv, 1 m – 10 km): (L, τ⁰/τ_min, β) sorted by L, each
+    table's rows kept only beyond the L already covered (overlapping marches) and a row whose τ
+    does not fall with L dropped, so that the line is a function of L."""
+    import csv
+    rows = []
+    for p in paths:
+        with open(p, newline="") as fh:
+            part = sorted((float(r["L"]), float(r["tau_d_ratio"]), float(r["beta"]))
+                          for r in csv.DictReader(fh))
+        top = rows[-1][0] if rows else -np.inf
+        rows += [r for r in part if r[0] > top]
+    rows.sort()
+    keep = [rows[0]]
+    for r in rows[1:]:
+        if r[0] > keep[-1][0] and r[1] < keep[-1][1]:
+            keep.append(r)
+    a = np.array(keep)
+    return a[:, 0], a[:, 1], a[:, 2]
+
+
+def line_from_tables(tables, records, params=None) -> SteadyLine:
+    """A steady line from the family's tables (:func:`read_tables`) and the growth rates of
+    record (``spectrum.records.read_rates``: s L/c_p ± err at L), s = (s L/c_p)·c_p⁰(L)/L with
+    c_p⁰ interpolated in ln L. Rates outside the tables' L range (by more than 1e-4, the rounding
+    of the records' L) are dropped."""
+    from ..core.params import DEFAULT
+    from ..spectrum.records import read_rates
+    p = params or DEFAULT
+    L, tau, beta = read_tables([str(t) for t in tables])
+    r = read_rates(str(records))
+    inside = (r["L"] >= L[0] * (1 - 1e-4)) & (r["L"] <= L[-1] * (1 + 1e-4))   # labels' rounding
+    Lr = r["L"][inside]
+    cp = np.interp(np.log(Lr), np.log(L), beta) * p.c_s
+    return SteadyLine.from_arrays(L, tau, beta * p.c_s, Lr, r["s"][inside] * cp / Lr,
+                                  r["s_err"][inside] * cp / Lr, tau_min=p.tau_min, c_s=p.c_s,
+                                  source=", ".join([*map(str, tables), str(records)]))
+
+
+@dataclass
+class Limits:
+    """What the model says beyond the family's range and where it stops describing a pulse."""
+
+    tau_d_ratio: float
+    L_equilibrium: float          # m
+    L: np.ndarray                 # m, a grid from L* (growing side) to the long end
+    rate: np.ndarray              # m/s, dL/dt of the model on that grid
+    mobility: np.ndarray          # R(L) = s L/c_p⁰ / |dτ⁰/d ln L|: dL/dt = R c_p⁰ (τ_d − τ⁰)
+    healing_speed: np.ndarray     # m/s, c_p⁰ − dL/dt: the rear front's lab speed in the model
+    time: np.ndarray              # s, ∫ dL/(dL/dt) from the first grid point (L*(1 + start))
+    L_heal_stops: float           # m, first L where the rear front stops (nan: never)
+    L_heal_moves: float           # m, first L beyond that where it moves forward again (nan)
+    exponent_end: float           # p: dL/dt ∝ L^p over the last tenth of the grid in ln L
+    t_end: float                  # s, time to reach the long end
+    t_rest: float                 # s, time from the end to L = ∞ if dL/dt ∝ L^p beyond (inf: p ≤ 1)
+    finite_time_divergence: bool  # p > 1
+
+
+def limits(line: SteadyLine, tau_d_ratio: float, start: float = 0.01, n: int = 4000,
+           rule: str = "spline") -> Limits:
+    """The growing side of the model under τ_d, from L*(1 + start) to the family's long end.
+
+    Written with R = s L/c_p⁰ / |dτ⁰/d ln L| (the fold ratio of the spectrum),
+    dL/dt = R(L) c_p⁰(L) (τ_d − τ⁰(L)). Two consequences, both read off the family:
+
+    * *no finite-time divergence while R stays bounded*: c_p⁰ < c_s and τ⁰ > τ⁰(∞), so
+      dL/dt ≤ c_s (τ_d − τ⁰(∞)) sup R and L grows at most linearly; L diverges in finite time
+      only if dL/dt grows faster than L (∫^∞ dL/(dL/dt) < ∞). The local exponent p of dL/dt
+      in L at the long end, extended beyond it, gives the time left to L = ∞ (finite iff p > 1).
+    * *where it stops describing a pulse*: in the two-front picture the rear (healing) front
+      moves at c_p⁰ − dL/dt in the lab; where that reaches 0 the rear stops, and beyond it
+      would move backward, an expanding crack, which a family of pulses cannot hold.
+
+    MotionInputError for τ_d outside the family's range."""
+    lo, hi = line.L_range
+    tlo, thi = line.tau_range
+    if not (np.isfinite(tau_d_ratio) and tlo <= tau_d_ratio <= thi):
+        raise MotionInputError(f"tau-d={tau_d_ratio!r} is outside the family: valid "
+                               f"[{tlo:.6g}, {thi:.6g}] tau_min")
+    Le = line.equilibrium(tau_d_ratio, rule)
+    L0 = Le * (1.0 + start)
+    if not L0 < hi:
+        raise MotionInputError(f"L*(1 + start) = {L0:.5g} m is beyond the family's long end")
+    tau, dtau, cp, s = line.functions(rule)
+    L = np.geomspace(L0, hi, n)
+    F = rate((tau, dtau, cp, s), tau_d_ratio)(L)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        R = s(L) * L / cp(L) / np.abs(dtau(L) * L)
+    heal = cp(L) - F
+    # t(L) = ∫ dL/F in ln L (trapezoid on a fine geometric grid; F > 0 on the growing side)
+    g = L / F
+    time = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(np.log(L)))])
+    stop = np.flatnonzero(heal <= 0)
+    L_stop = float(L[stop[0]]) if stop.size else float("nan")
+    L_move = float("nan")
+    if stop.size:
+        again = np.flatnonzero((heal > 0) & (np.arange(L.size) > stop[0]))
+        L_move = float(L[again[0]]) if again.size else float("nan")
+    # the local exponent over the last tenth of the grid in ln L
+    k = L >= L[-1] * (L0 / L[-1]) ** 0.1
+    p = float(np.polyfit(np.log(L[k]), np.log(F[k]), 1)[0])
+    t_rest = float(L[-1] / ((p - 1.0) * F[-1])) if p > 1 else float("inf")
+    return Limits(float(tau_d_ratio), Le, L, F, R, heal, time, L_stop, L_move, p,
+                  float(time[-1]), t_rest, p > 1)
