@@ -59,6 +59,17 @@ def cmd_fate(args) -> int:
     return 0 if not fr.fate.startswith("failed") else 1
 
 
+def _profiles_title(r):
+    """The profiles figure's title: the run, its fate, and L at the last sample; an undecided
+    fate is named as what it is, a run stopped at its planned distance."""
+    fate = r["fate"]
+    if fate == "undecided":
+        fate = "stopped at its --distance before any fate rule held"
+    grown = float(r["L"][-1]) / float(r["L0"])
+    return (f"{r['tau_d_ratio']:.4g} tau_min, eps = {r['eps']:+.0e}: {fate} "
+            f"(L = {grown:.3g} L0 at the last sample)")
+
+
 def register(sub) -> None:
     """Add ``fate`` to the ``dynamic`` sub-commands."""
     p = sub.add_parser("fate", help="run an eigenmode-seeded pulse under uniform load to its fate",
@@ -207,7 +218,7 @@ def cmd_fate_compare(args) -> int:
         from ..plotting.motion import profiles_figure
         r = runs[0]
         profiles_figure(args.profiles, r, DEFAULT.v_star, line.c_s,
-                        title=f"{r['tau_d_ratio']:.4g} tau_min, eps = {r['eps']:+.0e}: {r['fate']}")
+                        title=_profiles_title(r))
         print(f"profiles of {r['path']} -> {args.profiles}")
     print(f"{len(cmps)} of {len(runs)} runs against the model -> {args.figure}")
     return 0
