@@ -60,7 +60,7 @@ def test_newton_reports_the_true_residual_of_the_pair_it_returns(ladder12, param
     σ with the matrices in hand; it must be the true backward error of the pair returned."""
     from scipy.interpolate import CubicSpline
 
-    from slippulse.spectrum.eigensolve import _relres, newton_eigen
+    from slippulse.spectrum.eigensolve import relres, newton_eigen
     from slippulse.spectrum.refine import mapped_pulse
     from slippulse.spectrum.pulse import StabilityOperator
     p0, gmap, first = ladder12
@@ -71,7 +71,7 @@ def test_newton_reports_the_true_residual_of_the_pair_it_returns(ladder12, param
     guess = first.leading * (q.c_p / q.L) / (p0.c_p / p0.L)
     e = newton_eigen(op, guess, x0, tol=1e-6)
     assert e.converged, e.message
-    true = _relres(op.matrices(e.sigma, deriv=False)[0], e.V)
+    true = relres(op.matrices(e.sigma, deriv=False)[0], e.V)
     assert true < 1e-6
     assert abs(e.residual - true) < 1e-9 + 1e-3 * true, (e.residual, true)
 

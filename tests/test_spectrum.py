@@ -11,7 +11,7 @@ from scipy.special import erfcx, kv
 
 from slippulse.steady.grid import build_grid
 from slippulse.spectrum.pulse import (ElasticOperator, StabilityOperator, neutral_modes, pulse_spectrum,
-                                symbol, _translation_check)
+                                symbol, translation_check)
 from slippulse.spectrum.kernels import (KernelTables, kernel_series, slip_coefficients4,
                                                   state_rows4, times_D4)
 from slippulse.steady.equations import (RADAU_A, RADAU_C, integrate_state_radau,
@@ -102,7 +102,7 @@ def test_filon_weights_and_a_tail_segment_past_the_old_cap():
     segment of the graded tail with |κ| h ≈ 3100 (beyond the 512 sub-panels of the old rule),
     on each side of its target, matches a composite Gauss–Legendre reference to 5e-10 in W and
     ∂_σW. The old rule (``per_side=False``) misses ∂_σW behind the target by 23 %."""
-    from slippulse.spectrum.kernels import FILON_N, _FG_T, assemble_w, filon_weights
+    from slippulse.spectrum.kernels import FILON_N, FILON_NODES, assemble_w, filon_weights
     out = np.empty(FILON_N, complex)
     g, w = np.polynomial.legendre.leggauss(40)
     for alpha in (24j, 30 + 5j, 400j):
@@ -112,7 +112,7 @@ def test_filon_weights_and_a_tail_segment_past_the_old_cap():
         wt = (0.5 * w[None, :] * np.diff(e)[:, None]).ravel()
         for k in (0, 3, FILON_N - 1):
             ref = np.sum(wt * t ** k * np.exp(-alpha * t))
-            assert abs(np.sum(out * _FG_T ** k) - ref) <= 1e-12 * max(abs(ref), 1e-3), (alpha, k)
+            assert abs(np.sum(out * FILON_NODES ** k) - ref) <= 1e-12 * max(abs(ref), 1e-3), (alpha, k)
     beta, sigma = 0.95, 1e-4 + 3j
     tab = KernelTables(sigma, beta, CS, 1e-3, 1e3)
     kappa = sigma / (CS * (1.0 - beta ** 2))
@@ -335,7 +335,7 @@ def test_uniform_slip_is_an_exact_neutral_mode(op12):
 
 def test_translation_mode_and_leading_eigenvalue_at_1p2(op12):
     sig, vec = neutral_modes(op12)
-    sig_t, dist, _ = _translation_check(op12, sig, vec)
+    sig_t, dist, _ = translation_check(op12, sig, vec)
     res = pulse_spectrum(op12.pulse, op12.params, extra=False)
     assert res.status == "converged" and res.sigmas.size == 1
     lead = res.leading

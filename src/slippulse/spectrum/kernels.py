@@ -263,7 +263,7 @@ def _hermite(s):
 #: integrated to ~3e-11 relative (measured against adaptive quadrature).
 FILON_N = 12
 _FG_X, _FG_W = np.polynomial.legendre.leggauss(FILON_N)
-_FG_T = 0.5 * (_FG_X + 1.0)
+FILON_NODES = 0.5 * (_FG_X + 1.0)
 _FG_W = 0.5 * _FG_W
 _FG_P = np.array([np.polynomial.legendre.legval(_FG_X, [0.0] * j + [1.0])
                   for j in range(FILON_N)])                           # P_j at the nodes
@@ -272,7 +272,7 @@ _FG_C = np.ascontiguousarray((2.0 * np.arange(FILON_N) + 1.0)[:, None] * _FG_P)
 
 @njit(cache=True)
 def filon_weights(alpha, out):
-    """out[k] = w_k(α): ∫₀¹ f(t) e^{−αt} dt ≈ Σ_k out[k] f(_FG_T[k]) (module constants above);
+    """out[k] = w_k(α): ∫₀¹ f(t) e^{−αt} dt ≈ Σ_k out[k] f(FILON_NODES[k]) (module constants above);
     for |α| ≥ 2 FILON_N."""
     z = 0.5 * alpha
     e = np.exp(-2.0 * z)
@@ -371,7 +371,7 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
                         s_n = (sub + 1.0) / mf if sgn > 0.0 else sub / (1.0 * mf)
                         pref = np.exp(-c * (h * abs(x0 - s_n)))
                         for kq in range(FILON_N):
-                            sg = s_n - sgn * _FG_T[kq] / mf
+                            sg = s_n - sgn * FILON_NODES[kq] / mf
                             r = h * (x0 - sg)
                             ar = abs(r)
                             x = kappa * ar

@@ -74,7 +74,7 @@ class PulseSpectrum:
         return complex(self.sigmas[0]) if self.sigmas.size else complex("nan")
 
 
-def _translation_check(op, sigs, vecs):
+def translation_check(op, sigs, vecs):
     """Pick the translation mode among the near-zero pencil modes: the one whose V₁ is closest
     to v₀′ (δ₁ = δ₀′ ⇒ V₁ = −c δ₀″ = v₀′). Returns (σ_t, relative distance, index)."""
     vp = op.S @ op.v0                                   # v₀′ on the grid (spline slopes)
@@ -293,7 +293,7 @@ def neutral_pair_of(op, pin_translation):
         sig_t, terr = complex("nan"), float("nan")
     else:
         nsig, nvec = neutral_modes(op)
-        sig_t, terr, _ = _translation_check(op, nsig, nvec)
+        sig_t, terr, _ = translation_check(op, nsig, nvec)
     # uniform slip (δ₁ = 1, V₁ = 0) is outside the V₁ form; in the δ₁ form it is exact at σ = 0
     Md = op.matrices_delta(0.0)
     one = np.ones(op.n)
