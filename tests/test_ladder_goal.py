@@ -38,17 +38,17 @@ def ladder12(pulse12, params):
 
 
 def test_ladder_stops_at_the_goal_and_says_when_its_cap_stops_it(ladder12, params):
-    from slippulse.spectrum.refine import refine_leading
+    from slippulse.spectrum.refine import Ladder, refine_leading
     p0, gmap, first = ladder12
     kw = dict(levels=1, pin_translation=True, max_points=800)
-    easy = refine_leading(p0, params, first, gmap, target=1.0, **kw)
+    easy = refine_leading(p0, params, first, gmap, Ladder(target=1.0, **kw))
     assert easy.status == "converged" and easy.n_points == [400, 566] and easy.target_met
     # unreachable: climbs to the cap (800) and says so
-    hard = refine_leading(p0, params, first, gmap, target=1e-12, **kw)
+    hard = refine_leading(p0, params, first, gmap, Ladder(target=1e-12, **kw))
     assert hard.n_points == [400, 566, 800] and not hard.target_met
     assert "not reached" in hard.message
     # the relative part of the goal: half of s L/c_p ≈ 11 is met by two levels
-    rel = refine_leading(p0, params, first, gmap, target=1e-12, rel_target=0.5, **kw)
+    rel = refine_leading(p0, params, first, gmap, Ladder(target=1e-12, rel_target=0.5, **kw))
     assert rel.n_points == [400, 566] and rel.target_met
     assert rel.target == pytest.approx(0.5 * rel.per_length()[0])
     # pinned: the translation eigenvalue is computed on level 0 only

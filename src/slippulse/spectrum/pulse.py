@@ -102,7 +102,7 @@ def order4_pulse(pulse, params):
     if order == 4:
         return pulse
     from ..core.errors import UsageError
-    from ..steady.solver import SteadySolution, solve_on_grid
+    from ..steady.solver import SolveOptions, SteadySolution, solve_on_grid
     t0 = time.perf_counter()
     v = np.asarray(pulse.v, float)
     if not (np.all(np.isfinite(v)) and np.all(v > 0) and np.all(np.isfinite(pulse.xi))):
@@ -110,7 +110,7 @@ def order4_pulse(pulse, params):
                          "it cannot be re-solved at state order 4")
     try:
         prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, np.asarray(pulse.xi, float),
-                                       np.log(v), pulse.beta, state_order=4)
+                                       np.log(v), pulse.beta, SolveOptions(state_order=4))
     except (RuntimeError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
         raise UsageError(f"pulse {pulse.label} was solved with state order 2 and could not be "
                          f"re-solved at order 4 on its grid ({exc})") from None
