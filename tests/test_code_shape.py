@@ -63,19 +63,32 @@ def shape_offenders(modules=None):
     return out
 
 
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
 def private_imports(modules=None):
-    """module → ['from X import _name', ...] for each private name taken from another module."""
+    """module → ['from X import _name', 'name._attr', ...] for each private name taken from
+    another module of the package: imported, or read off a name imported from it."""
     out = {}
     for mod, tree in modules or _modules():
+        imported = set()
         for node in ast.walk(tree):
-            if not isinstance(node, ast.ImportFrom):
-                continue
-            if node.level == 0 and not (node.module or "").startswith("slippulse"):
-                continue                                   # a third-party module's business
-            for alias in node.names:
-                if alias.name.startswith("_") and not alias.name.startswith("__"):
-                    out.setdefault(mod, []).append(
-                        f"from {'.' * node.level}{node.module or ''} import {alias.name}")
+            if isinstance(node, ast.ImportFrom):
+                if node.level == 0 and not (node.module or "").startswith("slippulse"):
+                    continue                               # a third-party module's business
+                for alias in node.names:
+                    imported.add(alias.asname or alias.name)
+                    if _private(alias.name):
+                        out.setdefault(mod, []).append(
+                            f"from {'.' * node.level}{node.module or ''} import {alias.name}")
+            elif isinstance(node, ast.Import):
+                imported.update(a.asname or a.name.split(".")[0] for a in node.names
+                                if a.name.startswith("slippulse"))
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and _private(node.attr)
+                    and isinstance(node.value, ast.Name) and node.value.id in imported):
+                out.setdefault(mod, []).append(f"{node.value.id}.{node.attr}")
     return out
 
 
@@ -103,6 +116,7 @@ def test_the_checks_can_fail():
     wide = "def g(" + ", ".join(f"a{k}" for k in range(MAX_PARAMS + 1)) + "):\n    pass\n"
     method = "class C:\n    def h(self" + ", a" * MAX_PARAMS + "):\n        pass\n"
     tree = ast.parse(long_fn + wide + method + "from .m import _hidden, shown\n"
-                     "from os import _exit\n")
+                     "from . import sbi\nimport os\nsbi._kernel(os._exit, shown.__doc__)\n")
     assert set(shape_offenders([("x.py", tree)])) == {"x.py:f", "x.py:g"}
-    assert private_imports([("x.py", tree)]) == {"x.py": ["from .m import _hidden"]}
+    assert private_imports([("x.py", tree)]) == {"x.py": ["from .m import _hidden",
+                                                          "sbi._kernel"]}
