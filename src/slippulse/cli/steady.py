@@ -669,7 +669,8 @@ def _add_analyse(ss) -> None:
 def register(sub) -> None:
     """``slippulse steady`` and its subcommands, in the order ``--help`` lists them: those of this
     module, and those of the modules that define their own (each a ``register(ss)``, imported
-    here so that a command's module loads only with the CLI)."""
+    when the parser is built, not with this module). A new command module adds its
+    ``register`` to the tuple below."""
     from . import branches, divergence, existence_map, fold_ratio, long_domain, motion, rates
     from . import referee, seed
     p_steady = sub.add_parser("steady", help="steady pulse solutions",
