@@ -222,14 +222,22 @@ MAX_LADDER_POINTS = 8000
 class Ladder:
     """How :func:`refine_leading` climbs (refused when invalid).
 
-    levels : number of levels above level 0 (≥ 1; 2 or more for an observed order).
-    target : optional s_err L/c_p to reach: levels are added beyond `levels` (N ≤ max_points)
-        until the estimate is below max(target, rel_target |s L/c_p|); the result says whether
-        it was reached (``target_met``).
-    rel_target : the relative part of that goal (0: absolute only).
-    max_points : the largest level a climb toward the target may take.
-    pin_translation : every level solved with translation pinned (:func:`pulse_spectrum`).
-    tol : Newton's step criterion of each level's eigen-solve.
+    Attributes
+    ----------
+    levels : int
+        Levels above level 0 (≥ 1; 2 or more for an observed order).
+    target : float or None
+        The s_err L/c_p to reach: levels are added beyond `levels` (N ≤ max_points) until the
+        estimate is below max(target, rel_target |s L/c_p|); the result says whether it was
+        reached (``target_met``). None: the fixed `levels`.
+    rel_target : float
+        The relative part of that goal (0: absolute only).
+    max_points : int
+        The largest level a climb toward the target may take.
+    pin_translation : bool
+        Every level solved with translation pinned (:func:`pulse_spectrum`).
+    tol : float
+        Newton's step criterion of each level's eigen-solve.
     """
 
     levels: int = 2
