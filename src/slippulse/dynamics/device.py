@@ -442,9 +442,8 @@ class DeviceSOEHistory:
 
     def _upload_factors(self, dt):
         """The host history's (E, G, w0) of Δt = dt, on the device."""
-        self.host._set_dt(dt)
-        h = self.host
-        return self.be.asarray(h.E), self.be.asarray(h.G), self.be.asarray(h._w0)
+        E, G, w0 = self.host.factors_at(dt)
+        return self.be.asarray(E), self.be.asarray(G), self.be.asarray(w0)
 
     def begin_step(self, dt):
         dt = float(dt)

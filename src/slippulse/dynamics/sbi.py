@@ -462,6 +462,12 @@ class SOEHistory(HistoryPolicy):
         self.E, self.G, self._w0 = lru_lookup(self._cache, dt, self.cache_size,
                                               lambda: self._factors(dt))
 
+    def factors_at(self, dt):
+        """(E, G, w0) of the step Δt = dt, made the current step's (cached): what a device copy
+        of this history uploads."""
+        self._set_dt(dt)
+        return self.E, self.G, self._w0
+
     def _factors(self, dt):
         """(E, G, w0) of the step Δt = dt."""
         zw = self.Z[None, :] * self.omega[:, None] * dt
