@@ -130,9 +130,9 @@ def test_solution_labels_parse_to_the_same_tau_d():
 def test_trace_follows_the_main_family_down_from_1p2(params, pulse12):
     """Three pseudo-arclength steps down from the 1.2 pulse: τ_d falls, β rises, one hump, no
     fold or branch point; the last point is the pulse a fixed-τ_d solve gives there."""
-    from slippulse.steady.branch_trace import trace
+    from slippulse.steady.branch_trace import TraceSettings, trace
     from slippulse.steady.solver import solve_on_grid
-    tr = trace(params, pulse12.to_pulse(), direction=-1, max_steps=3)
+    tr = trace(params, pulse12.to_pulse(), TraceSettings(direction=-1, max_steps=3))
     q = [p.q for p in tr.points]
     b = [p.beta for p in tr.points]
     assert len(q) == 4 and all(np.diff(q) < 0) and all(np.diff(b) > 0)

@@ -67,10 +67,10 @@ def stubs(monkeypatch):
     import slippulse.timedomain.verify as verify
     import slippulse.steady.analysis as an
     import slippulse.steady.continuation as cont
-    for mod, name in ((cs, "_solve_any"), (cont, "run_family"), (verify, "verify_pulse"),
+    for mod, name in ((cs, "solve_any"), (cont, "run_family"), (verify, "verify_pulse"),
                       (seeding, "seed_pulse"), (stepper, "make_stepper"),
                       (spectrum, "run_spectrum"), (an, "analyse_family"), (ps, "load_family"),
-                      (cd, "_drive")):
+                      (cd, "drive")):
         monkeypatch.setattr(mod, name, _reached)
 
 
@@ -336,7 +336,7 @@ def run_file(files):
 @pytest.fixture
 def drive_stub(monkeypatch):
     import slippulse.cli.dynamic as cd
-    monkeypatch.setattr(cd, "_drive", _reached)
+    monkeypatch.setattr(cd, "drive", _reached)
 
 
 def _break_run(path, kind, data):

@@ -122,7 +122,7 @@ def _fake_ladder(monkeypatch, s_inf, c, p):
 
 def test_ladder_climbs_until_the_target_is_met(monkeypatch):
     refine, p0, first = _fake_ladder(monkeypatch, 0.0179, 0.08, 4.0)
-    r = refine.refine_leading(p0, None, first, None, levels=2, target=1e-4)
+    r = refine.refine_leading(p0, None, first, None, refine.Ladder(2, target=1e-4))
     assert r.status == "converged" and r.target_met and r.rule == "three-level"
     assert r.s_err <= 1e-4 and len(r.n_points) > 3
     # one level fewer would not have met it: the ladder stopped at the first level that did
@@ -133,10 +133,11 @@ def test_ladder_climbs_until_the_target_is_met(monkeypatch):
 
 def test_ladder_says_when_the_target_is_out_of_reach(monkeypatch):
     refine, p0, first = _fake_ladder(monkeypatch, 0.0179, 0.08, 4.0)
-    r = refine.refine_leading(p0, None, first, None, levels=2, target=1e-12, max_points=3000)
+    r = refine.refine_leading(p0, None, first, None,
+                              refine.Ladder(2, target=1e-12, max_points=3000))
     assert r.status == "converged" and not r.target_met
     assert r.n_points == [1000, 1414, 2000, 2828] and "not reached" in r.message
-    r = refine.refine_leading(p0, None, first, None, levels=2)       # no target: fixed levels
+    r = refine.refine_leading(p0, None, first, None, refine.Ladder(2))       # no target: fixed levels
     assert r.n_points == [1000, 1414, 2000] and r.target_met
 
 

@@ -38,17 +38,17 @@ def ladder12(pulse12, params):
 
 
 def test_ladder_stops_at_the_goal_and_says_when_its_cap_stops_it(ladder12, params):
-    from slippulse.spectrum.refine import refine_leading
+    from slippulse.spectrum.refine import Ladder, refine_leading
     p0, gmap, first = ladder12
     kw = dict(levels=1, pin_translation=True, max_points=800)
-    easy = refine_leading(p0, params, first, gmap, target=1.0, **kw)
+    easy = refine_leading(p0, params, first, gmap, Ladder(target=1.0, **kw))
     assert easy.status == "converged" and easy.n_points == [400, 566] and easy.target_met
     # unreachable: climbs to the cap (800) and says so
-    hard = refine_leading(p0, params, first, gmap, target=1e-12, **kw)
+    hard = refine_leading(p0, params, first, gmap, Ladder(target=1e-12, **kw))
     assert hard.n_points == [400, 566, 800] and not hard.target_met
     assert "not reached" in hard.message
     # the relative part of the goal: half of s L/c_p ≈ 11 is met by two levels
-    rel = refine_leading(p0, params, first, gmap, target=1e-12, rel_target=0.5, **kw)
+    rel = refine_leading(p0, params, first, gmap, Ladder(target=1e-12, rel_target=0.5, **kw))
     assert rel.n_points == [400, 566] and rel.target_met
     assert rel.target == pytest.approx(0.5 * rel.per_length()[0])
     # pinned: the translation eigenvalue is computed on level 0 only
@@ -60,7 +60,7 @@ def test_newton_reports_the_true_residual_of_the_pair_it_returns(ladder12, param
     σ with the matrices in hand; it must be the true backward error of the pair returned."""
     from scipy.interpolate import CubicSpline
 
-    from slippulse.spectrum.eigensolve import _relres, newton_eigen
+    from slippulse.spectrum.eigensolve import relres, newton_eigen
     from slippulse.spectrum.refine import mapped_pulse
     from slippulse.spectrum.pulse import StabilityOperator
     p0, gmap, first = ladder12
@@ -71,7 +71,7 @@ def test_newton_reports_the_true_residual_of_the_pair_it_returns(ladder12, param
     guess = first.leading * (q.c_p / q.L) / (p0.c_p / p0.L)
     e = newton_eigen(op, guess, x0, tol=1e-6)
     assert e.converged, e.message
-    true = _relres(op.matrices(e.sigma, deriv=False)[0], e.V)
+    true = relres(op.matrices(e.sigma, deriv=False)[0], e.V)
     assert true < 1e-6
     assert abs(e.residual - true) < 1e-9 + 1e-3 * true, (e.residual, true)
 

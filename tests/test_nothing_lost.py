@@ -59,7 +59,7 @@ def _fake_solve(monkeypatch, converged, beta=0.2):
     import slippulse.cli.steady as cs
     p = _synthetic_pulse(1.2, beta, 0.1)
     p.converged = converged
-    monkeypatch.setattr(cs, "_solve_any",
+    monkeypatch.setattr(cs, "solve_any",
                         lambda params, ratio, args: (_FakeSolution(p, "fake solve"), "fake"))
     return p
 

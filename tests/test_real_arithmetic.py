@@ -89,7 +89,7 @@ def test_the_kernel_assembly_at_real_sigma_is_real_and_equals_the_complex_one(pu
         cargs[6] = tab.GA.astype(complex)
         cargs[8] = tab.EB.astype(complex)
         A = [np.zeros((n, n), complex) for _ in range(4)]
-        assemble_w(el.xi, *cargs, *A, el.split_per_side)
+        assemble_w(el.xi, tuple(cargs), tuple(A), el.split_per_side)
         Wc = add_times_slopes(A[0], A[1], el.xi)
         dWc = add_times_slopes(A[2], A[3], el.xi)
         assert np.abs(Wc.imag).max() == 0.0

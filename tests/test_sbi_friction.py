@@ -5,7 +5,7 @@ import pytest
 
 from slippulse.core import friction as fr
 from slippulse.core.params import DEFAULT as P, ParameterError
-from slippulse.dynamics.stepper import PredictorCorrector, RateStateInterface, _solve_point
+from slippulse.dynamics.stepper import PredictorCorrector, RateStateInterface, solve_point
 
 TAU_D = 1.2 * P.tau_min
 
@@ -35,13 +35,13 @@ def test_friction_solve_iterations_with_previous_rate_as_guess(law):
     phi = np.array([1.0, 1e-1, 1e-4, 1e-6])
     tau_el = P.sigma * fr.f(V, phi, *P.law_args) + law.eta * V
     for i in range(V.size):
-        v, it = _solve_point(tau_el[i], phi[i], V[i] * 1e-3, law.eta, P.sigma, *P.law_args)
+        v, it = solve_point(tau_el[i], phi[i], V[i] * 1e-3, law.eta, P.sigma, *P.law_args)
         assert abs(v / V[i] - 1) < 1e-12
         assert it <= 12
 
 
 def test_friction_solve_nonpositive_stress_gives_rest(law):
-    v, it = _solve_point(-1.0, 1.0, 1e-3, law.eta, P.sigma, *P.law_args)
+    v, it = solve_point(-1.0, 1.0, 1e-3, law.eta, P.sigma, *P.law_args)
     assert v == 0.0 and it == 0
 
 

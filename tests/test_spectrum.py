@@ -11,7 +11,7 @@ from scipy.special import erfcx, kv
 
 from slippulse.steady.grid import build_grid
 from slippulse.spectrum.pulse import (ElasticOperator, StabilityOperator, neutral_modes, pulse_spectrum,
-                                symbol, _translation_check)
+                                symbol, translation_check)
 from slippulse.spectrum.kernels import (KernelTables, kernel_series, slip_coefficients4,
                                                   state_rows4, times_D4)
 from slippulse.steady.equations import (RADAU_A, RADAU_C, integrate_state_radau,
@@ -90,7 +90,7 @@ def test_far_segments_on_both_sides_match_a_fine_reference(sigma, phase, rule):
     tab = KernelTables(sigma, beta, CS, 1e-3, 100.0)
     n = xi.size
     AW, BW, AS, BS = (np.zeros((n, n), complex) for _ in range(4))
-    assemble_w(xi, *tab.args(), AW, BW, AS, BS, rule)
+    assemble_w(xi, tab.args(), (AW, BW, AS, BS), rule)
     assert abs(kappa) * 10.0 > phase
     for (gw, gs), a in (((AW[2, 0], AS[2, 0]), -30.0), ((AW[2, 4], AS[2, 4]), 20.0)):
         for got, ref in zip((gw, gs), _segment_entries(tab, 0.0, a, a + 10.0, 2000)):
@@ -102,7 +102,7 @@ def test_filon_weights_and_a_tail_segment_past_the_old_cap():
     segment of the graded tail with |κ| h ≈ 3100 (beyond the 512 sub-panels of the old rule),
     on each side of its target, matches a composite Gauss–Legendre reference to 5e-10 in W and
     ∂_σW. The old rule (``per_side=False``) misses ∂_σW behind the target by 23 %."""
-    from slippulse.spectrum.kernels import FILON_N, _FG_T, assemble_w, filon_weights
+    from slippulse.spectrum.kernels import FILON_N, FILON_NODES, assemble_w, filon_weights
     out = np.empty(FILON_N, complex)
     g, w = np.polynomial.legendre.leggauss(40)
     for alpha in (24j, 30 + 5j, 400j):
@@ -112,7 +112,7 @@ def test_filon_weights_and_a_tail_segment_past_the_old_cap():
         wt = (0.5 * w[None, :] * np.diff(e)[:, None]).ravel()
         for k in (0, 3, FILON_N - 1):
             ref = np.sum(wt * t ** k * np.exp(-alpha * t))
-            assert abs(np.sum(out * _FG_T ** k) - ref) <= 1e-12 * max(abs(ref), 1e-3), (alpha, k)
+            assert abs(np.sum(out * FILON_NODES ** k) - ref) <= 1e-12 * max(abs(ref), 1e-3), (alpha, k)
     beta, sigma = 0.95, 1e-4 + 3j
     tab = KernelTables(sigma, beta, CS, 1e-3, 1e3)
     kappa = sigma / (CS * (1.0 - beta ** 2))
@@ -122,7 +122,7 @@ def test_filon_weights_and_a_tail_segment_past_the_old_cap():
                             (np.array([0.0, 300.0, 400.0]), 0, 2)):       # target ahead: r < 0
             assert abs(kappa) * 100.0 > 3000.0
             AW, BW, AS, BS = (np.zeros((3, 3), complex) for _ in range(4))
-            assemble_w(xi, *tab.args(), AW, BW, AS, BS, rule)
+            assemble_w(xi, tab.args(), (AW, BW, AS, BS), rule)
             a, b = (xi[0], xi[1]) if ti == 2 else (xi[1], xi[2])
             rw, rs = _segment_entries(tab, xi[ti], a, b, 4000)
             errs[rule, ti] = (abs(AW[ti, col] - rw) / abs(rw), abs(AS[ti, col] - rs) / abs(rs))
@@ -231,7 +231,8 @@ def test_state_recursion_stiff_limit_and_sigma_derivative():
     def phi1(sigma, deriv=False):
         Y = np.empty((n, 1), complex)
         dY = np.empty((n, 1), complex)
-        state_rows4(hs, j0s, lws, ws, G, om, 1.0 / v, RADAU_A, complex(sigma), V, Y, dY, deriv)
+        state_rows4((hs, j0s, lws, ws, G, om), 1.0 / v, RADAU_A, complex(sigma), V, (Y, dY),
+                    deriv)
         return Y[:, 0], dY[:, 0]
 
     sigma = 0.3 + 0.2j
@@ -335,7 +336,7 @@ def test_uniform_slip_is_an_exact_neutral_mode(op12):
 
 def test_translation_mode_and_leading_eigenvalue_at_1p2(op12):
     sig, vec = neutral_modes(op12)
-    sig_t, dist, _ = _translation_check(op12, sig, vec)
+    sig_t, dist, _ = translation_check(op12, sig, vec)
     res = pulse_spectrum(op12.pulse, op12.params, extra=False)
     assert res.status == "converged" and res.sigmas.size == 1
     lead = res.leading
@@ -589,14 +590,14 @@ def test_observed_order_and_translation_at_1p05(default_family_to_1p02):
     translation eigenvalue (exact 0) falls with it (measured 1.4e-3, 3.6e-4, 8.9e-5, 2.2e-5
     c_p/L). Nested refinement of the adapted grid gave 0.7101, 0.6563, 0.6653: no order."""
     from slippulse.core.h5io import read_pulse
-    from slippulse.spectrum.refine import estimate, mapped_pulse, refine_leading
+    from slippulse.spectrum.refine import Ladder, estimate, mapped_pulse, refine_leading
     from slippulse.spectrum.pulse import pulse_spectrum
     from slippulse.steady.grid import GridMap
     p, params_ = read_pulse(default_family_to_1p02, "td1.0500")
     gmap = GridMap(p.xi)
     p0 = mapped_pulse(params_, p, gmap, 1414).to_pulse()
     first = pulse_spectrum(p0, params_, guesses=[0.66 * p0.c_p / p0.L], extra=False)
-    ref = refine_leading(p0, params_, first, gmap, levels=3)
+    ref = refine_leading(p0, params_, first, gmap, Ladder(levels=3))
     assert ref.status == "converged", ref.message
     assert ref.n_points == [1414, 2000, 2828, 3999]
     s = np.array(ref.s_levels) / ref.rate_unit
@@ -621,7 +622,7 @@ def test_pinned_translation_gives_the_same_limit_with_a_smaller_error_at_1p05(
     the limit of the unpinned ladder 2000/2828/4000 within 1e-4 per L, and at equal N (2000) an
     error ten times smaller (measured: 9.3e-5 against 1.5e-3, against the unpinned limit)."""
     from slippulse.core.h5io import read_pulse
-    from slippulse.spectrum.refine import mapped_pulse, refine_leading
+    from slippulse.spectrum.refine import Ladder, mapped_pulse, refine_leading
     from slippulse.spectrum.pulse import pulse_spectrum
     from slippulse.steady.grid import GridMap
     p, params_ = read_pulse(default_family_to_1p02, "td1.0500")
@@ -631,7 +632,7 @@ def test_pinned_translation_gives_the_same_limit_with_a_smaller_error_at_1p05(
         p0 = mapped_pulse(params_, p, gmap, n0).to_pulse()
         first = pulse_spectrum(p0, params_, guesses=[0.66 * p0.c_p / p0.L], extra=False,
                                pin_translation=pin)
-        ref = refine_leading(p0, params_, first, gmap, levels=2, pin_translation=pin)
+        ref = refine_leading(p0, params_, first, gmap, Ladder(levels=2, pin_translation=pin))
         assert ref.status == "converged" and ref.rule == "three-level", ref.message
         out[pin] = (np.array(ref.s_levels) / ref.rate_unit, ref.s_extrapolated / ref.rate_unit,
                     ref.s_err / ref.rate_unit)

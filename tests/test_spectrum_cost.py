@@ -112,7 +112,7 @@ def test_newton_finishes_the_vector_with_the_factor_in_hand(monkeypatch):
     assert e.converged, e.message
     assert op.calls == 1
     assert abs(e.sigma - op.lam) < 1e-13
-    true = es._relres(op.matrices(e.sigma)[0], e.V)
+    true = es.relres(op.matrices(e.sigma)[0], e.V)
     assert true < 1e-6 and abs(e.residual - true) < 1e-9 + 1e-3 * true
     monkeypatch.setattr(es, "FROZEN_SOLVES", 0)
     op.calls = 0
@@ -129,7 +129,7 @@ def test_frozen_solves_stop_when_sigma_leaves_the_criterion():
     x = op.v1 + 1e-3
     e = x / np.vdot(x, x)
     hist = []
-    sig, _, _, ok = es._frozen_solves(es.Factor(M), M, dM, e, x / np.vdot(e, x), s0, 1.0,
+    sig, _, _, ok = es.frozen_solves(es.Factor(M), M, dM, e, x / np.vdot(e, x), s0, 1.0,
                                       1e-12, 1e-6, hist)
     assert not ok and abs(sig - s0) > 1e-12 and hist == []
 

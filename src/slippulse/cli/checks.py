@@ -1,6 +1,6 @@
 """Checks the commands make on their options before any work: finite numbers, figure formats,
 writable outputs. Each failure is a :class:`~slippulse.core.errors.UsageError` naming the option
-(one line, exit code 2)."""
+(one line, exit code 2). :func:`plural` words the counts of the summary lines."""
 from __future__ import annotations
 
 import math
@@ -77,3 +77,8 @@ def check_outdir(path: str, option: str) -> None:
     if os.path.exists(path) and not os.path.isdir(path):
         raise UsageError(f"{option}={path!r} is a file, not a directory")
     check_writable(os.path.join(path, "probe.tmp"), option)
+
+
+def plural(n: int, word: str) -> str:
+    """'1 pulse', '3 pulses'."""
+    return f"{n} {word}" + ("" if n == 1 else "s")

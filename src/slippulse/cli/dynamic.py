@@ -198,10 +198,10 @@ def cmd_run(args) -> int:
         except BaseException:
             out.close()
             raise
-    return _drive(stepper, out, cfg, progress=not args.no_progress)
+    return drive(stepper, out, cfg, progress=not args.no_progress)
 
 
-def _drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
+def drive(st, out: RunFile, cfg: dict, progress: bool = True) -> int:
     """Step to t_end / max_steps, writing snapshots, scalars and checkpoints on their cadences."""
     from tqdm import tqdm
 

@@ -11,7 +11,7 @@ from tqdm import tqdm
 
 from ..core.errors import UsageError
 from ..core.h5io import check_writable, pulse_label, stored_converged, write_pulse
-from .checks import check_figure, check_outdir, check_tol, finite  # noqa: F401
+from .checks import check_figure, check_outdir, check_tol, finite, plural  # noqa: F401
 from ..steady.newton import SOLVERS
 from ..core.params import DEFAULT, ParameterError
 from .analyse import CD_CS_DEFAULTS
@@ -93,7 +93,7 @@ def cmd_solve(args) -> int:
     png = None if args.no_figure else os.path.splitext(out)[0] + ".png"
     if png:
         check_figure(png, "out (its PNG)")
-    sol, route = _solve_any(params, tau_d_ratio, args)
+    sol, route = solve_any(params, tau_d_ratio, args)
     if sol is None:
         print(f"slippulse: solver did not converge: {route}; nothing written to {out}",
               file=sys.stderr)
@@ -134,7 +134,7 @@ def _check_solve_range(tau_d_ratio: float) -> None:
                "from 1.2 cannot follow it"))
 
 
-def _solve_any(params, tau_d_ratio, args):
+def solve_any(params, tau_d_ratio, args):
     """``steady solve``'s solve: from the built-in guess at 1.2, continued to ``tau_d_ratio``
     (with --homotopy: from Table I's pulse continued in the parameters, then solved at ``tau_d_ratio``)
     (:func:`slippulse.steady.reach.reach_pulse`) with a progress bar over the walk's steps.
@@ -211,11 +211,6 @@ class FamilyProgress:
             self.bar.set_postfix_str(state)     # refreshes the bar
 
 
-def _count(n: int, word: str) -> str:
-    """'1 pulse', '3 pulses'."""
-    return f"{n} {word}" + ("" if n == 1 else "s")
-
-
 def final_status(rep, start, stop, out) -> str:
     """The family run's last line: what was reached, the failed attempts, and at an early stop
     where, why, and what would go further."""
@@ -224,7 +219,7 @@ def final_status(rep, start, stop, out) -> str:
             f"{len(rep.failures)} failed, wall={rep.wall_time:.1f} s")
     if rep.checks:
         nf = len(rep.failed_checks)
-        line += (f", {_count(rep.checks, 'grid check')}, "
+        line += (f", {plural(rep.checks, 'grid check')}, "
                  + ("all passed" if not nf else f"{nf} failed (those pulses written, marked failed)")
                  + f", L={rep.reached_L:.5g} m")
     if rep.limit_reached:
@@ -479,141 +474,6 @@ def cmd_stability(args) -> int:
     return 1 if rep.failed else 0
 
 
-def _print_exponents(what, x, y, err, where):
-    """One line of local exponents, each a weighted fit over a window of 10 % in x
-    (:func:`slippulse.spectrum.law.windowed_exponents`), with its error bar."""
-    from ..spectrum.law import EXPONENT_WINDOW, windowed_exponents
-    xm, k, ke, n = windowed_exponents(x, y, err)
-    if xm.size == 0:
-        print(f"local exponents {what}: too few pulses (3 per window)")
-        return
-    print(f"local exponents {what} (windows of {EXPONENT_WINDOW:g} in ln x, >= 3 pulses): "
-          + ", ".join(f"{b:.3f} ± {c:.2g} at {where(a)} ({m})"
-                      for a, b, c, m in zip(xm, k, ke, n)))
-
-
-def cmd_rates(args) -> int:
-    import numpy as np
-
-    from ..spectrum.law import (family_curve, family_rates, family_slope, fit_power_law,
-                                 fit_shifted_power_law, fold_ratio, folds)
-    from ..spectrum.family import check_family_file
-    if not (math.isfinite(args.below) and 1.0 < args.below <= 2.0):
-        raise ParameterError(f"below={args.below!r} is invalid: must be in (1, 2] "
-                             "(tau_d/tau_min)")
-    if args.tau_star is not None and not (math.isfinite(args.tau_star)
-                                          and 0.9 < args.tau_star < 1.1):
-        raise ParameterError(f"tau-star={args.tau_star!r} is invalid: must be in (0.9, 1.1)")
-    if args.figure:
-        check_figure(args.figure, "--figure")
-    prm = [check_family_file(f)[1] for f in args.file]
-    for f, q in zip(args.file[1:], prm[1:]):
-        if q != prm[0]:
-            raise UsageError(f"{f}: its parameters differ from {args.file[0]}'s; rates of "
-                             "different interfaces are not one family")
-    check_files(args, args.file)
-    r = family_rates(args.file)
-    if r["tau_d_ratio"].size == 0:
-        raise UsageError(f"{' '.join(args.file)}: no growth rate with an error estimate stored; "
-                         "run `slippulse steady stability FILE` first")
-    x, y, e = r["tau_d_ratio"], r["s_per_L"], r["s_err_per_L"]
-    # the family's slope at each rated pulse, from all converged pulses of the files, and the
-    # fold ratio R = s L/c_p / |d tau_d/d ln L| (docs/results.md section 2)
-    curve = family_curve(args.file)
-    slope, slope_err = family_slope(curve["tau_d_ratio"], curve["L"], curve["beta"],
-                                    at_beta=r["beta"])
-    R, R_err = fold_ratio(y, e, slope, slope_err)
-    for k in range(x.size):
-        sign = ("unstable" if y[k] > 2 * e[k] else "stable" if y[k] < -2 * e[k]
-                else "sign not resolved")
-        fold = (f"; d tau_d/d ln L = {slope[k]:.4g} ± {slope_err[k]:.1g}, R = {R[k]:.4g} ± "
-                f"{R_err[k]:.1g}" if np.isfinite(R[k]) else "")
-        print(f"{r['label'][k]}: L = {r['L'][k]:.4g} m, s L/c_p = {y[k]:.4g} ± {e[k]:.1g}, "
-              f"s = {r['s'][k]:.4g} ± {r['s_err'][k]:.1g} 1/s: {sign}{fold}")
-    res = r["sign_resolved"] == 1
-    n_un, n_st = int(np.sum(res & (y > 0))), int(np.sum(res & (y < 0)))
-    win = (x <= args.below) & res & (y > 0)
-    fits, parts = {}, []
-    tau_star = args.tau_star
-    n_win = int(np.sum(win))
-    if n_win < x.size:                  # say what the window left out, not only "got 0"
-        parts.append(f"{n_win} of the {_count(x.size, 'rated pulse')} are fitted (resolved, "
-                     f"unstable, tau_d/tau_min <= --below {args.below:g})")
-
-    def fit(name, make, describe):
-        try:
-            fits[name] = make()
-            parts.append(describe(fits[name]))
-        except ValueError as exc:
-            parts.append(f"no fit against {name_of[name]}: {exc}")
-    name_of = {"shift": "tau_d/tau_min - tau_star", "one": "tau_d/tau_min - 1", "L": "L"}
-    if n_win < 3:
-        parts.append(f"no power-law fit: {_count(n_win, 'pulse')} to fit, a fit needs 3 (4 to "
-                     "fit tau_star too)")
-    elif tau_star is None:
-        try:
-            sh = fit_shifted_power_law(x[win], y[win], e[win], lo=1.0)
-            tau_star = sh.x_star
-            fits["shift"] = sh.law
-            parts.append(f"tau_star = {sh.x_star:.5f} ± {sh.x_star_err:.1g} (fitted), "
-                         + sh.law.describe("(tau_d/tau_min - tau_star)", "s L/c_p"))
-        except ValueError as exc:
-            parts.append(f"no tau_star: {exc}")
-    else:
-        fit("shift", lambda: fit_power_law(x[win] - tau_star, y[win], e[win]),
-            lambda f: f"tau_star = {tau_star:.5f} (given), "
-            + f.describe("(tau_d/tau_min - tau_star)", "s L/c_p"))
-    if n_win >= 3:
-        fit("one", lambda: fit_power_law(x[win] - 1.0, y[win], e[win]),
-            lambda f: f.describe("(tau_d/tau_min - 1)", "s L/c_p"))
-        fit("L", lambda: fit_power_law(r["L"][win], y[win], e[win]),
-            lambda f: f.describe("L/m", "s L/c_p"))
-    for line in parts:
-        print("fit: " + line)
-    if tau_star is not None and np.sum(win & (x > tau_star)) >= 2:
-        m = win & (x > tau_star)
-        _print_exponents("d ln(s L/c_p)/d ln(tau_d/tau_min - tau_star)", x[m] - tau_star, y[m],
-                         e[m], lambda a: f"{a + tau_star:.5f}")
-        _print_exponents("d ln(s L/c_p)/d ln L", r["L"][m], y[m], e[m],
-                         lambda a: f"L = {a:.3g} m")
-    turns = folds(curve["tau_d_ratio"], curve["beta"])
-    judged = curve["L"].size >= 3
-    if not judged:
-        fold_line = (f"{curve['L'].size} converged pulses: too few to tell whether tau_d folds "
-                     "along the family")
-    elif turns:
-        fold_line = ("tau_d turns along the family (a fold) between beta = " + ", ".join(
-            f"{a:.6g}-{b:.6g}" for a, b in turns) + ": a real eigenvalue may cross zero there")
-    else:
-        fold_line = (f"no fold: tau_d is monotone along the family over its {curve['L'].size} "
-                     f"pulses (beta = {curve['beta'].min():.4g}-{curve['beta'].max():.7g}, L = "
-                     f"{curve['L'].min():.4g}-{curve['L'].max():.4g} m), so no real eigenvalue "
-                     "crosses zero there")
-    print("family: " + fold_line + " (docs/results.md section 2)")
-    mR = win & np.isfinite(R) & (R > 0)
-    if np.sum(mR) >= 3:
-        fits["R"] = fit_power_law(r["L"][mR], R[mR], R_err[mR])
-        print("fit: " + fits["R"].describe("L/m", "R = s L/c_p / |d tau_d/d ln L|"))
-        _print_exponents("d ln R/d ln L", r["L"][mR], R[mR], R_err[mR],
-                         lambda a: f"L = {a:.3g} m")
-    if args.figure:
-        from ..plotting.rates import plot_rates
-        plot_rates(r, fits, args.figure, tau_star, fold=(R, R_err))
-        print(f"figure: {args.figure}" + ("" if tau_star is not None else
-              " (no tau_star fitted or given: panel (a) is drawn against tau_d/tau_min - 1)"))
-    cross = ("s changes sign" if n_un and n_st else
-             "s does not cross zero (unstable at every resolved pulse)" if n_un and not n_st else
-             "no resolved unstable pulse")
-    lo = x[res].min() if np.any(res) else float("nan")
-    print(f"rates {' '.join(args.file)}: {x.size} pulses, unstable at {n_un}, stable at {n_st}, sign not "
-          f"resolved at {x.size - n_un - n_st}; {cross} down to tau_d/tau_min = {lo:.6f} "
-          f"(L = {r['L'][x == lo][0] if np.any(res) else float('nan'):.4g} m); "
-          + ("folds not judged (fewer than 3 converged pulses)" if not judged else
-             "no fold of tau_d along the family" if not turns else
-             f"{len(turns)} fold(s) of tau_d along the family"))
-    return 0
-
-
 def _check_file_params(args, path) -> None:
     """``--params``/``--set`` of a command that reads ``path`` must agree with its parameters."""
     check_files(args, [path])
@@ -643,7 +503,7 @@ def family_summary(path, done, rep) -> str:
     unstable = [r.label for r in refined if r.refined.sign_resolved and r.refined.s > 0]
     stable = [r.label for r in refined if r.refined.sign_resolved and r.refined.s < 0]
     unresolved = [r.label for r in refined if not r.refined.sign_resolved]
-    parts = [f"stability {path}: {_count(len(done), 'pulse')} solved"
+    parts = [f"stability {path}: {plural(len(done), 'pulse')} solved"
              + (f", {len(rep.skipped)} kept (already stored)" if rep.skipped else "")
              + (f", {len(rep.failed)} failed" if rep.failed else ", none failed")]
     if refined:
@@ -663,11 +523,7 @@ def family_summary(path, done, rep) -> str:
     return "; ".join(parts) + f"; wall={rep.wall_time:.1f} s"
 
 
-def register(sub) -> None:
-    p_steady = sub.add_parser("steady", help="steady pulse solutions",
-                              description="Steady self-healing pulses (mode III).")
-    ss = p_steady.add_subparsers(dest="steady_command", metavar="SUBCOMMAND")
-    ss.required = True
+def _add_solve(ss) -> None:
     p = ss.add_parser("solve", help="solve one steady pulse",
                       description="Solve the steady pulse at one driving stress: from the "
                                   "built-in guess at 1.2, continued to --tau-d (the family "
@@ -692,6 +548,8 @@ def register(sub) -> None:
     add_params_args(p)
     p.set_defaults(func=cmd_solve)
 
+
+def _add_family(ss) -> None:
     p = ss.add_parser("family", help="continue the pulse family in tau_d",
                       description="Solve pulses from --from down to --to (tau_d/tau_min), each seeded "
                                   "by the previous one, halving the step on failure; all pulses go "
@@ -719,6 +577,8 @@ def register(sub) -> None:
     add_params_args(p)
     p.set_defaults(func=cmd_family)
 
+
+def _add_stability(ss) -> None:
     p = ss.add_parser("stability", help="linear stability spectrum of the pulses of a file",
                       description="Eigenvalues sigma (perturbations ~ exp(sigma t) in the co-moving "
                                   "frame) and modes of each converged pulse, from the steady "
@@ -789,43 +649,8 @@ def register(sub) -> None:
     add_params_args(p)
     p.set_defaults(func=cmd_stability)
 
-    p = ss.add_parser("rates", help="growth rates of record along a family, and their laws",
-                      description="Reads the growth rates s +- s_err stored by `slippulse steady "
-                                  "stability` in FILE, states where the sign is resolved and "
-                                  "whether s crosses zero, and fits s L/c_p = A x^n (weighted, "
-                                  "in log space; errors Birge-scaled) against x = tau_d/tau_min - "
-                                  "tau_star (tau_star fitted too unless given) and against L, on "
-                                  "the pulses with tau_d/tau_min <= --below (docs/results.md "
-                                  "section 2). It also gives the family's slope d tau_d/d ln L "
-                                  "at each rated pulse (from all converged pulses of the files), "
-                                  "the ratio R = s L/c_p / |d tau_d/d ln L| and its law, and "
-                                  "whether tau_d(L) folds: a real eigenvalue crosses zero only "
-                                  "at a fold (docs/results.md section 2).")
-    p.add_argument("file", metavar="FILE", nargs="+",
-                   help="HDF5 family file(s) with stored spectra (several: their pulses are "
-                        "taken together, e.g. a family and its deep continuation)")
-    p.add_argument("--below", type=float, default=1.05,
-                   help="fit the pulses with tau_d/tau_min <= BELOW (default 1.05)")
-    p.add_argument("--tau-star", type=float, default=None,
-                   help="tau_star (tau_d/tau_min where L diverges) to use instead of fitting it")
-    p.add_argument("--figure", default=None, metavar="PNG", help="draw the rates and the fits")
-    add_params_args(p)
-    p.set_defaults(func=cmd_rates)
 
-    from .existence_map import register as register_existence_map
-    register_existence_map(ss)
-
-    from .divergence import register as register_divergence   # steady divergence, steady edges
-    register_divergence(ss)
-    from .referee import register as register_referee
-    register_referee(ss)
-    from .fold_ratio import register as register_fold_ratio
-    register_fold_ratio(ss)
-    from .seed import register as register_seed
-    register_seed(ss)
-    from .long_domain import register as register_long_domain
-    register_long_domain(ss)
-
+def _add_analyse(ss) -> None:
     p = ss.add_parser("analyse", help="analyse a pulse family file",
                       description="Per-pulse L, c_p, v_max, tau_max, tau_m, slip, G-bar, edge "
                                   "singularity; family scaling fit, G_c, delta_c, mode II. Results "
@@ -839,8 +664,21 @@ def register(sub) -> None:
                         "they are named in the output")
     add_params_args(p)
     p.set_defaults(func=cmd_analyse)
-    from .branches import register_steady
-    register_steady(ss)
 
-    from . import motion as cli_motion             # ``steady motion`` (cli/motion.py)
-    cli_motion.register(ss)
+
+def register(sub) -> None:
+    """``slippulse steady`` and its subcommands, in the order ``--help`` lists them: those of this
+    module, and those of the modules that define their own (each a ``register(ss)``, imported
+    when the parser is built, not with this module). A new command module adds its
+    ``register`` to the tuple below."""
+    from . import branches, divergence, existence_map, fold_ratio, long_domain, motion, rates
+    from . import referee, seed
+    p_steady = sub.add_parser("steady", help="steady pulse solutions",
+                              description="Steady self-healing pulses (mode III).")
+    ss = p_steady.add_subparsers(dest="steady_command", metavar="SUBCOMMAND")
+    ss.required = True
+    for add in (_add_solve, _add_family, _add_stability, rates.register, existence_map.register,
+                divergence.register,          # steady divergence, steady edges
+                referee.register, fold_ratio.register, seed.register, long_domain.register,
+                _add_analyse, branches.register_steady, motion.register):
+        add(ss)

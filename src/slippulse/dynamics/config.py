@@ -221,12 +221,12 @@ def _check_fft(fft: dict) -> None:
     """``[fft]``: threads an integer in [1, MAX_THREADS], planner one of the FFTW efforts
     (ParameterError naming the key, before any plan is made)."""
     from ..core.params import ParameterError
-    from .fft import _PLANNER
+    from .fft import PLANNERS
 
     n = fft["threads"]
     if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_THREADS:
         raise ParameterError(f"fft.threads={n!r} is invalid: must be an integer in "
                              f"[1, {MAX_THREADS}]")
-    if fft["planner"] not in _PLANNER:
+    if fft["planner"] not in PLANNERS:
         raise ParameterError(f"fft.planner={fft['planner']!r} is invalid: must be one of "
-                             f"{', '.join(sorted(_PLANNER))}")
+                             f"{', '.join(sorted(PLANNERS))}")

@@ -26,8 +26,8 @@ Backends
 friction solve and SOE sums, the stepper's FFT). It performs the very same floating-point
 operations as ``PredictorCorrector``, so it reproduces a host run bit for bit; it exists to test
 the engine's bookkeeping (field sync, frame shifts, Δt cache, loading upload) where there is no
-GPU. The CUDA kernels are the line-by-line counterparts of ``stepper._solve_point``,
-``friction.state_step`` and ``sbi._soe_past/_soe_commit`` (compiled as C they give the numba
+GPU. The CUDA kernels are the line-by-line counterparts of ``stepper.solve_point``,
+``friction.state_step`` and ``sbi.soe_past/soe_commit`` (compiled as C they give the numba
 kernels' results bit for bit); ``tests/test_device.py`` compares a CuPy run with the host where
 a GPU is present (docs/dynamic.md §5).
 
@@ -111,7 +111,7 @@ class _NumpyBackend:
         return all(bool(np.all(np.isfinite(a))) for a in arrays)
 
     def soe_past(self, E, Y, C, out):
-        sbi._soe_past(E, Y, C, out)
+        sbi.soe_past(E, Y, C, out)
 
     # the fused operations of a step, in the host stepper's order of operations
     def predict_rhs(self, coef, dk, Vk, past, w0, dt):
@@ -147,7 +147,7 @@ class _NumpyBackend:
         return base + (1.0 - a) * ff + a * np.roll(ff, 1)
 
     def soe_commit(self, E, G, Y, V, C, past_next):
-        sbi._soe_commit(E, G, Y, np.ascontiguousarray(V, dtype=complex), C, past_next)
+        sbi.soe_commit(E, G, Y, np.ascontiguousarray(V, dtype=complex), C, past_next)
 
 
 _CUDA_LAW = r"""
@@ -164,7 +164,7 @@ __device__ double law_dfdv(double v, double phi, double f0, double b, double alp
 }
 """
 
-# stepper._solve_point, line by line (τ_el = tl + f; τ = τ_el − ηV is returned too)
+# stepper.solve_point, line by line (τ_el = tl + f; τ = τ_el − ηV is returned too)
 _CUDA_SOLVE = r"""
 double tau_el = tl + f;
 if (!(tau_el > 0.0)) { v = 0.0; it = 0; }
@@ -215,7 +215,7 @@ __device__ double state_step(double phi, double w, double dt) {
 }
 """
 
-# sbi._soe_past and sbi._soe_commit on the host layout Y[k, j, c] (complex, c = u, w)
+# sbi.soe_past and sbi.soe_commit on the host layout Y[k, j, c] (complex, c = u, w)
 _CUDA_SOE = r"""
 extern "C" __global__ void soe_past(const double* E, const double* Y, const double* C,
                                     double* out, long long nk, long long p) {
@@ -442,9 +442,8 @@ class DeviceSOEHistory:
 
     def _upload_factors(self, dt):
         """The host history's (E, G, w0) of Δt = dt, on the device."""
-        self.host._set_dt(dt)
-        h = self.host
-        return self.be.asarray(h.E), self.be.asarray(h.G), self.be.asarray(h._w0)
+        E, G, w0 = self.host.factors_at(dt)
+        return self.be.asarray(E), self.be.asarray(G), self.be.asarray(w0)
 
     def begin_step(self, dt):
         dt = float(dt)

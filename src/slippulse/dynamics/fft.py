@@ -33,7 +33,8 @@ try:
 except ImportError:  # pragma: no cover - exercised only where pyfftw is missing
     HAVE_PYFFTW = False
 
-_PLANNER = {"estimate": "FFTW_ESTIMATE", "measure": "FFTW_MEASURE", "patient": "FFTW_PATIENT"}
+# the FFTW planning efforts by their [fft] planner names (dynamics.config checks the key)
+PLANNERS = {"estimate": "FFTW_ESTIMATE", "measure": "FFTW_MEASURE", "patient": "FFTW_PATIENT"}
 _WISDOM_LOADED = False
 
 
@@ -88,8 +89,8 @@ class RealFFT:
     def __init__(self, n: int, threads: int = 1, planner: str = "estimate", backend: str = "auto"):
         if n < 2 or n % 2:
             raise ValueError(f"FFT size n={n} must be an even integer >= 2")
-        if planner not in _PLANNER:
-            raise ValueError(f"planner={planner!r} must be one of {sorted(_PLANNER)}")
+        if planner not in PLANNERS:
+            raise ValueError(f"planner={planner!r} must be one of {sorted(PLANNERS)}")
         if backend not in ("auto", "pyfftw", "numpy"):
             raise ValueError(f"backend={backend!r} must be 'auto', 'pyfftw' or 'numpy'")
         self.n = int(n)
@@ -103,7 +104,7 @@ class RealFFT:
         self.backend = "pyfftw" if use_fftw else "numpy"
         if use_fftw:
             _load_wisdom()
-            effort = _PLANNER[planner]
+            effort = PLANNERS[planner]
             self._rin = pyfftw.empty_aligned(self.n, dtype="float64")
             self._cin = pyfftw.empty_aligned(self.nk, dtype="complex128")
             self._fwd = pyfftw.builders.rfft(self._rin, threads=self.threads, planner_effort=effort,

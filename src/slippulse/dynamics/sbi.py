@@ -182,7 +182,7 @@ def _ring_sum(hist, head, count, W, nw, out):
 
 
 @numba.njit(parallel=True, cache=True)
-def _soe_past(E, Y, C, out):
+def soe_past(E, Y, C, out):
     """out[k] = Re Σ_j C_j E_kj Y_kj0 + i Re Σ_j C_j E_kj Y_kj1: the history part of H_k."""
     nk, p, _ = Y.shape
     for k in numba.prange(nk):
@@ -196,9 +196,9 @@ def _soe_past(E, Y, C, out):
 
 
 @numba.njit(parallel=True, cache=True)
-def _soe_commit(E, G, Y, V, C, past_next):
+def soe_commit(E, G, Y, V, C, past_next):
     """Y_kj ← E_kj Y_kj + G_kj (Re V̄_k, Im V̄_k) (exact for V constant over the step), and in the
-    same pass the next step's history sum (``_soe_past`` of the new Y) in case Δt is kept."""
+    same pass the next step's history sum (``soe_past`` of the new Y) in case Δt is kept."""
     nk, p, _ = Y.shape
     for k in numba.prange(nk):
         u = V[k].real
@@ -462,6 +462,12 @@ class SOEHistory(HistoryPolicy):
         self.E, self.G, self._w0 = lru_lookup(self._cache, dt, self.cache_size,
                                               lambda: self._factors(dt))
 
+    def factors_at(self, dt):
+        """(E, G, w0) of the step Δt = dt, made the current step's (cached): what a device copy
+        of this history uploads."""
+        self._set_dt(dt)
+        return self.E, self.G, self._w0
+
     def _factors(self, dt):
         """(E, G, w0) of the step Δt = dt."""
         zw = self.Z[None, :] * self.omega[:, None] * dt
@@ -480,11 +486,11 @@ class SOEHistory(HistoryPolicy):
             self._past[:] = self._past_next
         else:
             self._set_dt(dt)
-            _soe_past(self.E, self.Y, self.C, self._past)
+            soe_past(self.E, self.Y, self.C, self._past)
 
     def commit(self, vbar_k, dt):
         self._set_dt(float(dt))
-        _soe_commit(self.E, self.G, self.Y, np.ascontiguousarray(vbar_k, dtype=complex), self.C,
+        soe_commit(self.E, self.G, self.Y, np.ascontiguousarray(vbar_k, dtype=complex), self.C,
                     self._past_next)
         self._next_dt = float(dt)
         self.count += 1

@@ -34,7 +34,7 @@ MAX_GRID_POINTS = 2 ** 22
 
 
 @numba.njit(cache=True)
-def _solve_point(tau_el, phi, v_guess, eta, sigma, f0, b, alpha, v_star, phi_star, D):
+def solve_point(tau_el, phi, v_guess, eta, sigma, f0, b, alpha, v_star, phi_star, D):
     """Root V ≥ 0 of F(V) = σ f(V, φ) + η V − τ_el by safeguarded Newton in x = ln V.
 
     Bracket: F(V_hi) ≥ 0 at V_hi = τ_el/η (σ f ≥ 0); F(V_lo) ≤ 0 at
@@ -82,7 +82,7 @@ def solve_friction(tau_el, phi, v_guess, eta, sigma, f0, b, alpha, v_star, phi_s
     """Solve σ f(V_i, φ_i) + η V_i = τ_el,i at every point; returns the largest iteration count."""
     its = np.empty(tau_el.size, dtype=np.int64)
     for i in numba.prange(tau_el.size):
-        v, it = _solve_point(tau_el[i], phi[i], v_guess[i], eta, sigma,
+        v, it = solve_point(tau_el[i], phi[i], v_guess[i], eta, sigma,
                              f0, b, alpha, v_star, phi_star, D)
         v_out[i] = v
         its[i] = it

@@ -23,7 +23,7 @@ class Eigen:
     history: list = field(default_factory=list)
 
 
-def _relres(M, x, r=None):
+def relres(M, x, r=None):
     """Componentwise backward error max_i |r|_i / (|M| |x|)_i of the residual r (default M x; the
     rows of M span many decades: the leading edge is resolved with cells 10⁴× finer than the
     body)."""
@@ -92,7 +92,7 @@ def snap_real(sigma, scale):
 FROZEN_SOLVES = 4
 
 
-def _frozen_solves(lu, M, dM, e, x, sigma, scale, step_tol, res_tol, hist, sig=None):
+def frozen_solves(lu, M, dM, e, x, sigma, scale, step_tol, res_tol, hist, sig=None):
     """Inverse iteration on the pencil M + (σ − σ_k) M′ (M, M′ and the factor `lu` of M at
     σ_k = `sigma`), from the pair (sig, x) (sig: Newton's σ_{k+1}; None: σ_k): (σ, x,
     linearised residual, converged), the last pair. Stops unconverged once σ moves more than
@@ -108,7 +108,7 @@ def _frozen_solves(lu, M, dM, e, x, sigma, scale, step_tol, res_tol, hist, sig=N
             return sig_new, u / eu, res, False
         sig, x = sig_new, u / eu
         hist.append(complex(sig))
-        res = _relres(M, x, matvec(M, x) + d * matvec(dM, x))
+        res = relres(M, x, matvec(M, x) + d * matvec(dM, x))
         if res < res_tol:
             return sig, x, res, True
     return sig, x, res, False
@@ -154,7 +154,7 @@ def newton_eigen(op, sigma0, x0, tol=1e-10, max_iter=12, min_re=None, res_tol=1e
                          f"left the half-plane Re sigma > {min_re / scale:.0e} c/L "
                          f"(sigma L/c = {sigma / scale:.4g})", hist)
         M, dM = real_if_real(*op.matrices(sigma))      # real at real σ: a real LU
-        res = _relres(M, x)
+        res = relres(M, x)
         lu = Factor(M)
         u = lu.solve(matvec(dM, x))
         eu = np.vdot(e, u)
@@ -174,7 +174,7 @@ def newton_eigen(op, sigma0, x0, tol=1e-10, max_iter=12, min_re=None, res_tol=1e
         hist.append(complex(sigma_new))
         if abs(step) <= tol * max(abs(sigma), scale):
             # the new pair's residual, linearised about σ_k (see above)
-            res_new = _relres(M, x, matvec(M, x) - step * matvec(dM, x))
+            res_new = relres(M, x, matvec(M, x) - step * matvec(dM, x))
             if min(res, res_new) < res_tol:
                 return Eigen(sigma_new, x, True, it, res_new if res_new < res_tol else res,
                              "converged", hist)
@@ -183,7 +183,7 @@ def newton_eigen(op, sigma0, x0, tol=1e-10, max_iter=12, min_re=None, res_tol=1e
             # neighbouring pulse): the vector by inverse iteration on the linearisation about
             # σ_k, with the factor in hand (see FROZEN_SOLVES), while σ stays within the step
             # criterion of σ_k
-            sigma_new, x, res_new, ok = _frozen_solves(lu, M, dM, e, x, sigma, scale,
+            sigma_new, x, res_new, ok = frozen_solves(lu, M, dM, e, x, sigma, scale,
                                                        tol * max(abs(sigma), scale), res_tol,
                                                        hist, sigma_new)
             if ok:

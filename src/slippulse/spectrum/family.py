@@ -24,7 +24,7 @@ from ..steady.grid import GridMap
 from .count import count_unstable
 from .pulse import (MIN_RE, NEWTON_TOL, PulseSpectrum, order4_pulse, pulse_spectrum,
                     read_spectrum, write_spectrum)
-from .refine import (MAX_LADDER_POINTS, check_refinable, level0_size, level_points,
+from .refine import (MAX_LADDER_POINTS, Ladder, check_refinable, level0_size, level_points,
                      mapped_pulse, refine_leading)
 
 COUNT_EVALS = 400           # default budget of det M evaluations per count (docs/spectrum.md §5)
@@ -478,11 +478,10 @@ def pulse_task(lab, pulse, params, tracking, settings, checkpoint=None, level_pr
     res.level0_attempt = attempt
     if res.status == "converged" and res.sigmas.size and levels:
         gmap = GridMap(source.xi)
-        res.refined = refine_leading(pulse, params, res, gmap, levels, tol=settings.tol,
-                                     progress=level_progress, target=settings.target,
-                                     pin_translation=settings.pin_translation, source=source,
-                                     rel_target=settings.rel_target,
-                                     neighbour=predicted or None)
+        ladder = Ladder(levels, target=settings.target, rel_target=settings.rel_target,
+                        pin_translation=settings.pin_translation, tol=settings.tol)
+        res.refined = refine_leading(pulse, params, res, gmap, ladder, progress=level_progress,
+                                     source=source, neighbour=predicted or None)
         if res.refined.status != "converged":
             res.status = "failed"
             res.message = f"refinement failed: {res.refined.message}"

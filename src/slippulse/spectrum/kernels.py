@@ -263,7 +263,7 @@ def _hermite(s):
 #: integrated to ~3e-11 relative (measured against adaptive quadrature).
 FILON_N = 12
 _FG_X, _FG_W = np.polynomial.legendre.leggauss(FILON_N)
-_FG_T = 0.5 * (_FG_X + 1.0)
+FILON_NODES = 0.5 * (_FG_X + 1.0)
 _FG_W = 0.5 * _FG_W
 _FG_P = np.array([np.polynomial.legendre.legval(_FG_X, [0.0] * j + [1.0])
                   for j in range(FILON_N)])                           # P_j at the nodes
@@ -272,7 +272,7 @@ _FG_C = np.ascontiguousarray((2.0 * np.arange(FILON_N) + 1.0)[:, None] * _FG_P)
 
 @njit(cache=True)
 def filon_weights(alpha, out):
-    """out[k] = w_k(α): ∫₀¹ f(t) e^{−αt} dt ≈ Σ_k out[k] f(_FG_T[k]) (module constants above);
+    """out[k] = w_k(α): ∫₀¹ f(t) e^{−αt} dt ≈ Σ_k out[k] f(FILON_NODES[k]) (module constants above);
     for |α| ≥ 2 FILON_N."""
     z = 0.5 * alpha
     e = np.exp(-2.0 * z)
@@ -299,10 +299,137 @@ def filon_weights(alpha, out):
 SPLIT_PER_SIDE = True
 
 
+@njit(cache=True, inline="always")
+def _n_subpanels(x0, rr, dmin, h, kappa, beta, per_side, split_scale):
+    """Sub-panels of a segment (rule of :func:`assemble_w`): 1/|κ| long on the side r > 0, or by
+    the segment's own side's rate, while its exponential is not negligible."""
+    ak = abs(kappa)
+    m = 1
+    if not per_side or rr <= 1.0:
+        if ak * h > 1.0 and kappa.real * (1.0 - beta) * dmin < EXP_CUT:
+            m = min(int(math.ceil(split_scale * ak * h)), int(512 * split_scale))
+    else:
+        side = 1.0 + beta if x0 > 0.5 else 1.0 - beta       # 1 + sβ, s = sign r
+        if side * kappa.real * dmin < EXP_CUT:
+            m = min(int(math.ceil(split_scale * side * ak * h / (1.0 + beta))),
+                    int(512 * split_scale))
+    return m
+
+
+@njit(cache=True, inline="always")
+def _add_filon(acc, x0, h, dmin, kappa, beta, sigma, ub0, EB, wf):
+    """A far segment whose live exponential turns fast, by Filon–Gauss on mf ≤ 2 sub-panels,
+    each at least two of its lengths from the target: (the entries added to ``acc``, True), or
+    (``acc``, False) where the phase is below 2·FILON_N and Gauss–Legendre takes it."""
+    a0, a1, b0, b1, c0, c1, d0, d1 = acc
+    sgn = 1.0 if x0 > 0.5 else -1.0
+    c = (1.0 + sgn * beta) * kappa
+    mf = 1 if dmin >= 2.0 * h else 2
+    alpha = c * (h / mf)
+    if abs(alpha) < 2.0 * FILON_N:
+        return acc, False
+    filon_weights(alpha, wf)
+    hs = h / mf
+    for sub in range(mf):
+        # near end of the sub-panel, t running away from the target
+        s_n = (sub + 1.0) / mf if sgn > 0.0 else sub / (1.0 * mf)
+        pref = np.exp(-c * (h * abs(x0 - s_n)))
+        for kq in range(FILON_N):
+            sg = s_n - sgn * FILON_NODES[kq] / mf
+            r = h * (x0 - sg)
+            ar = abs(r)
+            x = kappa * ar
+            sbx = sgn * beta * x
+            r2 = math.pi * r * r
+            bw, bs = _exp_factors(math.log(ar), sbx, r2, sigma, ub0, EB)
+            wq = _FG_W[kq] * hs
+            we = wf[kq] * hs * pref
+            kw = wq * (sbx - 1.0) / r2 + we * bw
+            ks = wq * sbx / (sigma * r2) + we * bs
+            h00, h01, h10, h11 = _hermite(sg)
+            a0 += h00 * kw
+            a1 += h01 * kw
+            b0 += h10 * kw
+            b1 += h11 * kw
+            c0 += h00 * ks
+            c1 += h01 * ks
+            d0 += h10 * ks
+            d1 += h11 * ks
+    return (a0, a1, b0, b1, c0, c1, d0, d1), True
+
+
+@njit(cache=True, inline="always")
+def _add_log(acc, x0, h, lam0, ls):
+    """λ₀ ∫ p(s) ln|h (x0 − s)| h ds of a near segment (and its σ-derivative, ``ls`` = 2λ₀/σ)
+    with exact moments, added to ``acc``."""
+    a0, a1, b0, b1, c0, c1, d0, d1 = acc
+    L = _log_moments(x0)
+    lh = math.log(h)
+    i00 = 2 * L[3] - 3 * L[2] + L[0] + 0.5 * lh
+    i01 = -2 * L[3] + 3 * L[2] + 0.5 * lh
+    i10 = L[3] - 2 * L[2] + L[1] + lh / 12.0
+    i11 = L[3] - L[2] - lh / 12.0
+    a0 += lam0 * h * i00
+    a1 += lam0 * h * i01
+    b0 += lam0 * h * i10
+    b1 += lam0 * h * i11
+    c0 += ls * h * i00
+    c1 += ls * h * i01
+    d0 += ls * h * i10
+    d1 += ls * h * i11
+    return a0, a1, b0, b1, c0, c1, d0, d1
+
+
+@njit(cache=True, inline="always")
+def _add_gauss(acc, m, near, rr, x0, h, kern, ls):
+    """Gauss–Legendre on ``m`` sub-panels (near: 8 points on the kernel less its λ₀ ln|r|;
+    far: the order of the Hilbert assembly for the nearest sub-panel's distance), added to
+    ``acc``."""
+    kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB = kern
+    a0, a1, b0, b1, c0, c1, d0, d1 = acc
+    if near:
+        q = -1
+        nq = 8
+    else:
+        q = 0
+        rsub = m * (rr - 1.0) + 1.0            # distance of the nearest sub-panel
+        for kq in range(_GL_N.size):
+            if rsub >= _GL_RMIN[kq]:
+                q = kq
+                break
+        nq = _GL_N[q]
+    for sub in range(m):
+        for kq in range(nq):
+            if q < 0:
+                sl = _GL8_S[kq]
+                wl = _GL8_W[kq]
+            else:
+                sl = _GL_NODES[q, kq]
+                wl = _GL_WEIGHTS[q, kq]
+            sg = (sub + sl) / m
+            wg = wl / m * h
+            r = h * (x0 - sg)
+            kw, ks = _kernel(r, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB)
+            if near:
+                lr = math.log(abs(r))
+                kw -= lam0 * lr
+                ks -= ls * lr
+            h00, h01, h10, h11 = _hermite(sg)
+            a0 += wg * h00 * kw
+            a1 += wg * h01 * kw
+            b0 += wg * h10 * kw
+            b1 += wg * h11 * kw
+            c0 += wg * h00 * ks
+            c1 += wg * h01 * ks
+            d0 += wg * h10 * ks
+            d1 += wg * h11 * ks
+    return a0, a1, b0, b1, c0, c1, d0, d1
+
+
 @njit(parallel=True, cache=True)
-def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, AS, BS,
-               per_side=SPLIT_PER_SIDE, split_scale=1.0):
-    """Product integration of W̃ (into AW, BW) and ∂_σW̃ (into AS, BS) against the cubic spline.
+def assemble_w(xi, kern, out, per_side=SPLIT_PER_SIDE, split_scale=1.0):
+    """Product integration of W̃ (into AW, BW) and ∂_σW̃ (into AS, BS) against the cubic spline;
+    ``kern`` = :meth:`KernelTables.args`, ``out`` = (AW, BW, AS, BS).
 
     Row i, target ξ_i: ∫ p(z) W̃(ξ_i − z) dz = Σ_j AW[i, j] u_j + BW[i, j] m_j (m: spline slopes).
     Near segments (|2x0 − 1| ≤ 3): λ₀ ln|r| exactly through log moments, the rest with 8-point
@@ -325,9 +452,9 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
     |κ| h ~ 10⁴ at |σ| ~ c_p/L, where the split stopped at 512 sub-panels and left ∂_σW̃ a few %
     off (1e-12 now, against adaptive quadrature), at 10–100 times the cost.
     """
+    kappa, beta, sigma, lam0 = kern[0], kern[1], kern[2], kern[3]
+    AW, BW, AS, BS = out
     n = xi.size
-    ak = abs(kappa)
-    slow = kappa.real * (1.0 - beta)            # slowest decay rate of e^{−(1±β)κ|r|}
     ls = 2.0 * lam0 / sigma
     zero = kappa * 0.0                          # real or complex, as κ (and AW) are
     for i in prange(n):
@@ -338,111 +465,18 @@ def assemble_w(xi, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB, AW, BW, A
             x0 = (xt - xi[j]) / h
             rr = abs(2.0 * x0 - 1.0)
             dmin = 0.0 if rr <= 1.0 else 0.5 * h * (rr - 1.0)
-            m = 1
-            if not per_side or rr <= 1.0:
-                if ak * h > 1.0 and slow * dmin < EXP_CUT:
-                    m = min(int(math.ceil(split_scale * ak * h)), int(512 * split_scale))
-            else:
-                side = 1.0 + beta if x0 > 0.5 else 1.0 - beta       # 1 + sβ, s = sign r
-                if side * kappa.real * dmin < EXP_CUT:
-                    m = min(int(math.ceil(split_scale * side * ak * h / (1.0 + beta))),
-                            int(512 * split_scale))
-            a0 = zero
-            a1 = zero
-            b0 = zero
-            b1 = zero
-            c0 = zero
-            c1 = zero
-            d0 = zero
-            d1 = zero
+            m = _n_subpanels(x0, rr, dmin, h, kappa, beta, per_side, split_scale)
+            acc = (zero, zero, zero, zero, zero, zero, zero, zero)
             near = rr <= 3.0
             if per_side and not near and m > 1:
-                # far segment, live exponential turning fast: Filon–Gauss on mf ≤ 2 sub-panels,
-                # each at least two of its lengths from the target
-                sgn = 1.0 if x0 > 0.5 else -1.0
-                c = (1.0 + sgn * beta) * kappa
-                mf = 1 if dmin >= 2.0 * h else 2
-                alpha = c * (h / mf)
-                if abs(alpha) >= 2.0 * FILON_N:
-                    filon_weights(alpha, wf)
-                    hs = h / mf
-                    for sub in range(mf):
-                        # near end of the sub-panel, t running away from the target
-                        s_n = (sub + 1.0) / mf if sgn > 0.0 else sub / (1.0 * mf)
-                        pref = np.exp(-c * (h * abs(x0 - s_n)))
-                        for kq in range(FILON_N):
-                            sg = s_n - sgn * _FG_T[kq] / mf
-                            r = h * (x0 - sg)
-                            ar = abs(r)
-                            x = kappa * ar
-                            sbx = sgn * beta * x
-                            r2 = math.pi * r * r
-                            bw, bs = _exp_factors(math.log(ar), sbx, r2, sigma, ub0, EB)
-                            wq = _FG_W[kq] * hs
-                            we = wf[kq] * hs * pref
-                            kw = wq * (sbx - 1.0) / r2 + we * bw
-                            ks = wq * sbx / (sigma * r2) + we * bs
-                            h00, h01, h10, h11 = _hermite(sg)
-                            a0 += h00 * kw
-                            a1 += h01 * kw
-                            b0 += h10 * kw
-                            b1 += h11 * kw
-                            c0 += h00 * ks
-                            c1 += h01 * ks
-                            d0 += h10 * ks
-                            d1 += h11 * ks
-                    m = 0                       # done: no Gauss–Legendre sub-panels below
+                acc, done = _add_filon(acc, x0, h, dmin, kappa, beta, sigma, kern[7], kern[8],
+                                       wf)
+                if done:
+                    m = 0                       # no Gauss–Legendre sub-panels below
             if near:
-                # λ₀ ∫ p(s) ln|h (x0 − s)| h ds with exact moments
-                L = _log_moments(x0)
-                lh = math.log(h)
-                i00 = 2 * L[3] - 3 * L[2] + L[0] + 0.5 * lh
-                i01 = -2 * L[3] + 3 * L[2] + 0.5 * lh
-                i10 = L[3] - 2 * L[2] + L[1] + lh / 12.0
-                i11 = L[3] - L[2] - lh / 12.0
-                a0 += lam0 * h * i00
-                a1 += lam0 * h * i01
-                b0 += lam0 * h * i10
-                b1 += lam0 * h * i11
-                c0 += ls * h * i00
-                c1 += ls * h * i01
-                d0 += ls * h * i10
-                d1 += ls * h * i11
-                q = -1
-                nq = 8
-            else:
-                q = 0
-                rsub = m * (rr - 1.0) + 1.0            # distance of the nearest sub-panel
-                for kq in range(_GL_N.size):
-                    if rsub >= _GL_RMIN[kq]:
-                        q = kq
-                        break
-                nq = _GL_N[q]
-            for sub in range(m):
-                for kq in range(nq):
-                    if q < 0:
-                        sl = _GL8_S[kq]
-                        wl = _GL8_W[kq]
-                    else:
-                        sl = _GL_NODES[q, kq]
-                        wl = _GL_WEIGHTS[q, kq]
-                    sg = (sub + sl) / m
-                    wg = wl / m * h
-                    r = h * (x0 - sg)
-                    kw, ks = _kernel(r, kappa, beta, sigma, lam0, ua0, ua_max, GA, ub0, EB)
-                    if near:
-                        lr = math.log(abs(r))
-                        kw -= lam0 * lr
-                        ks -= ls * lr
-                    h00, h01, h10, h11 = _hermite(sg)
-                    a0 += wg * h00 * kw
-                    a1 += wg * h01 * kw
-                    b0 += wg * h10 * kw
-                    b1 += wg * h11 * kw
-                    c0 += wg * h00 * ks
-                    c1 += wg * h01 * ks
-                    d0 += wg * h10 * ks
-                    d1 += wg * h11 * ks
+                acc = _add_log(acc, x0, h, lam0, ls)
+            acc = _add_gauss(acc, m, near, rr, x0, h, kern, ls)
+            a0, a1, b0, b1, c0, c1, d0, d1 = acc
             AW[i, j] += a0
             AW[i, j + 1] += a1
             BW[i, j] += h * b0
@@ -489,8 +523,10 @@ def _radau_row(A, h, rates, M, Mi, T, r, dr):
 
 
 @njit(cache=True)
-def state_rows4(hs, j0s, lws, ws, G, omegas, inv_v, A, sigma, Vm, Y, dY, deriv):
-    """Rows of Y = Φ(σ) Vm and dY = ∂_σΦ(σ) Vm (Vm independent of σ), order 4.
+def state_rows4(stages, inv_v, A, sigma, Vm, out, deriv):
+    """Rows of Y = Φ(σ) Vm and dY = ∂_σΦ(σ) Vm (Vm independent of σ), order 4, into
+    ``out`` = (Y, dY); ``stages`` = (hs, j0s, lws, ws, G, omegas), the crossing times, the
+    stencils and the steady stage values of the cells.
 
     Φ(σ) maps a slip-rate perturbation V to the state perturbation φ₁ of
     dφ₁/ds = −(w + σ) φ₁ + G(s) (V/v₀)(s) along a material point (G = −φ₀ ∂w/∂ln v), from φ₁ = 0
@@ -503,6 +539,8 @@ def state_rows4(hs, j0s, lws, ws, G, omegas, inv_v, A, sigma, Vm, Y, dY, deriv):
     V/v₀ at the inner stages from the cubic through nodes j0..j0+3 (``lws``), at the last from
     node i. Stiffly accurate for any (w + σ)h (φ₁,i → G_3 (V/v₀)_i/(w_i + σ)); order 4.
     """
+    hs, j0s, lws, ws, G, omegas = stages
+    Y, dY = out
     n = hs.size + 1
     ncol = Vm.shape[1]
     zero = sigma * 0.0                  # real σ: real arithmetic throughout (Y, dY real)
@@ -629,10 +667,11 @@ def times_D4(X, dX, a, B, j0s, da, dB, XD, dXD, deriv):
 
 
 @njit(parallel=True, cache=True)
-def stability_rows(W, dW, H, H0, cx, cdx, Phi, dPhi, corr, fphi, fv, ch, a, B, j0s, da, dB,
-                   pin_r, pin_t, tau, has_w, pinned, deriv):
+def stability_rows(elastic, coef, out, friction, slip, pin, has_w, pinned, deriv):
     """M(σ) and M′(σ) of :meth:`slippulse.spectrum.operators.StabilityOperator.matrices`, row by
-    row in one pass, written over Phi and dPhi (which hold Φ(σ) and ∂_σΦ on entry):
+    row in one pass, written over ``out`` = (Phi, dPhi) (which hold Φ(σ) and ∂_σΦ on entry);
+    ``elastic`` = (W, dW, H, H0), ``coef`` = (cx, cdx, ch, τ), ``friction`` = (corr, fφ, f_v),
+    ``slip`` = (a, B, j0s, da, dB) of the slip recursion, ``pin`` = (pin_r, pin_t):
 
         X  = cx[0] W + cx[1] H + cx[2] H0,      X′ = cdx[0] W′ + cdx[1] H + cdx[2] H0,
         M  = (fφ Φ + corr + diag(f_v) + ch H − X D)/τ − pin_r pin_tᵀ,
@@ -642,6 +681,12 @@ def stability_rows(W, dW, H, H0, cx, cdx, Phi, dPhi, corr, fphi, fv, ch, a, B, j
     W, dW are not read); pinned False: no rank-one term. Each row of X is formed, multiplied by
     D and combined while it is in cache: the numpy passes and the X, XD temporaries it replaces
     cost 1.1 s of a 4.4 s assembly at N = 3542."""
+    W, dW, H, H0 = elastic
+    cx, cdx, ch, tau = coef
+    Phi, dPhi = out
+    corr, fphi, fv = friction
+    a, B, j0s, da, dB = slip
+    pin_r, pin_t = pin
     m, n = Phi.shape
     for r in prange(m):
         x = np.empty(n, Phi.dtype)

@@ -110,7 +110,7 @@ class ElasticOperator:
         BW = np.zeros((n, n), dt)
         AS = np.zeros((n, n), dt)
         BS = np.zeros((n, n), dt)
-        assemble_w(self.xi, *tab.args(), AW, BW, AS, BS, self.split_per_side)
+        assemble_w(self.xi, tab.args(), (AW, BW, AS, BS), self.split_per_side)
         W = add_times_slopes(AW, BW, self.xi, overwrite_b=True)
         dW = add_times_slopes(AS, BS, self.xi, overwrite_b=True) if deriv else None
         return W, dW
@@ -208,7 +208,7 @@ class StabilityOperator:
         Vm = np.ascontiguousarray(Vm, dtype=dt)
         Y = np.empty(Vm.shape, dt)
         dY = np.empty(Vm.shape if deriv else (1, 1), dt)
-        state_rows4(hs, j0s, lws, ws, G, omegas, self.inv_v, RADAU_A, sg, Vm, Y, dY, deriv)
+        state_rows4((hs, j0s, lws, ws, G, omegas), self.inv_v, RADAU_A, sg, Vm, (Y, dY), deriv)
         return Y, (dY if deriv else None)
 
     def _slip(self, sigma):
@@ -245,10 +245,10 @@ class StabilityOperator:
         a, B, da, dB = self._slip(s_)
         pin_r, pin_t = self.pin if self.pin is not None else (np.zeros(1), np.zeros(1))
         # M over Phi and M′ over dPhi, row by row in one compiled pass
-        stability_rows(W if has_w else dummy, dW if has_w and deriv else dummy, el.H, el.H0,
-                       cx, cdx, Phi, dPhi if deriv else dummy, self.phi_correction, self.fphi, self.fv, k_h,
-                       a, B, self.cells[1], da, dB, pin_r, pin_t, self.tau_d, has_w,
-                       self.pin is not None, deriv)
+        stability_rows((W if has_w else dummy, dW if has_w and deriv else dummy, el.H, el.H0),
+                       (cx, cdx, k_h, self.tau_d), (Phi, dPhi if deriv else dummy),
+                       (self.phi_correction, self.fphi, self.fv), (a, B, self.cells[1], da, dB),
+                       (pin_r, pin_t), has_w, self.pin is not None, deriv)
         return Phi, (dPhi if deriv else None)
 
     def slip(self, sigma, V):

@@ -74,7 +74,7 @@ class PulseSpectrum:
         return complex(self.sigmas[0]) if self.sigmas.size else complex("nan")
 
 
-def _translation_check(op, sigs, vecs):
+def translation_check(op, sigs, vecs):
     """Pick the translation mode among the near-zero pencil modes: the one whose V₁ is closest
     to v₀′ (δ₁ = δ₀′ ⇒ V₁ = −c δ₀″ = v₀′). Returns (σ_t, relative distance, index)."""
     vp = op.S @ op.v0                                   # v₀′ on the grid (spline slopes)
@@ -102,7 +102,7 @@ def order4_pulse(pulse, params):
     if order == 4:
         return pulse
     from ..core.errors import UsageError
-    from ..steady.solver import SteadySolution, solve_on_grid
+    from ..steady.solver import SolveOptions, SteadySolution, solve_on_grid
     t0 = time.perf_counter()
     v = np.asarray(pulse.v, float)
     if not (np.all(np.isfinite(v)) and np.all(v > 0) and np.all(np.isfinite(pulse.xi))):
@@ -110,7 +110,7 @@ def order4_pulse(pulse, params):
                          "it cannot be re-solved at state order 4")
     try:
         prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, np.asarray(pulse.xi, float),
-                                       np.log(v), pulse.beta, state_order=4)
+                                       np.log(v), pulse.beta, SolveOptions(state_order=4))
     except (RuntimeError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
         raise UsageError(f"pulse {pulse.label} was solved with state order 2 and could not be "
                          f"re-solved at order 4 on its grid ({exc})") from None
@@ -293,7 +293,7 @@ def neutral_pair_of(op, pin_translation):
         sig_t, terr = complex("nan"), float("nan")
     else:
         nsig, nvec = neutral_modes(op)
-        sig_t, terr, _ = _translation_check(op, nsig, nvec)
+        sig_t, terr, _ = translation_check(op, nsig, nvec)
     # uniform slip (δ₁ = 1, V₁ = 0) is outside the V₁ form; in the δ₁ form it is exact at σ = 0
     Md = op.matrices_delta(0.0)
     one = np.ones(op.n)

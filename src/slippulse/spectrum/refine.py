@@ -218,28 +218,63 @@ def mapped_pulse(params, pulse, gmap, n, tol=1e-13, creep=0):
 MAX_LADDER_POINTS = 8000
 
 
-def refine_leading(pulse, params, first, gmap, levels=2, tol=NEWTON_TOL, progress=None,
-                   target=None, max_points=MAX_LADDER_POINTS, pin_translation=False, source=None,
-                   rel_target=0.0, neighbour=None):
-    """The leading eigenvalue on `levels` further levels of the map `gmap`.
+@dataclass(frozen=True)
+class Ladder:
+    """How :func:`refine_leading` climbs (refused when invalid).
+
+    Attributes
+    ----------
+    levels : int
+        Levels above level 0 (≥ 1; 2 or more for an observed order).
+    target : float or None
+        The s_err L/c_p to reach: levels are added beyond `levels` (N ≤ max_points) until the
+        estimate is below max(target, rel_target |s L/c_p|); the result says whether it was
+        reached (``target_met``). None: the fixed `levels`.
+    rel_target : float
+        The relative part of that goal (0: absolute only).
+    max_points : int
+        The largest level a climb toward the target may take.
+    pin_translation : bool
+        Every level solved with translation pinned (:func:`pulse_spectrum`).
+    tol : float
+        Newton's step criterion of each level's eigen-solve.
+    """
+
+    levels: int = 2
+    target: float | None = None
+    rel_target: float = 0.0
+    max_points: int = MAX_LADDER_POINTS
+    pin_translation: bool = False
+    tol: float = NEWTON_TOL
+
+    def __post_init__(self):
+        if int(self.levels) != self.levels or self.levels < 1:
+            raise ValueError(f"levels={self.levels!r} must be an integer >= 1")
+        if self.target is not None and not self.target >= 0.0:
+            raise ValueError(f"target={self.target!r} must be >= 0 (or None)")
+        if not 0.0 <= self.rel_target < 1.0:
+            raise ValueError(f"rel_target={self.rel_target!r} must be in [0, 1)")
+        if not (self.max_points >= 1 and self.tol > 0.0):
+            raise ValueError(f"max_points={self.max_points!r} must be >= 1 and "
+                             f"tol={self.tol!r} > 0")
+
+
+def refine_leading(pulse, params, first, gmap, ladder: Ladder = Ladder(), progress=None,
+                   source=None, neighbour=None):
+    """The leading eigenvalue on further levels of the map `gmap`, as `ladder` says.
 
     Parameters
     ----------
     pulse : Pulse (order 4) of level 0, solved on ``gmap(pulse.n_points)``.
     first : PulseSpectrum of `pulse` (level 0), with its leading mode.
     gmap : :class:`slippulse.steady.grid.GridMap` shared by all levels.
-    levels : number of levels above level 0 (≥ 1; 2 or more for an observed order).
+    ladder : :class:`Ladder`: the levels, the goal and its cap, pinning and tolerance.
     progress : callable(str) or None, told about each level.
-    target : optional s_err L/c_p to reach: levels are added beyond `levels` (N ≤ max_points)
-        until the estimate is below max(target, rel_target |s L/c_p|); the result says whether
-        it was reached (``target_met``).
-    rel_target : the relative part of that goal (0: absolute only).
     neighbour : {N: s L/c_p} of the neighbouring pulse's ladder, or None. A level of N points
         starts Newton from the neighbour's value on its level of the same N (the deep pulses,
         0.1 % apart in L, differ by 0.5 % there, while one level moves s L/c_p by 20 %: one
         or two Newton iterations fewer on the finest, costliest level), else from the level
         below; a start from the neighbour that fails is retried from the level below.
-    pin_translation : every level solved with translation pinned (:func:`pulse_spectrum`).
     source : the pulse the map was made from (its own grid), or None: where the steady re-solve
         of a level from the level below it does not converge, it is started from this one
         (measured: the deep pulses from a level 0 of N = 2000).
@@ -249,6 +284,8 @@ def refine_leading(pulse, params, first, gmap, levels=2, tol=NEWTON_TOL, progres
     RefinedRate; status 'failed' (and no number) when a steady re-solve or an eigen-solve fails.
     """
     t0 = time.perf_counter()
+    levels, target, rel_target = ladder.levels, ladder.target, ladder.rel_target
+    max_points, pin_translation, tol = ladder.max_points, ladder.pin_translation, ladder.tol
     lead = first.leading
     out = RefinedRate(float("nan"), float("nan"), first.rate_unit, [int(first.n_points)],
                       [lead.real], [lead.imag], [float(first.neutral[1].real)],

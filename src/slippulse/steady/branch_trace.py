@@ -75,32 +75,57 @@ def _pulse(prob, x, params):
     return SteadySolution(fixed, x[:-1].copy(), st, 0.0, 0).to_pulse()
 
 
-def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_steps=80,
-          n_points=None, regrid=0.25, q_min=1.0005, L_max=1e3, max_iter=12, progress=None,
-          tol=1e-11, stop_on_humps=False) -> Trace:
-    """Trace the branch of ``pulse`` (a converged Pulse) starting toward decreasing τ_d
-    (direction −1) or increasing (+1). Stops at ``max_steps``, when the step falls below
-    ``ds_min``, when τ_d leaves (q_min, τ_peak/τ_min − 1e-4) or L exceeds ``L_max`` (m), and, with
-    ``stop_on_humps``, when the hump count changes (always reported as an event 'humps'). Returns
-    a :class:`Trace`."""
-    t0 = time.perf_counter()
-    n_points = n_points or int(pulse.n_points)
-    xi = np.asarray(pulse.xi, float)
-    y = np.log(np.asarray(pulse.v, float))
-    k, _ = front_pin(xi, y, math.log(pulse.v_stick))
-    prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, float(y[k]), free="both")
-    x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
-    r, J = prob.residual_and_jacobian(x)
-    tz, t = _tangent(J, x)
-    if tz[1] * direction < 0:
-        tz, t = -tz, -t
-    out = Trace()
-    L_grid = pulse_length(xi, np.exp(y), params.v_star, crossings=False)
-    grid_id = 0
-    humps0 = count_humps(np.exp(y))
-    q_hi = params.tau_peak / params.tau_min - 1e-4
+@dataclass(frozen=True)
+class TraceSettings:
+    """How :func:`trace` walks a branch (refused when invalid).
 
-    def record(x, J, tz_or):
+    direction: −1 toward decreasing τ_d, +1 toward increasing; ds, ds_min, ds_max: the first,
+    smallest and largest arclength step in z (halved on a failed corrector, ×1.5 after one that
+    took at most 3 iterations); max_steps: accepted steps; n_points: points of a re-laid grid
+    (None: the start pulse's); regrid: the relative change of L that re-lays the grid; q_min and
+    L_max (m): where the trace stops; max_iter and tol: the corrector's iterations and its max|F|;
+    stop_on_humps: stop when the hump count changes (always reported as an event 'humps').
+    """
+
+    direction: int = -1
+    ds: float = 0.1
+    ds_min: float = 1e-3
+    ds_max: float = 0.4
+    max_steps: int = 80
+    n_points: int | None = None
+    regrid: float = 0.25
+    q_min: float = 1.0005
+    L_max: float = 1e3
+    max_iter: int = 12
+    tol: float = 1e-11
+    stop_on_humps: bool = False
+
+    def __post_init__(self):
+        if self.direction not in (-1, 1):
+            raise ValueError(f"direction={self.direction!r} must be -1 or +1")
+        if not 0.0 < self.ds_min <= self.ds <= self.ds_max:
+            raise ValueError(f"steps ds_min={self.ds_min!r} <= ds={self.ds!r} <= "
+                             f"ds_max={self.ds_max!r} must be positive and ordered")
+        for name in ("max_steps", "max_iter"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name}={getattr(self, name)!r} must be >= 1")
+        if self.n_points is not None and self.n_points < 10:
+            raise ValueError(f"n_points={self.n_points!r} must be >= 10 (or None)")
+        if not (self.regrid > 0 and self.q_min > 1.0 and self.L_max > 0 and self.tol > 0):
+            raise ValueError("regrid, L_max and tol must be > 0 and q_min > 1")
+
+
+class _Record:
+    """The accepted points of a trace, their pulses and the events between them (a sign change
+    of t_q: a fold; of det B on one grid: a branch point)."""
+
+    def __init__(self, params, progress):
+        self.params, self.progress = params, progress
+        self.out = Trace()
+        self.grid_id = 0
+
+    def add(self, prob, x, J, tz_or) -> TracePoint:
+        out, params = self.out, self.params
         v = indicators(J, orient=None, singular_values=False)
         # orient the indicators' tangent like the march's (continuity)
         t_full = v.tangent
@@ -108,7 +133,7 @@ def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_step
         sgn = 1 if float(tzv @ tz_or) >= 0 else -1
         Lx = pulse_length(prob.xi, np.exp(x[:-2]), params.v_star, crossings=False)
         pt = TracePoint(float(x[-1]), float(x[-2]), float(Lx), count_humps(np.exp(x[:-2])),
-                        v.fold_sign, sgn * v.t_param, sgn * v.bordered_sign, grid_id, prob.n)
+                        v.fold_sign, sgn * v.t_param, sgn * v.bordered_sign, self.grid_id, prob.n)
         if out.points:
             a = out.points[-1]
             if a.t_q * pt.t_q < 0:
@@ -120,84 +145,126 @@ def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_step
                                    f"q={a.q:.6f} and {pt.q:.6f}"))
         out.points.append(pt)
         out.pulses.append(_pulse(prob, x, params))
-        if progress:
-            progress(pt)
+        if self.progress:
+            self.progress(pt)
         return pt
 
-    record(x, J, tz)
-    while len(out.points) <= max_steps:
-        z0 = _z(x)
-        xp = x + ds * t
-        ok = False
-        if prob.valid(xp):
-            xc = xp.copy()
-            for it in range(max_iter):
-                rc, Jc = prob.residual_and_jacobian(xc)
-                g = float(tz @ (_z(xc) - z0)) - ds
-                if np.max(np.abs(rc)) <= tol and abs(g) <= 1e-10:
-                    ok = True
-                    break
-                row = np.zeros(xc.size)
-                row[-2] = tz[0] / xc[-2]
-                row[-1] = tz[1] / Q_SCALE
-                try:
-                    step = sla.solve(np.vstack([Jc, row]), -np.concatenate([rc, [g]]),
-                                     check_finite=False)
-                except (ValueError, np.linalg.LinAlgError):
-                    break
-                big = float(np.max(np.abs(step[:-2])))
-                if big > 1.0:
-                    step *= 1.0 / big
-                xc = xc + step
-                if not prob.valid(xc):
-                    break
+
+def _correct(prob, x, t, tz, ds, max_iter, tol):
+    """The corrector from the predictor x + ds t: Newton on [F(x); τ·(z(x) − z₀) − ds], each step
+    capped at 1 in ln v. Returns (converged, x, J, iterations)."""
+    z0 = _z(x)
+    xp = x + ds * t
+    if not prob.valid(xp):
+        return False, None, None, 0
+    xc = xp.copy()
+    for it in range(max_iter):
+        rc, Jc = prob.residual_and_jacobian(xc)
+        g = float(tz @ (_z(xc) - z0)) - ds
+        if np.max(np.abs(rc)) <= tol and abs(g) <= 1e-10:
+            return True, xc, Jc, it
+        row = np.zeros(xc.size)
+        row[-2] = tz[0] / xc[-2]
+        row[-1] = tz[1] / Q_SCALE
+        try:
+            step = sla.solve(np.vstack([Jc, row]), -np.concatenate([rc, [g]]),
+                             check_finite=False)
+        except (ValueError, np.linalg.LinAlgError):
+            break
+        big = float(np.max(np.abs(step[:-2])))
+        if big > 1.0:
+            step *= 1.0 / big
+        xc = xc + step
+        if not prob.valid(xc):
+            break
+    return False, None, None, 0
+
+
+def _relay(params, prob, x, pt, n_points):
+    """Re-lay the grid on the current pulse (adapted, ``n_points``) and re-solve it at fixed τ_d:
+    (the problem on the new grid, its x) or (None, the failure's message)."""
+    yv = x[:-2]
+    vst = params.v_stick(pt.q * params.tau_min)
+    fields = SteadyProblem(params, pt.q, prob.xi, prob.pin_index, prob.y_pin, H=prob.H)
+    phi = fields.fields(x[:-1])[1]
+    xi_new = adapted_grid(prob.xi, yv, phi, pt.beta, params, vst, n_points)
+    y_new = interpolate(prob.xi, yv, xi_new, vst)
+    p2, x2, st = solve_on_grid(params, pt.q, xi_new, y_new, pt.beta)
+    if not st.converged:
+        return None, f"re-lay of the grid at q={pt.q:.6f} failed: {st.message}"
+    prob = SteadyProblem(params, pt.q, xi_new, p2.pin_index, p2.y_pin, free="both", H=p2.H)
+    return prob, np.concatenate([x2, [pt.q]])
+
+
+def _stop(pt, s: TraceSettings, q_hi):
+    """Why the trace stops at the accepted point ``pt`` ('' : it goes on)."""
+    if not (s.q_min < pt.q < q_hi):
+        return f"tau_d/tau_min={pt.q:.6f} left ({s.q_min}, {q_hi:.5f})"
+    if pt.L > s.L_max:
+        return f"L={pt.L:.4g} m above L_max={s.L_max:g} m"
+    return ""
+
+
+def trace(params, pulse, settings: TraceSettings | None = None, progress=None) -> Trace:
+    """Trace the branch of ``pulse`` (a converged Pulse) as ``settings`` say (default
+    :class:`TraceSettings`: toward decreasing τ_d). Stops at ``max_steps``, when the step falls
+    below ``ds_min``, when τ_d leaves (q_min, τ_peak/τ_min − 1e-4) or L exceeds ``L_max`` (m),
+    and, with ``stop_on_humps``, when the hump count changes. ``progress(point)`` is called at
+    each accepted point. Returns a :class:`Trace`."""
+    s = settings if settings is not None else TraceSettings()
+    t0 = time.perf_counter()
+    n_points = s.n_points or int(pulse.n_points)
+    xi = np.asarray(pulse.xi, float)
+    y = np.log(np.asarray(pulse.v, float))
+    k, _ = front_pin(xi, y, math.log(pulse.v_stick))
+    prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, float(y[k]), free="both")
+    x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
+    r, J = prob.residual_and_jacobian(x)
+    tz, t = _tangent(J, x)
+    if tz[1] * s.direction < 0:
+        tz, t = -tz, -t
+    log = _Record(params, progress)
+    out = log.out
+    L_grid = pulse_length(xi, np.exp(y), params.v_star, crossings=False)
+    humps0 = count_humps(np.exp(y))
+    q_hi = params.tau_peak / params.tau_min - 1e-4
+    ds = s.ds
+    log.add(prob, x, J, tz)
+    while len(out.points) <= s.max_steps:
+        ok, xc, Jc, it = _correct(prob, x, t, tz, ds, s.max_iter, s.tol)
         if not ok:
             ds *= 0.5
-            if ds < ds_min:
-                out.stop_reason = f"step below ds_min={ds_min:g} at q={x[-1]:.6f}"
+            if ds < s.ds_min:
+                out.stop_reason = f"step below ds_min={s.ds_min:g} at q={x[-1]:.6f}"
                 break
             continue
         x, J = xc, Jc
         tz, t = _tangent(J, x, orient=tz)
-        pt = record(x, J, tz)
+        pt = log.add(prob, x, J, tz)
         if it <= 3:
-            ds = min(ds * 1.5, ds_max)
-        if not (q_min < pt.q < q_hi):
-            out.stop_reason = f"tau_d/tau_min={pt.q:.6f} left ({q_min}, {q_hi:.5f})"
-            break
-        if pt.L > L_max:
-            out.stop_reason = f"L={pt.L:.4g} m above L_max={L_max:g} m"
+            ds = min(ds * 1.5, s.ds_max)
+        out.stop_reason = _stop(pt, s, q_hi)
+        if out.stop_reason:
             break
         if pt.humps != humps0:
             out.events.append(("humps", len(out.points) - 1,
                                f"hump count {humps0} -> {pt.humps} at q={pt.q:.6f} "
                                f"(beta={pt.beta:.6g}, L={pt.L:.4g} m)"))
             humps0 = pt.humps
-            if stop_on_humps:
+            if s.stop_on_humps:
                 out.stop_reason = out.events[-1][2]
                 break
-        if abs(pt.L / L_grid - 1.0) > regrid:
+        if abs(pt.L / L_grid - 1.0) > s.regrid:
             # re-lay the grid on the current pulse, re-solve at fixed τ_d, keep going
-            yv = x[:-2]
-            vst = params.v_stick(pt.q * params.tau_min)
-            fields = SteadyProblem(params, pt.q, prob.xi, prob.pin_index, prob.y_pin, H=prob.H)
-            phi = fields.fields(x[:-1])[1]
-            xi_new = adapted_grid(prob.xi, yv, phi, pt.beta, params, vst, n_points)
-            y_new = interpolate(prob.xi, yv, xi_new, vst)
-            p2, x2, st = solve_on_grid(params, pt.q, xi_new, y_new, pt.beta)
-            if not st.converged:
-                out.stop_reason = f"re-lay of the grid at q={pt.q:.6f} failed: {st.message}"
+            prob, x = _relay(params, prob, x, pt, n_points)
+            if prob is None:
+                out.stop_reason = x
                 break
-            prob = SteadyProblem(params, pt.q, xi_new, p2.pin_index, p2.y_pin, free="both",
-                                 H=p2.H)
-            x = np.concatenate([x2, [pt.q]])
             J = prob.residual_and_jacobian(x)[1]
             tz, t = _tangent(J, x, orient=tz)
-            L_grid = pulse_length(xi_new, np.exp(x2[:-1]), params.v_star, crossings=False)
-            grid_id += 1
-    else:
-        out.stop_reason = f"max_steps={max_steps} reached"
+            L_grid = pulse_length(prob.xi, np.exp(x[:-2]), params.v_star, crossings=False)
+            log.grid_id += 1
     if not out.stop_reason:
-        out.stop_reason = f"max_steps={max_steps} reached"
+        out.stop_reason = f"max_steps={s.max_steps} reached"
     out.wall_time = time.perf_counter() - t0
     return out

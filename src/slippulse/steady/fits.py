@@ -9,7 +9,7 @@ import math
 import numpy as np
 from scipy.optimize import least_squares
 
-from .measures import _as_arrays
+from .measures import as_arrays
 
 #: τ_d/τ_min window of the scaling fit (Eqs. 3–4): "near τ_*", both ends inclusive.
 SCALING_WINDOW = (1.0, 1.05)
@@ -40,6 +40,50 @@ def _slope_crossing(lg, slope, level, start):
         return float(lg[j])
     t = (slope[j - 1] - level) / (slope[j - 1] - slope[j])
     return float(lg[j - 1] + t * (lg[j] - lg[j - 1]))
+
+
+def _clean_curves(family):
+    """Each (δ, Ḡ) curve with its finite points at δ > 0, sorted and strictly increasing in δ
+    (at least two curves)."""
+    curves = []
+    for delta, G in family:
+        delta, G = as_arrays(delta, G)
+        ok = np.isfinite(delta) & np.isfinite(G) & (delta > 0)
+        d, g = delta[ok], G[ok]
+        order = np.argsort(d)
+        d, g = d[order], g[order]
+        keep = np.concatenate([[True], np.diff(d) > 0])
+        curves.append((d[keep], g[keep]))
+    if len(curves) < 2:
+        raise ValueError("need at least two Ḡ(δ) curves for a family G_c")
+    return curves
+
+
+def _median_curve(curves, n_grid):
+    """(the log-spaced δ grid over the range all curves share, the median Ḡ on it), each curve
+    interpolated linearly in Ḡ against ln δ."""
+    lo = max(c[0][0] for c in curves)
+    hi = min(c[0][-1] for c in curves)
+    if not hi > lo:
+        raise ValueError("the Ḡ(δ) curves share no range of δ")
+    grid = np.geomspace(lo, hi, n_grid)
+    lg = np.log(grid)
+    Gs = np.array([np.interp(lg, np.log(d), g) for d, g in curves])
+    return grid, np.median(Gs, axis=0)
+
+
+def _log_slope(lg, Gmed):
+    """p = d ln Ḡ_med/d ln δ by centred differences over ±GC_SLOPE_STEP in ln δ (nan within
+    that step of the ends), not over one cell of the grid: the curves are interpolated between
+    their pulses' nodes, and a one-cell slope would turn an interpolation error of 1e-5 in Ḡ into
+    1e-2 in p."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lnG = np.log(np.where(Gmed > 0, Gmed, np.nan))
+    h = GC_SLOPE_STEP
+    inside = (lg - h >= lg[0]) & (lg + h <= lg[-1])
+    p = np.full(lg.size, np.nan)
+    p[inside] = (np.interp(lg[inside] + h, lg, lnG) - np.interp(lg[inside] - h, lg, lnG)) / (2 * h)
+    return p
 
 
 def fracture_energy(family, n_grid=20000, slope=GC_SLOPE, band=GC_SLOPE_BAND,
@@ -93,34 +137,11 @@ def fracture_energy(family, n_grid=20000, slope=GC_SLOPE, band=GC_SLOPE_BAND,
     excess over its minimum (used before 2026-11-24) found that minimum at nanometre slips and
     returned G_c ≈ 0.002 J/m² where the curves bend at ≈ 0.6 J/m².
     """
-    curves = []
-    for delta, G in family:
-        delta, G = _as_arrays(delta, G)
-        ok = np.isfinite(delta) & np.isfinite(G) & (delta > 0)
-        d, g = delta[ok], G[ok]
-        order = np.argsort(d)
-        d, g = d[order], g[order]
-        keep = np.concatenate([[True], np.diff(d) > 0])
-        curves.append((d[keep], g[keep]))
-    if len(curves) < 2:
-        raise ValueError("need at least two Ḡ(δ) curves for a family G_c")
-    lo = max(c[0][0] for c in curves)
-    hi = min(c[0][-1] for c in curves)
-    if not hi > lo:
-        raise ValueError("the Ḡ(δ) curves share no range of δ")
-    grid = np.geomspace(lo, hi, n_grid)
+    curves = _clean_curves(family)
+    grid, Gmed = _median_curve(curves, n_grid)
     lg = np.log(grid)
-    Gs = np.array([np.interp(lg, np.log(d), g) for d, g in curves])
-    Gmed = np.median(Gs, axis=0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lnG = np.log(np.where(Gmed > 0, Gmed, np.nan))
-    # centred differences over ±GC_SLOPE_STEP in ln δ, not over one cell of the grid: the
-    # curves are interpolated between their pulses' nodes, and a one-cell slope would turn an
-    # interpolation error of 1e-5 in Ḡ into 1e-2 in p
-    h = GC_SLOPE_STEP
-    inside = (lg - h >= lg[0]) & (lg + h <= lg[-1])
-    p = np.full(lg.size, np.nan)
-    p[inside] = (np.interp(lg[inside] + h, lg, lnG) - np.interp(lg[inside] - h, lg, lnG)) / (2 * h)
+    hi = grid[-1]
+    p = _log_slope(lg, Gmed)
     # the head: the last point of slope >= head before Ḡ_med reaches GC_HEAD_FRACTION of its
     # largest value (the creeping start, at Ḡ ~ 1e-6 of G_c, dips and bumps in slope)
     i_ref = int(np.argmax(Gmed >= GC_HEAD_FRACTION * np.nanmax(Gmed)))
@@ -203,7 +224,7 @@ def scaling_fit(tau_d_ratio, beta, L_tilde, params, window=SCALING_WINDOW, equat
     """
     if equations not in ("both", "beta", "L"):
         raise ValueError(f"equations={equations!r}: must be 'both', 'beta' or 'L'")
-    x, b, Lt = _as_arrays(tau_d_ratio, beta, L_tilde)
+    x, b, Lt = as_arrays(tau_d_ratio, beta, L_tilde)
     sel = (x >= window[0]) & (x <= window[1]) & (b > 0) & (b < 1) & (Lt > 0)
     x, b, Lt = x[sel], b[sel], Lt[sel]
     free = {"both": [0, 1, 2], "beta": [0, 1], "L": [0, 2]}[equations]
@@ -286,7 +307,7 @@ def divergence_fit(tau_d_ratio, beta, L, window=(1.0, 1.02), quantities="both"):
     """
     if quantities not in ("both", "L", "beta"):
         raise ValueError(f"quantities={quantities!r}: must be 'both', 'L' or 'beta'")
-    x, b, Lm = _as_arrays(tau_d_ratio, beta, L)
+    x, b, Lm = as_arrays(tau_d_ratio, beta, L)
     sel = (x >= window[0]) & (x <= window[1]) & (b > 0) & (b < 1) & (Lm > 0)
     x, lnL, lnb = x[sel], np.log(Lm[sel]), np.log(1.0 - b[sel])
     use_L, use_b = quantities in ("both", "L"), quantities in ("both", "beta")
@@ -367,7 +388,7 @@ def beta_parametrised_fit(tau_d_ratio, beta, L, max_one_minus_beta=0.02):
     q law: ``scipy.optimize.least_squares`` on q (absolute residuals); L law: straight line in
     logarithms; errors s² (JᵀJ)⁻¹.
     """
-    q, b, Lm = _as_arrays(tau_d_ratio, beta, L)
+    q, b, Lm = as_arrays(tau_d_ratio, beta, L)
     sel = (1.0 - b <= max_one_minus_beta) & (b < 1) & (Lm > 0)
     q, om, Lm = q[sel], 1.0 - b[sel], Lm[sel]
     if q.size < 5:

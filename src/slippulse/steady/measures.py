@@ -19,7 +19,9 @@ from ..core.friction import RateStateFriction
 
 
 # --------------------------------------------------------------------------- helpers
-def _as_arrays(*arrays):
+def as_arrays(*arrays):
+    """The arrays as float 1-D arrays of one length (ValueError otherwise): the shared input check
+    of the measures and the fits."""
     out = [np.asarray(a, dtype=float) for a in arrays]
     n = out[0].shape
     for a in out:
@@ -100,7 +102,7 @@ def pulse_length(xi, v, v_star, crossings=True):
             return float(pulse_length(xi, v, v_star)[0])
         except ValueError:
             return float("nan")
-    xi, v = _as_arrays(xi, v)
+    xi, v = as_arrays(xi, v)
     _check_grid(xi)
     y = np.log1p(v / v_star)
     imax = int(np.argmax(y))
@@ -145,7 +147,7 @@ def slip_profile(xi, v, v_stick, beta, c_s):
     s increasing from the leading edge backwards). Trapezoid rule on the non-uniform grid, O(Δξ²);
     for a positive integrand δ is monotone by construction.
     """
-    xi, v = _as_arrays(xi, v)
+    xi, v = as_arrays(xi, v)
     _check_grid(xi)
     return _cumtrapz_from_right(xi, v - v_stick) / (beta * c_s)
 
@@ -187,7 +189,7 @@ def breakdown_energy(xi, v, tau, v_stick, beta, c_s, tau_m, origin="front"):
     with δ from :func:`slip_profile`: exact whenever τ is linear in δ between nodes (so a linear
     slip-weakening law is integrated exactly except in the cell holding its kink).
     """
-    xi, v, tau = _as_arrays(xi, v, tau)
+    xi, v, tau = as_arrays(xi, v, tau)
     delta = slip_profile(xi, v, v_stick, beta, c_s)
     if origin == "peak":
         k = int(np.argmax(tau))
@@ -223,7 +225,7 @@ def ln_one_minus_g(v, phi, params):
     product rather than 1 − g avoids the cancellation where g → 1 (φ ≪ φ_ss).
     """
     fr = RateStateFriction(params)
-    v, phi = _as_arrays(v, phi)
+    v, phi = as_arrays(v, phi)
     return np.log(fr.heal_rate(v) * phi)
 
 
@@ -323,7 +325,7 @@ def edge_singularity(xi, v, tau, tau_m, c_s, sigma, window=None, L=None, n_per_s
     skipped); ``zeta_err`` = √(stat² + window²). The residuals of a smooth field are correlated,
     so the statistical part alone understates the error; the window part usually dominates.
     """
-    xi, v, tau = _as_arrays(xi, v, tau)
+    xi, v, tau = as_arrays(xi, v, tau)
     _check_grid(xi)
     iv, it = int(np.argmax(v)), int(np.argmax(tau))
     x_v, x_t = xi[iv], xi[it]
@@ -411,7 +413,7 @@ def edge_structure(xi, v, tau, v_star, v_stick):
     the extreme slope, so that profiles can be aligned on them to a fraction of a cell. The back
     half is ξ < x_left + L/2.
     """
-    xi, v, tau = _as_arrays(xi, v, tau)
+    xi, v, tau = as_arrays(xi, v, tau)
     _check_grid(xi)
     L, xl, xr = pulse_length(xi, v, v_star)
     iv = int(np.argmax(v))

@@ -199,28 +199,61 @@ def check_points(n_points: int) -> None:
                              "matrices)")
 
 
-def solve_on_grid(params, tau_d_ratio, xi, y, beta, method="newton", tol=NEWTON_TOL, hilbert="cubic",
-                  max_iter=60, state_order=STATE_ORDER, creep=0, reuse=False,
-                  line_search="residual"):
-    """One solve on a fixed grid from (y, β); the phase condition is placed on the guess's front.
+@dataclass(frozen=True)
+class SolveOptions:
+    """How one solve on a fixed grid is made (refused when invalid).
 
-    creep > 0 (Newton only): give up once max|r| has not halved over `creep` iterations
-    (:func:`slippulse.steady.newton.newton`), for a caller that has another way on.
-    reuse (Newton only): chord iterations with each full step's LU before a new Jacobian
-    (:func:`slippulse.steady.newton.newton`), for a guess already close (a re-solve).
-    line_search (Newton only): 'residual' or 'natural' (:func:`slippulse.steady.newton.newton`)."""
+    method: a solver of :data:`slippulse.steady.newton.SOLVERS`; tol: its max|residual| target;
+    hilbert: the Hilbert assembly of :class:`slippulse.steady.equations.SteadyProblem`;
+    max_iter: iterations; state_order: the state integrator. Newton only
+    (:func:`slippulse.steady.newton.newton`): creep > 0 gives up once max|r| has not halved
+    over `creep` iterations, for a caller that has another way on; reuse makes chord
+    iterations with each full step's LU before a new Jacobian, for a guess already close (a
+    re-solve); line_search is 'residual' or 'natural'.
+    """
+
+    method: str = "newton"
+    tol: float = NEWTON_TOL
+    hilbert: str = "cubic"
+    max_iter: int = 60
+    state_order: int = STATE_ORDER
+    creep: int = 0
+    reuse: bool = False
+    line_search: str = "residual"
+
+    def __post_init__(self):
+        if self.method not in SOLVERS:
+            raise ParameterError(f"method={self.method!r} is invalid: must be one of "
+                                 f"{sorted(SOLVERS)}")
+        if self.line_search not in ("residual", "natural"):
+            raise ValueError(f"line_search={self.line_search!r} must be 'residual' or 'natural'")
+        if not (self.tol > 0 and self.max_iter >= 1 and self.creep >= 0):
+            raise ValueError(f"tol={self.tol!r} must be > 0, max_iter={self.max_iter!r} >= 1 "
+                             f"and creep={self.creep!r} >= 0")
+
+    def newton_extra(self) -> dict:
+        """The Newton-only options that differ from Newton's defaults, as its keywords."""
+        if self.method != "newton":
+            return {}
+        extra = {"creep": int(self.creep)} if self.creep else {}
+        if self.reuse:
+            extra["reuse"] = True
+        if self.line_search != "residual":
+            extra["line_search"] = self.line_search
+        return extra
+
+
+def solve_on_grid(params, tau_d_ratio, xi, y, beta, options: SolveOptions = SolveOptions()):
+    """One solve on a fixed grid from (y, β) as ``options`` say; the phase condition is placed
+    on the guess's front. Returns (problem, x, stats)."""
     v_st = params.v_stick(tau_d_ratio * params.tau_min)
     k, ymid = front_pin(xi, y, math.log(v_st))
     # pin at the node with the value the guess has there (keeps the pulse where it is)
-    prob = SteadyProblem(params, tau_d_ratio, xi, k, float(y[k]), hilbert=hilbert,
-                         state_order=state_order)
+    prob = SteadyProblem(params, tau_d_ratio, xi, k, float(y[k]), hilbert=options.hilbert,
+                         state_order=options.state_order)
     x0 = np.concatenate([y, [beta]])
-    extra = {"creep": int(creep)} if creep and method == "newton" else {}
-    if reuse and method == "newton":
-        extra["reuse"] = True
-    if line_search != "residual" and method == "newton":
-        extra["line_search"] = line_search
-    x, stats = SOLVERS[method](prob, x0, tol=tol, max_iter=max_iter, **extra)
+    x, stats = SOLVERS[options.method](prob, x0, tol=options.tol, max_iter=options.max_iter,
+                                       **options.newton_extra())
     return prob, x, stats
 
 
@@ -244,8 +277,7 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
     """
     check_points(n_points)
     params.check_tau_d(tau_d_ratio * params.tau_min)
-    if method not in SOLVERS:
-        raise ParameterError(f"method={method!r} is invalid: must be one of {sorted(SOLVERS)}")
+    options = SolveOptions(method, tol, hilbert, max_iter, state_order)
     t0 = time.perf_counter()
     v_st = params.v_stick(tau_d_ratio * params.tau_min)
     if guess is None:
@@ -255,8 +287,7 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
         if adapt_guess:
             n0 = min(coarse_points, n_points) if passes > 0 else n_points
             xi, y = regrid_guess(params, tau_d_ratio, xi, y, beta, n0, spec)
-    prob, x, stats = solve_on_grid(params, tau_d_ratio, xi, y, beta, method, tol, hilbert, max_iter,
-                                   state_order)
+    prob, x, stats = solve_on_grid(params, tau_d_ratio, xi, y, beta, options)
     if progress:
         progress(f"pass 0: N={xi.size} {stats.message}")
     npass = 0
@@ -267,8 +298,7 @@ def solve_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 1500, gu
         v, phi, _, _ = prob.fields(x)
         xi_new = adapted_grid(prob.xi, x[:-1], phi, x[-1], params, v_st, n_k, spec)
         y_new = interpolate(prob.xi, x[:-1], xi_new, v_st)
-        prob, x, stats = solve_on_grid(params, tau_d_ratio, xi_new, y_new, float(x[-1]), method,
-                                       tol, hilbert, max_iter, state_order)
+        prob, x, stats = solve_on_grid(params, tau_d_ratio, xi_new, y_new, float(x[-1]), options)
         npass += 1
         if progress:
             progress(f"pass {npass}: N={xi_new.size} {stats.message}")
@@ -308,14 +338,14 @@ def regrid_guess(params, tau_d_ratio, xi, y, beta, n_points, spec: GridSpec = Gr
 def resolve_on_grid(params, pulse, xi_new, method="newton", tol=NEWTON_TOL, state_order=STATE_ORDER,
                     creep=0, reuse=False, line_search="residual"):
     """The pulse re-solved on the grid `xi_new`, started from its ln v interpolated there and its
-    β (creep, reuse, line_search: as :func:`solve_on_grid`). Returns a :class:`SteadySolution`."""
+    β (creep, reuse, line_search: as :class:`SolveOptions`). Returns a :class:`SteadySolution`."""
     t0 = time.perf_counter()
     xi = np.asarray(pulse.xi, float)
     v_st = params.v_stick(pulse.tau_d_ratio * params.tau_min)
     y = interpolate(xi, np.log(np.asarray(pulse.v, float)), xi_new, v_st)
-    prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, xi_new, y, pulse.beta, method, tol,
-                                   state_order=state_order, creep=creep, reuse=reuse,
-                                   line_search=line_search)
+    options = SolveOptions(method, tol, state_order=state_order, creep=creep, reuse=reuse,
+                           line_search=line_search)
+    prob, x, stats = solve_on_grid(params, pulse.tau_d_ratio, xi_new, y, pulse.beta, options)
     return SteadySolution(prob, x, stats, time.perf_counter() - t0, 0)
 
 

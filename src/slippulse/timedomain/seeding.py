@@ -13,7 +13,7 @@ to the steady one:
   isolated pulse by a uniform gradient only (no wrap dislocation; derivation in
   :func:`periodic_slip`);
 * **loading**: τ_load = τ_d + η⟨V⟩, so that the uniform (k = 0) part of the stress is τ_d
-  (the damping term −η⟨V − v_stick⟩ of the uniform mode is compensated; see :func:`seed_pulse`),
+  (the damping term −η⟨V − v_stick⟩ of the uniform mode is compensated; see :func:`uniform_load`),
   plus (default) the static far field τ_ff the period misses — the images removed, the cut tail
   added (:func:`far_field_stress`);
 * **domain**: ``ahead`` pulse lengths ahead of the leading edge (plus the distance to travel) and
@@ -193,7 +193,7 @@ def periodic_slip(V, dx, c):
     relative rotation-free shear of the two half-spaces, u_z = ±s x/2, with σ_yz = μ ∂u_z/∂y = 0).
     So the periodic slip carries exactly the stress of the isolated pulse's slip, up to the
     periodic images of the pulse. The missing ⟨V⟩ − v_stick is the k = 0 mode: uniform slip
-    growth, which has no elastic stress (handled by the loading, see :func:`seed_pulse`).
+    growth, which has no elastic stress (handled by the loading, see :func:`uniform_load`).
     """
     n = V.size
     Vk = np.fft.rfft(V)
@@ -271,24 +271,7 @@ def seed_pulse(pulse: Pulse, params: Parameters, spec: DomainSpec = DomainSpec()
 
     Fields: V = exp PCHIP[ln v], φ = exp PCHIP[ln φ] (:func:`interpolate_log`).
 
-    Slip and history: ``set_state(V, φ)`` then ``set_translating_past(c_p)``:
-    δ_k = iV_k/(kc_p) (the periodic slip of :func:`periodic_slip`, no wrap dislocation) and the SOE
-    accumulators at their steady values, so H_k(0) = ∫_0^∞ K(ω_k s)V_k(−s) ds.
-
-    Loading: the SBI stress is τ = τ_load − ηV + f[δ, H] with f_0 = 0 (μ|k| = 0). For the
-    translating profile the k ≠ 0 modes give exactly the steady operator,
-    −ηV_k + f_k = −μF_III(β)·iπ sgn(k)V_k (docs/dynamic.md §1), while the uniform mode gives
-    τ_load − η⟨V⟩. The isolated pulse has τ → τ_d with V → v_stick far ahead; on the period the
-    uniform mode of V is ⟨V⟩ = v_stick + c_pΔδ/λ > v_stick, and radiation damping of that uniform
-    excess would lower the stress everywhere by η c_pΔδ/λ (an artefact of the period, O(1/λ)).
-    We therefore load with
-
-        τ_load = τ_d + η⟨V⟩_0,
-
-    which makes the uniform part of the stress τ_d, the value of the isolated pulse. Far ahead the
-    seeded state is V = v_stick + O(1/ξ), φ = φ_ss(v_stick): σ f(v_stick, φ_ss) = τ_d, the rest state.
-    (Loading with τ_d + η v_stick instead — the creep loading of ``RateStateInterface`` — would
-    leave a uniform stress deficit η c_pΔδ/λ: 1.5 Pa, 4e-6 τ_d, at 1.2 τ_min, λ = 9 L.)
+    Slip and history: :func:`start_stepper`. Loading: :func:`uniform_load`.
 
     Domain cost: the periodic stress differs from the isolated pulse's by the periodic images (cot
     kernel instead of 1/x) and the slip rate excess V − v_stick outside the window. The images
@@ -302,18 +285,13 @@ def seed_pulse(pulse: Pulse, params: Parameters, spec: DomainSpec = DomainSpec()
     smaller effect (3e-5 τ_d at 4 L behind). ``far_field="steady"`` removes both
     (:func:`stress_mismatch` measures what is left).
     """
+    check_seed_options(pulse, far_field, history, history_start)
     p = params
-    if far_field not in ("steady", "none"):
-        raise ParameterError(f"far_field={far_field!r} must be 'steady' or 'none'")
-    if pulse.mode != "III":
-        raise ParameterError(f"pulse mode {pulse.mode!r}: the SBI code is mode III only")
     L, _, xi_front = pulse_length(pulse.xi, pulse.v, p.v_star)
     n, lam, x_front = domain_size(L, spec)
     if rule is None:
         rule = TimeStepRule(kind="adaptive", beta_cfl=0.5)
     law = RateStateInterface(p, pulse.tau_d)
-    if history not in ("soe", "quasi_dynamic"):
-        raise ParameterError(f"history={history!r} must be 'soe' or 'quasi_dynamic'")
     st = PredictorCorrector(p, n, lam, law, rule=rule, history=history,
                             history_options=(dict(SOE_CHEAP if history_options is None
                                                   else history_options)
@@ -323,24 +301,9 @@ def seed_pulse(pulse: Pulse, params: Parameters, spec: DomainSpec = DomainSpec()
     V = interpolate_log(pulse.xi, pulse.v, xi_grid)
     phi = interpolate_log(pulse.xi, pulse.phi, xi_grid)
     tau_s = PchipInterpolator(pulse.xi, pulse.tau)(xi_grid)
-    # loading: the uniform stress is τ_load − η⟨V⟩ = τ_d
-    law.tau_load = pulse.tau_d + law.eta * float(V.mean())
+    law.tau_load = uniform_load(pulse.tau_d, law.eta, V)
     tau_load0 = law.tau_load
-    if history_start not in ("steady", "rest"):
-        raise ParameterError(f"history_start={history_start!r} must be 'steady' or 'rest'")
-    st.set_state(V, phi)
-    st.set_translating_past(pulse.c_p)
-    if history_start == "rest":
-        st.history.Y[:] = 0.0                    # no past: slip static before t = 0
-        f = st.fft.inverse(elastic_functional(p.mu, st.kabs, st.delta_k, st.history.value()))
-        st.tau = law.tau_load - law.eta * st.V + f
-    if wrap_dislocation:
-        delta = dislocated_slip(V, st.dx, pulse.c_p, pulse.v_stick)
-        st.delta = delta
-        st.delta_k = st.fft.forward(delta).copy()
-        H = st.history.value()
-        f = st.fft.inverse(elastic_functional(p.mu, st.kabs, st.delta_k, H))
-        st.tau = law.tau_load - law.eta * st.V + f
+    start_stepper(st, law, p, pulse, V, phi, history_start, wrap_dislocation)
     tau_ff = None
     if far_field == "steady":
         # τ_load(x) = τ_d + η⟨V⟩ + τ_ff(x): the isolated pulse's far field at t = 0
@@ -350,6 +313,68 @@ def seed_pulse(pulse: Pulse, params: Parameters, spec: DomainSpec = DomainSpec()
     net = float(np.sum(V - pulse.v_stick) * st.dx / pulse.c_p)
     return SeededPulse(stepper=st, pulse=pulse, params=p, xi_shift=xi_shift, x_front0=x_front,
                        tau_steady=tau_s, net_slip=net, tau_ff=tau_ff, tau_load0=tau_load0)
+
+
+def check_seed_options(pulse: Pulse, far_field: str, history: str, history_start: str) -> None:
+    """The options of :func:`seed_pulse`, checked before any grid is made (ParameterError naming
+    the one that is invalid)."""
+    if far_field not in ("steady", "none"):
+        raise ParameterError(f"far_field={far_field!r} must be 'steady' or 'none'")
+    if pulse.mode != "III":
+        raise ParameterError(f"pulse mode {pulse.mode!r}: the SBI code is mode III only")
+    if history not in ("soe", "quasi_dynamic"):
+        raise ParameterError(f"history={history!r} must be 'soe' or 'quasi_dynamic'")
+    if history_start not in ("steady", "rest"):
+        raise ParameterError(f"history_start={history_start!r} must be 'steady' or 'rest'")
+
+
+def uniform_load(tau_d: float, eta: float, V) -> float:
+    """The seeded loading τ_load = τ_d + η⟨V⟩_0 (V: the seeded slip rate on the period).
+
+    The SBI stress is τ = τ_load − ηV + f[δ, H] with f_0 = 0 (μ|k| = 0). For the
+    translating profile the k ≠ 0 modes give exactly the steady operator,
+    −ηV_k + f_k = −μF_III(β)·iπ sgn(k)V_k (docs/dynamic.md §1), while the uniform mode gives
+    τ_load − η⟨V⟩. The isolated pulse has τ → τ_d with V → v_stick far ahead; on the period the
+    uniform mode of V is ⟨V⟩ = v_stick + c_pΔδ/λ > v_stick, and radiation damping of that uniform
+    excess would lower the stress everywhere by η c_pΔδ/λ (an artefact of the period, O(1/λ)).
+    We therefore load with
+
+        τ_load = τ_d + η⟨V⟩_0,
+
+    which makes the uniform part of the stress τ_d, the value of the isolated pulse. Far ahead the
+    seeded state is V = v_stick + O(1/ξ), φ = φ_ss(v_stick): σ f(v_stick, φ_ss) = τ_d, the rest state.
+    (Loading with τ_d + η v_stick instead — the creep loading of ``RateStateInterface`` — would
+    leave a uniform stress deficit η c_pΔδ/λ: 1.5 Pa, 4e-6 τ_d, at 1.2 τ_min, λ = 9 L.)
+    """
+    return tau_d + eta * float(V.mean())
+
+
+def start_stepper(st, law, params: Parameters, pulse: Pulse, V, phi,
+                  history_start: str = "steady", wrap_dislocation: bool = False) -> None:
+    """The stepper's t = 0: state (V, φ), slip and history, and the stress under ``law``'s load.
+
+    ``set_state(V, φ)`` then ``set_translating_past(c_p)``:
+    δ_k = iV_k/(kc_p) (the periodic slip of :func:`periodic_slip`, no wrap dislocation) and the SOE
+    accumulators at their steady values, so H_k(0) = ∫_0^∞ K(ω_k s)V_k(−s) ds.
+
+    ``history_start="rest"``: the history emptied (slip static before t = 0);
+    ``wrap_dislocation``: the isolated pulse's slip (:func:`dislocated_slip`) instead of the
+    periodic one. Either recomputes the stress τ = τ_load − ηV + f[δ, H].
+    """
+    st.set_state(V, phi)
+    st.set_translating_past(pulse.c_p)
+    if history_start == "rest":
+        st.history.Y[:] = 0.0                    # no past: slip static before t = 0
+        f = st.fft.inverse(elastic_functional(params.mu, st.kabs, st.delta_k,
+                                              st.history.value()))
+        st.tau = law.tau_load - law.eta * st.V + f
+    if wrap_dislocation:
+        delta = dislocated_slip(V, st.dx, pulse.c_p, pulse.v_stick)
+        st.delta = delta
+        st.delta_k = st.fft.forward(delta).copy()
+        H = st.history.value()
+        f = st.fft.inverse(elastic_functional(params.mu, st.kabs, st.delta_k, H))
+        st.tau = law.tau_load - law.eta * st.V + f
 
 
 def far_field_stress(pulse: Pulse, params: Parameters, V, dx, xi_grid, pad: int = 64):

@@ -200,7 +200,50 @@ def _lost_how(st, pulse) -> str:
 @dataclass(frozen=True)
 class VerifySettings:
     """How a verification run is made (the options of :func:`verify_pulse`, stored in its
-    ``info``); see there for each."""
+    ``info``).
+
+    Attributes
+    ----------
+    rule : TimeStepRule, optional
+        Default adaptive, β_cfl = 0.5, ξ = 0.1, ξ_s = 0.5.
+    far_field : {"steady", "none"}
+        See ``seeding.seed_pulse`` ("steady" requires ``follow``).
+    history_start : {"steady", "rest"}
+        See ``seeding.seed_pulse`` ("rest": a history started at t = 0, for the failure map).
+    history : {"soe", "quasi_dynamic"}
+        See ``seeding.seed_pulse`` ("quasi_dynamic": radiation damping only, failure map).
+    wrap_dislocation : bool
+        Leave the wrap dislocation in the seeded slip (failure map; ``seeding.seed_pulse``).
+    follow : bool
+        Shift the frame by whole cells to keep the pulse in place (``seeding.follow_pulse``).
+    n_samples : int
+        Measurements (evenly spaced in time).
+    n_snapshots : int
+        Stored slip-rate profiles (evenly spaced in time, t = 0 included).
+    track_every : int
+        Steps between front measurements that move the frame and the far-field load
+        (the front moves ≈ Δx/70 per adaptive step at 1.2 τ_min).
+    lost_factor : float
+        Stop once max V exceeds lost_factor·v_max⁰ (status "pulse lost: grew ..."), falls below
+        v_max⁰/lost_factor ("pulse lost: arrested ..."), or when the FWHM can no longer be
+        measured (grew or arrested by the sign of v_max − v_max⁰).
+    perturbation : (kind, ε), optional
+        Start from a perturbed pulse (:func:`perturb_seed`): ``("excess", ε)`` scales the slip-rate
+        excess by 1 + ε, ``("tau_d", ε)`` raises the driving stress by ε·τ_d, ``("mode", ε)`` adds
+        ε × the unstable eigenmode (:func:`verify_pulse`'s ``eigen``) with its growing past
+        (``eigenmode.perturb_along_mode``; 0 < |ε| ≤ ``eigenmode.EPS_MAX``), ``("mode_front", ε)``
+        the same mode with ε measured in the frame of the front and the front's displacement
+        carried exactly (``frame="front"``). The errors are still
+        measured against the unperturbed steady pulse.
+    device : {"cpu", "cupy", "numpy"}
+        Where the steps run after seeding: "cpu" the host stepper; "cupy" a GPU
+        (``dynamics.device.DeviceStepper``, same scheme); "numpy" the device engine on the host
+        (bit-identical to "cpu"; for tests).
+    history_options : dict, optional
+        SOE options of the seeded stepper (``seeding.seed_pulse``).
+    threads : int
+        FFTW and numba threads of the stepper.
+    """
 
     rule: TimeStepRule | None = None
     far_field: str = "steady"
@@ -236,46 +279,11 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
     spec : DomainSpec
         Grid spacing and domain; with ``follow=False`` the travel distance is added ahead.
     settings : VerifySettings
-        The run's options, below (default: ``VerifySettings()``).
-    rule : TimeStepRule, optional
-        Default adaptive, β_cfl = 0.5, ξ = 0.1, ξ_s = 0.5.
-    far_field : {"steady", "none"}
-        See ``seeding.seed_pulse`` ("steady" requires ``follow``).
-    history_start : {"steady", "rest"}
-        See ``seeding.seed_pulse`` ("rest": a history started at t = 0, for the failure map).
-    history : {"soe", "quasi_dynamic"}
-        See ``seeding.seed_pulse`` ("quasi_dynamic": radiation damping only, failure map).
-    wrap_dislocation : bool
-        Leave the wrap dislocation in the seeded slip (failure map; ``seeding.seed_pulse``).
-    follow : bool
-        Shift the frame by whole cells to keep the pulse in place (``seeding.follow_pulse``).
-    n_samples : int
-        Measurements (evenly spaced in time).
-    n_snapshots : int
-        Stored slip-rate profiles (evenly spaced in time, t = 0 included).
-    track_every : int
-        Steps between front measurements that move the frame and the far-field load
-        (the front moves ≈ Δx/70 per adaptive step at 1.2 τ_min).
-    lost_factor : float
-        Stop once max V exceeds lost_factor·v_max⁰ (status "pulse lost: grew ..."), falls below
-        v_max⁰/lost_factor ("pulse lost: arrested ..."), or when the FWHM can no longer be
-        measured (grew or arrested by the sign of v_max − v_max⁰).
-    perturbation : (kind, ε), optional
-        Start from a perturbed pulse (:func:`perturb_seed`): ``("excess", ε)`` scales the slip-rate
-        excess by 1 + ε, ``("tau_d", ε)`` raises the driving stress by ε·τ_d, ``("mode", ε)`` adds
-        ε × the unstable eigenmode ``eigen`` with its growing past
-        (``eigenmode.perturb_along_mode``; 0 < |ε| ≤ ``eigenmode.EPS_MAX``), ``("mode_front", ε)``
-        the same mode with ε measured in the frame of the front and the front's displacement
-        carried exactly (``frame="front"``). The errors are still
-        measured against the unperturbed steady pulse.
+        The run's options (default: ``VerifySettings()``; each is described there).
     eigen : eigenmode.Eigenmode, optional
         The pulse's unstable eigenmode (``eigenmode.leading_mode``): required by ``("mode", ε)``;
         its eigenvalue goes into ``info`` (:func:`eigen_info`) and is what :func:`drift_verdict`
         compares the drift with.
-    device : {"cpu", "cupy", "numpy"}
-        Where the steps run after seeding: "cpu" the host stepper; "cupy" a GPU
-        (``dynamics.device.DeviceStepper``, same scheme); "numpy" the device engine on the host
-        (bit-identical to "cpu"; for tests).
     stop_check : callable, optional
         ``stop_check(rows) -> str | None``, called after each measurement with the list of rows
         (t, X, L, v_max, lnv_error, slip); a string ends the run with that status (e.g. the
@@ -288,18 +296,35 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
     VerifyResult
     """
     s = settings if settings is not None else VerifySettings()
-    rule, far_field, follow, perturbation = s.rule, s.far_field, s.follow, s.perturbation
-    history_start, history, device = s.history_start, s.history, s.device
     if not distance > 0:
         raise ValueError(f"distance={distance!r} must be > 0 (pulse lengths)")
-    if not follow:
+    if not s.follow:
         spec = DomainSpec(dx=spec.dx, ahead=spec.ahead, behind=spec.behind, travel=distance)
     wall0 = time.perf_counter()
-    # seed: the steady (or perturbed) pulse as if it had travelled forever
+    seed = _seed_run(pulse, params, spec, s, eigen)
+    # run: step to t_end = distance·L⁰/c_p⁰, sampling n_samples times
+    rec = _Recorder(seed, pulse, params, distance, s.n_samples, s.n_snapshots)
+    status = _run(seed, pulse, params, rec, s.follow, s.track_every, s.lost_factor, stop_check,
+                  progress)
+    wall = time.perf_counter() - wall0
+    # measure: the errors against the steady pulse, their series and the run's description
+    series, errors, (t, X, slip) = _measure(rec, pulse)
+    info = _run_info(seed, pulse, params, spec, s, distance, status, wall, series, X, slip)
+    if eigen is not None:
+        info.update(eigen_info(eigen))
+    # write: the caller stores the result (write_result) and draws it (plotting.stability)
+    return VerifyResult(t=t, x_front=X, series=series, errors=errors, info=info,
+                        snapshots=rec.snapshots, x=seed.stepper.x.copy())
+
+
+def _seed_run(pulse, params, spec: DomainSpec, s: VerifySettings, eigen):
+    """The run's start: the steady (or perturbed) pulse seeded as if it had travelled forever,
+    on the settings' device."""
+    perturbation = s.perturbation
     seed = seed_pulse(pulse if perturbation is None else perturbed_pulse(pulse, *perturbation),
-                      params, spec, rule=rule, far_field=far_field,
+                      params, spec, rule=s.rule, far_field=s.far_field,
                       history_options=s.history_options, threads=s.threads,
-                      history_start=history_start, history=history,
+                      history_start=s.history_start, history=s.history,
                       wrap_dislocation=s.wrap_dislocation)
     if perturbation is not None and perturbation[0] in MODE_FRAMES:
         from .eigenmode import perturb_along_mode
@@ -308,26 +333,27 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
         perturb_along_mode(seed, eigen, float(perturbation[1]), frame=MODE_FRAMES[perturbation[0]])
     elif perturbation is not None:
         perturb_seed(seed, pulse, *perturbation)
-    if device != "cpu":
+    if s.device != "cpu":
         from ..dynamics.device import DeviceStepper
-        seed.stepper = DeviceStepper.from_host(seed.stepper, device)
-    # run: step to t_end = distance·L⁰/c_p⁰, sampling n_samples times
-    rec = _Recorder(seed, pulse, params, distance, s.n_samples, s.n_snapshots)
-    status = _run(seed, pulse, params, rec, follow, s.track_every, s.lost_factor, stop_check,
-                  progress)
-    wall = time.perf_counter() - wall0
-    # measure: the errors against the steady pulse, their series and the run's description
-    series, errors, (t, X, slip) = _measure(rec, pulse)
+        seed.stepper = DeviceStepper.from_host(seed.stepper, s.device)
+    return seed
+
+
+def _run_info(seed, pulse, params, spec, s: VerifySettings, distance, status, wall, series, X,
+              slip) -> dict:
+    """The run's description stored with it: status, growth rates of the errors, cost, grid,
+    settings, the steady pulse's measures and the errors at t = 0."""
     st = seed.stepper
+    perturbation = s.perturbation
     dist = (X - X[0]) / pulse.L
-    info = {"status": status,
+    return {"status": status,
             "growth_rate_v_max": growth_rate(dist, series["v_max_error"]),
             "growth_rate_lnv": growth_rate(dist, series["lnv_error"]),
             "wall_time": wall, "n_steps": st.nstep, "t_end": float(st.t),
             "distance": float(distance), "travelled": float((X[-1] - X[0]) / pulse.L),
             "n": st.n, "length": st.length, "dx": st.dx, "ahead": spec.ahead,
-            "behind": spec.behind, "far_field": far_field, "follow": bool(follow),
-            "history_start": history_start, "history": history, "device": device,
+            "behind": spec.behind, "far_field": s.far_field, "follow": bool(s.follow),
+            "history_start": s.history_start, "history": s.history, "device": s.device,
             "wrap_dislocation": bool(s.wrap_dislocation),
             "perturbation": "none" if perturbation is None else str(perturbation[0]),
             "eps": 0.0 if perturbation is None else float(perturbation[1]),
@@ -339,11 +365,6 @@ def verify_pulse(pulse, params, distance: float, spec: DomainSpec = DomainSpec()
             "beta_cfl": st.rule.beta_cfl, "xi": st.rule.xi, "xi_stab": st.rule.xi_stab,
             "t0_v_max_error": float(series["v_max_error"][0]),
             "t0_L_error": float(series["L_error"][0]), "t0_lnv_error": float(series["lnv_error"][0])}
-    if eigen is not None:
-        info.update(eigen_info(eigen))
-    # write: the caller stores the result (write_result) and draws it (plotting.stability)
-    return VerifyResult(t=t, x_front=X, series=series, errors=errors, info=info,
-                        snapshots=rec.snapshots, x=st.x.copy())
 
 
 class _Recorder:
