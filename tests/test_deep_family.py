@@ -721,3 +721,55 @@ def test_from_pulse_refuses_bad_input_with_one_line_and_no_file(tmp_path, params
     assert _digest(stored) == before
     if out != stored:
         assert not os.path.exists(out)
+
+
+def test_natural_steps_are_strategies_of_the_one_driver(params, pulse12):
+    """The shallow family's steps run in :class:`Continuation` too: τ_d steps onto the targets
+    (``NATURAL``: each accepted pulse handed over, status "finished" at the last target), β steps
+    past a target and onto it (``BETA_STEPS``: the pulses above it handed over as "beta", the one
+    at it as "tau_d"), both counted; at β ≥ beta_cap the march is "capped" before any attempt, and
+    past beta_switch the τ_d steps are "stalled". The β route lands on the τ_d route's pulse
+    (other grids: within the grid tolerance). A natural predictor with arclength steps, or
+    natural steps with another predictor, is refused when built."""
+    from slippulse.steady.continuation import (BETA_STEPS, NATURAL, NaturalPredictor,
+                                               PulseOnGrid, ShrinkSteps, TargetSteps)
+    start = PulseOnGrid.of(pulse12, pulse12.to_pulse().L)
+    grid = AdaptGrid(regrid=0.1, n_points=700)
+    tau = NATURAL.replace(grid=grid)
+    handed = []
+
+    def on_accept(sol, extra):
+        handed.append((float(sol.to_pulse().tau_d_ratio), extra["continuation"],
+                       extra["continuation_strategy"]))
+
+    m = Continuation(params, start, tau, targets=[1.195, 1.19], on_accept=on_accept)
+    assert m.status == "running" and m.last_predictor == "natural"
+    assert m.run() == "finished" and m.q == 1.19 and m.targets == []
+    assert m.n_steps == len(handed) == 2 and m.n_attempts == m.n_steps + m.n_failed
+    assert [h[:2] for h in handed] == [(1.195, "tau_d"), (1.19, "tau_d")]
+    assert handed[0][2] == str(tau)
+    handed.clear()
+    beta_steps = BETA_STEPS.replace(grid=grid, steps=ShrinkSteps(shrink=0.999, min_shrink=0.9995))
+    b = Continuation(params, start, beta_steps, targets=[1.19], on_accept=on_accept)
+    assert b.run() == "finished" and b.q == 1.19 and b.n_steps == len(handed) >= 2
+    assert [h[1] for h in handed] == ["beta"] * (len(handed) - 1) + ["tau_d"]
+    assert all(q > 1.19 for q, _, _ in handed[:-1])
+    assert abs(b.beta - m.beta) <= GRID_TOLERANCE.beta
+    capped = Continuation(params, start, tau, targets=[1.195], beta_cap=0.0)
+    assert capped.run() == "capped" and capped.n_attempts == 0
+    stalled = Continuation(params, start, tau.replace(steps=TargetSteps(beta_switch=1e-3)),
+                           targets=[1.195])
+    assert stalled.run() == "stalled" and "beta_switch" in stalled.message
+    with pytest.raises(StrategyError, match="TargetSteps"):
+        Strategy(NaturalPredictor("tau_d"), NewtonCorrector(), FreeSteps(), AdaptGrid())
+    with pytest.raises(StrategyError, match="ShrinkSteps"):
+        Strategy(NaturalPredictor("beta"), NewtonCorrector(), TargetSteps(), AdaptGrid())
+    with pytest.raises(StrategyError, match="AdaptGrid"):
+        Strategy(NaturalPredictor("tau_d"), NewtonCorrector(), TargetSteps(), StretchGrid())
+    with pytest.raises(StrategyError, match="NaturalPredictor"):
+        Strategy(TangentPredictor(), NewtonCorrector(), ShrinkSteps(), AdaptGrid())
+    for bad in (lambda: NaturalPredictor("q"), lambda: TargetSteps(step=0.0),
+                lambda: TargetSteps(min_step=0.01), lambda: ShrinkSteps(shrink=0.98),
+                lambda: FreeSteps(overshoot=0.0), lambda: AdaptGrid(n_points=1)):
+        with pytest.raises(StrategyError):
+            bad()

@@ -1,6 +1,6 @@
 """The continuation driver: :class:`Continuation`, the march of the family built from a
 :class:`~.strategy.Strategy` — natural steps in τ_d or β on adapted grids, or pseudo-arclength
-steps through the turn toward β → 1 — with its state, status and counters on the object (in the
+steps toward β → 1 — with its state, status and counters on the object (in the
 style of scipy's ``OdeSolver``: ``step()`` advances by one accepted pulse, ``status`` says
 whether it may go on, ``message`` says why not).
 """
@@ -38,7 +38,7 @@ class Continuation:
     """Continuation of the family in q = τ_d/τ_min, by the step its strategy's predictor names:
 
     * arclength (:class:`~.strategy.TangentPredictor` and its kin): pseudo-arclength steps ds in
-      (a, q/κ), a = ln(1 − β), through the turn of the family toward β → 1;
+      (a, q/κ), a = ln(1 − β), toward β → 1 or toward ``stop``, through folds of τ_d;
     * natural τ_d (:class:`~.strategy.NaturalPredictor` with :class:`~.strategy.TargetSteps`):
       steps onto the round ``targets``, every accepted pulse handed over;
     * natural β (with :class:`~.strategy.ShrinkSteps`): β steps until τ_d passes ``targets[0]``

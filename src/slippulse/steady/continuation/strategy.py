@@ -92,9 +92,9 @@ class SecantPredictor(LengthPredictor):
 class NaturalPredictor:
     """Step a natural parameter, τ_d (β unknown) or β (τ_d unknown), along the tangent at the
     fixed parameter, J_x t = −J_p, with ln v stretched behind the leading edge by the change of L
-    the tangent gives (:func:`~.natural.tangent_step`). Near τ_min a τ_d step moves β and L
-    faster and faster, and past β ≈ 0.85 only the β steps converge; deep (β ≳ 0.99) only the
-    arclength predictors pass the turn of the family."""
+    the tangent gives (:func:`~.natural.tangent_step`). Near τ_min β and L change ever faster
+    with τ_d: the τ_d steps hand over to β steps (:class:`TargetSteps` ``beta_switch``), and
+    those to the arclength march (:data:`~.family.DEEP_BETA`)."""
 
     parameter: str = "tau_d"
     name = "natural"
