@@ -669,7 +669,7 @@ def test_a_stored_pulse_continued_both_ways_reproduces_its_neighbours(tmp_path, 
         assert all(p.extra["continuation"] == "arclength" for p in pulses)
         qs = np.array([start.tau_d_ratio] + [p.tau_d_ratio for p in pulses])
         sign = np.sign(to - start.tau_d_ratio)
-        assert np.all(sign * np.diff(qs) > 0)
+        assert np.all(sign * np.diff(qs) > 0) and r.reached == qs[-1]
         assert 0 <= sign * (qs[-1] - to) < abs(to - start.tau_d_ratio)
         for p in pulses:
             ref = min(family, key=lambda f: abs(f.tau_d_ratio - p.tau_d_ratio))

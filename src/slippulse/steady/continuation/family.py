@@ -89,6 +89,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         return rep
 
     if origin is not None:
+        rep.direction = 1 if stop > origin.tau_d_ratio else -1
         go_deep((origin.xi, np.log(origin.v), origin.beta, origin.tau_d_ratio), resolve=False)
         if rep.stopped_early:
             rep.hint = ("smaller arclength steps (--ds-min); to go on, continue the last pulse "
