@@ -59,9 +59,9 @@ class Continuation:
     targets : natural steps: the τ_d/τ_min values to write pulses at, descending.
     beta_cap : natural steps: the march is ``"capped"`` once β ≥ beta_cap (where the arclength
         steps take over).
-    max_length : the march is ``"stopped"`` once L ≥ max_length (m).
-    spacing : hand an accepted pulse to ``on_accept`` only once L has grown by this fraction
-        since the last one handed (0: every one); the pulse the march ends on always is.
+    max_length : arclength: the march is ``"stopped"`` once L ≥ max_length (m).
+    spacing : arclength: hand an accepted pulse to ``on_accept`` only once L has grown by this
+        fraction since the last one handed (0: every one); the pulse the march ends on always is.
     on_attempt : callable(tau_d_ratio, pulse_or_None, message), optional; after every attempt
         (steps, relays, recentring re-solves).
     on_accept : callable(solution, extra) → :class:`Accepted` or None, optional: the place where
@@ -85,6 +85,9 @@ class Continuation:
         attempt.
     current, targets, h, shrink : natural steps: the current pulse on its grid, the targets not
         yet reached, the next τ_d step, the β steps' factor.
+
+    :meth:`resume_step`, :meth:`hold`, :meth:`replace`, :meth:`restart` and
+    :meth:`recentre_front` act on arclength steps only.
     """
 
     def __init__(self, params, start, strategy: Strategy = AUTO, spec=GridSpec(),
