@@ -251,7 +251,7 @@ def test_family_kill9_then_rerun_resumes_with_file_intact(tmp_path):
 FAMILY_OPTIONS = {
     "--from": ["1.19"], "--to": ["1.009"], "--step": ["0.0025"], "--points": ["1500"],
     "--max-points": ["9000"], "--ds-min": ["0.0005"], "--spacing": ["0.0"],
-    "--max-length": ["5000"],
+    "--max-length": ["5000"], "--from-pulse": ["{pulse}"],
 }
 NOT_THE_RUN = {"-h", "--help", "--out", "-q", "--quiet", "--params", "--set"}
 
@@ -262,7 +262,7 @@ def _family_parser():
     return sub._subparsers._group_actions[0].choices["family"]
 
 
-def test_every_family_option_changes_the_run_or_is_refused(tmp_path, params):
+def test_every_family_option_changes_the_run_or_is_refused(tmp_path, params, pulse12):
     """Each option of ``steady family`` changes the keyword arguments of ``run_family`` (the
     strategy included: ``--ds-min`` is the deep march's smallest step), and each refuses a bad
     value with a one-line ParameterError naming it; the options of other runs' modes are gone and
@@ -278,15 +278,21 @@ def test_every_family_option_changes_the_run_or_is_refused(tmp_path, params):
     base_args = parser.parse_args([])
     base = family_run_args(base_args, params)
     assert base["strategy"] == AUTO and base["spacing"] == 0.01
+    stored = str(tmp_path / "stored.h5")
+    write_pulse(stored, pulse12.to_pulse(), params)
+    pulse = f"{stored}:td1.2000"
     for opt, (val,) in FAMILY_OPTIONS.items():
-        got = family_run_args(parser.parse_args([opt, val]), params)
+        got = family_run_args(parser.parse_args([opt, val.format(pulse=pulse)]), params)
         changed = {k for k in base if got[k] != base[k]}
         assert changed, f"{opt} {val} changes nothing"
         if opt == "--ds-min":
             assert changed == {"strategy"} and got["strategy"].steps.ds_min == 0.0005
             assert got["strategy"].replace(steps=AUTO.steps) == AUTO   # nothing else of it
+        if opt == "--from-pulse":
+            assert got["origin"].label == "td1.2000" and got["start"] == got["origin"].tau_d_ratio
     bad = {"--step": "0", "--points": "10", "--max-points": "100", "--ds-min": "0.004",
-           "--spacing": "0.9", "--max-length": "0", "--from": "2", "--to": "0.5"}
+           "--spacing": "0.9", "--max-length": "0", "--from": "2", "--to": "0.5",
+           "--from-pulse": str(tmp_path / "none.h5:td1.2000")}
     assert set(bad) == set(FAMILY_OPTIONS)
     for opt, val in bad.items():
         with pytest.raises(ParameterError, match=opt.lstrip("-").split("-")[0]):
@@ -637,3 +643,133 @@ def test_the_held_march_moves_the_zone_back_onto_the_healing_front(monkeypatch, 
     assert march.sol is (new if case == "far" else cur)
     assert calls == ([cur] if case in ("far", "fails") else [])
     assert march.n_recentred == (1 if case == "far" else 0)
+
+
+def test_a_stored_pulse_continued_both_ways_reproduces_its_neighbours(tmp_path, params):
+    """``--from-pulse`` (``run_family(origin=..., strategy=FROM_PULSE)``): a pulse of a quick
+    family (1.2 → 1.175 on 500 points, every pulse grid-checked) continued on its own grid by the
+    deep march's pseudo-arclength steps, down to 1.18 and up to 1.195: every pulse written is checked, τ_d
+    moves monotonically toward --to and the march ends past it, by less than the way there
+    (the last step shortened);
+    each pulse is the family's: the family's nearest pulse, solved at its τ_d on the family's
+    grid, gives its β and L within the grid tolerance (both grid-converged to it)."""
+    from slippulse.steady.continuation import FROM_PULSE
+    from slippulse.steady.solver import solve_pulse
+    fam = str(tmp_path / "fam.h5")
+    rep = run_family(params, fam, start=1.2, stop=1.175, step=0.005, n_points=500)
+    assert not rep.stopped_early and len(list_pulses(fam)) == 6
+    family = [read_pulse(fam, lab)[0] for lab in list_pulses(fam)]
+    start = read_pulse(fam, "td1.1900")[0]
+    for to in (1.18, 1.195):
+        out = str(tmp_path / f"to{to}.h5")
+        r = run_family(params, out, stop=to, origin=start, strategy=FROM_PULSE)
+        assert not r.stopped_early and r.deep_steps >= 1, r.stop_reason
+        pulses = [read_pulse(out, lab)[0] for lab in list_pulses(out)]
+        assert pulses and all(p.converged and p.extra["grid_check_passed"] for p in pulses)
+        assert all(p.extra["continuation"] == "arclength" for p in pulses)
+        qs = np.array([start.tau_d_ratio] + [p.tau_d_ratio for p in pulses])
+        sign = np.sign(to - start.tau_d_ratio)
+        assert np.all(sign * np.diff(qs) > 0) and r.reached == qs[-1]
+        assert 0 <= sign * (qs[-1] - to) < abs(to - start.tau_d_ratio)
+        for p in pulses:
+            ref = min(family, key=lambda f: abs(f.tau_d_ratio - p.tau_d_ratio))
+            b = solve_pulse(params, p.tau_d_ratio, n_points=ref.n_points, passes=0,
+                            guess=(ref.xi, np.log(ref.v), ref.beta), adapt_guess=False)
+            assert b.stats.converged
+            got = b.to_pulse()
+            assert abs(got.beta - p.beta) <= GRID_TOLERANCE.beta
+            assert abs(got.L / p.L - 1.0) <= GRID_TOLERANCE.L
+
+
+@pytest.mark.parametrize("case, words", [
+    ("no file", "no such file"), ("no label", "no pulse label"), ("not FILE:LABEL", "FILE:LABEL"),
+    ("other parameters", "other parameters"), ("step given", "--step=0.001 is not used"),
+    ("to at the pulse", "own tau_d"), ("out holds pulses", "holds pulses already"),
+])
+def test_from_pulse_refuses_bad_input_with_one_line_and_no_file(tmp_path, params, pulse12, case,
+                                                                 words):
+    """``--from-pulse``: a missing file or label, a value that is not FILE:LABEL, a file of
+    other parameters, an option of the natural steps, --to at the pulse's own τ_d, an --out that
+    already holds pulses: exit 2, one line naming the problem, no file written or changed."""
+    from dataclasses import replace
+
+    import tests.cli_inproc as inproc
+    stored = str(tmp_path / "stored.h5")
+    write_pulse(stored, pulse12.to_pulse(), params)
+    arg, extra, out = f"{stored}:td1.2000", ["--to", "1.19"], str(tmp_path / "new.h5")
+    if case == "no file":
+        arg = str(tmp_path / "none.h5:td1.2000")
+    elif case == "no label":
+        arg = f"{stored}:td1.1000"
+    elif case == "not FILE:LABEL":
+        arg = stored
+    elif case == "other parameters":
+        other = str(tmp_path / "other.h5")
+        write_pulse(other, pulse12.to_pulse(), replace(params, D=2 * params.D))
+        arg = f"{other}:td1.2000"
+    elif case == "step given":
+        extra += ["--step", "0.001"]
+    elif case == "to at the pulse":
+        extra = ["--to", "1.2"]
+    elif case == "out holds pulses":
+        out = stored
+    before = _digest(stored)
+    r = inproc.run(["steady", "family", "--from-pulse", arg, *extra, "--out", out, "-q"])
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0] and "Traceback" not in r.stderr
+    assert _digest(stored) == before
+    if out != stored:
+        assert not os.path.exists(out)
+
+
+def test_natural_steps_are_strategies_of_the_one_driver(params, pulse12):
+    """The shallow family's steps run in :class:`Continuation` too: τ_d steps onto the targets
+    (``NATURAL``: each accepted pulse handed over, status "finished" at the last target), β steps
+    past a target and onto it (``BETA_STEPS``: the pulses above it handed over as "beta", the one
+    at it as "tau_d"), both counted; at β ≥ beta_cap the march is "capped" before any attempt, and
+    past beta_switch the τ_d steps are "stalled". The β route lands on the τ_d route's pulse
+    (other grids: within the grid tolerance). A natural predictor with arclength steps, or
+    natural steps with another predictor, is refused when built."""
+    from slippulse.steady.continuation import (BETA_STEPS, NATURAL, NaturalPredictor,
+                                               PulseOnGrid, ShrinkSteps, TargetSteps)
+    start = PulseOnGrid.of(pulse12, pulse12.to_pulse().L)
+    grid = AdaptGrid(regrid=0.1, n_points=700)
+    tau = NATURAL.replace(grid=grid)
+    handed = []
+
+    def on_accept(sol, extra):
+        handed.append((float(sol.to_pulse().tau_d_ratio), extra["continuation"],
+                       extra["continuation_strategy"]))
+
+    m = Continuation(params, start, tau, targets=[1.195, 1.19], on_accept=on_accept)
+    assert m.status == "running" and m.last_predictor == "natural"
+    assert m.run() == "finished" and m.q == 1.19 and m.targets == []
+    assert m.n_steps == len(handed) == 2 and m.n_attempts == m.n_steps + m.n_failed
+    assert [h[:2] for h in handed] == [(1.195, "tau_d"), (1.19, "tau_d")]
+    assert handed[0][2] == str(tau)
+    handed.clear()
+    beta_steps = BETA_STEPS.replace(grid=grid, steps=ShrinkSteps(shrink=0.999, min_shrink=0.9995))
+    b = Continuation(params, start, beta_steps, targets=[1.19], on_accept=on_accept)
+    assert b.run() == "finished" and b.q == 1.19 and b.n_steps == len(handed) >= 2
+    assert [h[1] for h in handed] == ["beta"] * (len(handed) - 1) + ["tau_d"]
+    assert all(q > 1.19 for q, _, _ in handed[:-1])
+    assert abs(b.beta - m.beta) <= GRID_TOLERANCE.beta
+    capped = Continuation(params, start, tau, targets=[1.195], beta_cap=0.0)
+    assert capped.run() == "capped" and capped.n_attempts == 0
+    stalled = Continuation(params, start, tau.replace(steps=TargetSteps(beta_switch=1e-3)),
+                           targets=[1.195])
+    assert stalled.run() == "stalled" and "beta_switch" in stalled.message
+    with pytest.raises(StrategyError, match="TargetSteps"):
+        Strategy(NaturalPredictor("tau_d"), NewtonCorrector(), FreeSteps(), AdaptGrid())
+    with pytest.raises(StrategyError, match="ShrinkSteps"):
+        Strategy(NaturalPredictor("beta"), NewtonCorrector(), TargetSteps(), AdaptGrid())
+    with pytest.raises(StrategyError, match="AdaptGrid"):
+        Strategy(NaturalPredictor("tau_d"), NewtonCorrector(), TargetSteps(), StretchGrid())
+    with pytest.raises(StrategyError, match="NaturalPredictor"):
+        Strategy(TangentPredictor(), NewtonCorrector(), ShrinkSteps(), AdaptGrid())
+    for bad in (lambda: NaturalPredictor("q"), lambda: TargetSteps(step=0.0),
+                lambda: TargetSteps(min_step=0.01), lambda: ShrinkSteps(shrink=0.98),
+                lambda: FreeSteps(overshoot=0.0), lambda: AdaptGrid(n_points=1)):
+        with pytest.raises(StrategyError):
+            bad()

@@ -251,6 +251,8 @@ def family_run_args(args, params) -> dict:
     ParameterError naming it and its valid range)."""
     from ..steady.continuation import AUTO, FAMILY_POINTS, StrategyError
     from ..steady.continuation.family import DEEP_POINTS, check_family_args
+    if args.from_pulse is not None:
+        return from_pulse_run_args(args, params)
     start, stop = _ratio(args.from_, params, "--from"), _ratio(args.to, params, "--to")
     if not stop < start:
         raise ParameterError(f"--to={stop:g} is invalid: must be < --from={start:g} (the family "
@@ -282,7 +284,55 @@ def family_run_args(args, params) -> dict:
         raise ParameterError(f"ds-min={args.ds_min} is invalid: {exc}") from None
     return dict(start=start, stop=stop, step=args.step, n_points=args.points,
                 strategy=strategy, n_max=args.max_points, max_length=args.max_length,
-                spacing=args.spacing)
+                spacing=args.spacing, origin=None)
+
+
+def from_pulse_run_args(args, params) -> dict:
+    """The keyword arguments of ``run_family`` for ``steady family --from-pulse FILE:LABEL``:
+    the stored pulse (read and validated: the file, the label, its parameters those of the run,
+    converged) continued by the deep march toward --to, above or below its τ_d. The options of
+    the natural steps (--from, --step, --points) do not act on that march and are refused when
+    given another value than their default."""
+    from ..core.errors import SchemaError
+    from ..core.h5io import read_pulse
+    from ..core.params import describe_difference, differing
+    from ..steady.continuation import FROM_PULSE, StrategyError
+    text = args.from_pulse
+    path, sep, label = text.rpartition(":")
+    if not (sep and path and label):
+        raise ParameterError(f"from-pulse={text!r} is invalid: must be FILE:LABEL (e.g. "
+                             f"family.h5:td1.2000)")
+    try:
+        origin, stored = read_pulse(path, label)
+    except SchemaError as exc:
+        raise ParameterError(f"from-pulse={text!r} is invalid: {exc}") from None
+    if differing(stored, params):
+        raise ParameterError(f"from-pulse={text!r} is invalid: {path} holds pulses of other "
+                             f"parameters: "
+                             f"{describe_difference(stored, params, 'in the file', 'given')}")
+    if not origin.converged:
+        raise ParameterError(f"from-pulse={text!r} is invalid: that pulse did not converge")
+    for name, value, default in (("from", args.from_, "1.2"), ("step", args.step, 0.005),
+                                 ("points", args.points, None)):
+        if value != default:
+            raise ParameterError(f"--{name}={value} is not used with --from-pulse (the march "
+                                 f"starts at the pulse, on its grid, with arclength steps)")
+    stop = _ratio(args.to, params, "--to")
+    need = 2 * origin.n_points - 1
+    if args.max_points < need:
+        raise ParameterError(f"max-points={args.max_points} is invalid: the grid check of the "
+                             f"pulse's grid (N = {origin.n_points}) needs at least 2N - 1 = {need}")
+    steps = FROM_PULSE.steps
+    if not (0 < args.ds_min <= steps.ds):
+        raise ParameterError(f"ds-min={args.ds_min} is invalid: must be in (0, {steps.ds:g}] "
+                             f"and below the held steps' cap")
+    try:
+        strategy = FROM_PULSE.replace(steps=dataclasses.replace(steps, ds_min=args.ds_min))
+    except StrategyError as exc:
+        raise ParameterError(f"ds-min={args.ds_min} is invalid: {exc}") from None
+    return dict(start=origin.tau_d_ratio, stop=stop, step=args.step, n_points=None,
+                strategy=strategy, n_max=args.max_points, max_length=args.max_length,
+                spacing=args.spacing, origin=origin)
 
 
 def cmd_family(args) -> int:
@@ -295,7 +345,7 @@ def cmd_family(args) -> int:
     check_writable(out, "out")
     _check_out(out)
     start, stop = kw["start"], kw["stop"]
-    prog = FamilyProgress(start, stop, args.step)
+    prog = FamilyProgress(start, stop, math.copysign(args.step, start - stop))
     # the bar appears after a second of work: an input the run refuses at once leaves no stub
     bar = tqdm(total=prog.total, desc="family", unit="target", disable=args.quiet,
                file=sys.stderr, delay=1.0,
@@ -573,6 +623,10 @@ def _add_family(ss) -> None:
                         "lets the deformed grid drift between checks")
     p.add_argument("--max-length", type=float, default=math.inf,
                    help="stop (exit 0) once the pulse length exceeds this (m; default no limit)")
+    p.add_argument("--from-pulse", default=None, metavar="FILE:LABEL",
+                   help="continue this stored pulse (e.g. of another branch) instead, on its own "
+                        "grid, by the deep march's pseudo-arclength steps toward --to (above or "
+                        "below its tau_d, through folds), into a new --out")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_family)

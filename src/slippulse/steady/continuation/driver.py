@@ -1,7 +1,8 @@
-"""The continuation driver: :class:`Continuation`, a pseudo-arclength march of the family toward
-β → 1 built from a :class:`~.strategy.Strategy`, with its state, status and counters on the
-object (in the style of scipy's ``OdeSolver``: ``step()`` advances by one accepted pulse,
-``status`` says whether it may go on, ``message`` says why not).
+"""The continuation driver: :class:`Continuation`, the march of the family built from a
+:class:`~.strategy.Strategy` — natural steps in τ_d or β on adapted grids, or pseudo-arclength
+steps toward β → 1 — with its state, status and counters on the object (in the
+style of scipy's ``OdeSolver``: ``step()`` advances by one accepted pulse, ``status`` says
+whether it may go on, ``message`` says why not).
 """
 from __future__ import annotations
 
@@ -16,10 +17,10 @@ from ..measures import pulse_length
 from ..newton import SolveStats
 from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess
 from .arclength import ArclengthProblem, family_tangent, tangent_by_refinement, unit_tangent
-from .natural import _judge
+from .natural import PulseOnGrid, judge_pulse, solve_between, tangent_step
 from .relay import recentre, refine_front, zone_offset
-from .strategy import AUTO, Strategy
-from .stretch import _stretch, stretch_grid
+from .strategy import AUTO, ShrinkSteps, Strategy, TargetSteps
+from .stretch import stretch_grid, stretch_profile
 
 
 @dataclass
@@ -34,19 +35,33 @@ class Accepted:
 
 
 class Continuation:
-    """Pseudo-arclength continuation of the family in (a, q/κ), a = ln(1 − β), q = τ_d/τ_min.
+    """Continuation of the family in q = τ_d/τ_min, by the step its strategy's predictor names:
+
+    * arclength (:class:`~.strategy.TangentPredictor` and its kin): pseudo-arclength steps ds in
+      (a, q/κ), a = ln(1 − β), toward β → 1 or toward ``stop``, through folds of τ_d;
+    * natural τ_d (:class:`~.strategy.NaturalPredictor` with :class:`~.strategy.TargetSteps`):
+      steps onto the round ``targets``, every accepted pulse handed over;
+    * natural β (with :class:`~.strategy.ShrinkSteps`): β steps until τ_d passes ``targets[0]``
+      (the pulses above it handed over), then the pulse at that target.
 
     Parameters
     ----------
     params : Parameters
-    start : SteadySolution of ``free="both"`` (x = (y, β, q)), or a tuple (xi, y, β, q) (the pin
-        is then put at the leading edge, :func:`front_pin`).
+    start : SteadySolution (of ``free="both"``, x = (y, β, q), for arclength steps), a
+        :class:`~.natural.PulseOnGrid` (natural steps), or a tuple (xi, y, β, q) (arclength: the
+        pin is then put at the leading edge, :func:`front_pin`; natural: the first step lays out
+        a grid).
     strategy : :class:`~.strategy.Strategy` (default :data:`~.strategy.AUTO`).
     spec : layout of re-laid grids (:class:`~.strategy.AdaptGrid`).
-    stop : the march is ``"finished"`` once τ_d/τ_min ≤ stop.
-    max_length : the march is ``"stopped"`` once L ≥ max_length (m).
-    spacing : hand an accepted pulse to ``on_accept`` only once L has grown by this fraction
-        since the last one handed (0: every one); the pulse the march ends on always is.
+    stop : arclength: the march is ``"finished"`` once τ_d/τ_min has reached stop from the side
+        it starts on, and its first step heads for it (stop = −inf: toward β → 1); through a
+        fold, where τ_d turns, it goes on along the family.
+    targets : natural steps: the τ_d/τ_min values to write pulses at, descending.
+    beta_cap : natural steps: the march is ``"capped"`` once β ≥ beta_cap (where the arclength
+        steps take over).
+    max_length : arclength: the march is ``"stopped"`` once L ≥ max_length (m).
+    spacing : arclength: hand an accepted pulse to ``on_accept`` only once L has grown by this
+        fraction since the last one handed (0: every one); the pulse the march ends on always is.
     on_attempt : callable(tau_d_ratio, pulse_or_None, message), optional; after every attempt
         (steps, relays, recentring re-solves).
     on_accept : callable(solution, extra) → :class:`Accepted` or None, optional: the place where
@@ -57,23 +72,38 @@ class Continuation:
 
     Attributes
     ----------
-    status : "running", "finished" (stop reached), "stopped" (max_length), "failed" (ds fell
-        below ``ds_min`` and no relay helped; ``message`` says where and why).
+    status : "running", "finished" (stop, or the last target, reached), "stopped" (max_length),
+        "failed" (ds fell below ``ds_min`` and no relay helped, or the β steps or the solve at
+        the target failed; ``message`` says where and why), "stalled" (natural τ_d steps: the
+        step fell below ``min_step`` or β passed ``beta_switch``), "capped" (β ≥ ``beta_cap``).
     sol : the current pulse (x = (y, β, q)); q, beta, L : its τ_d/τ_min, β and length (m).
     ds : the next arclength step; held, cap : whether the step control holds ds, and its cap.
-    tangent : (t_a, t_Q) of the last accepted step; fold : τ_d/τ_min where τ_d first rose.
+    tangent : (t_a, t_Q) of the last accepted step; fold : τ_d/τ_min where τ_d first turned
+        (moved away from ``stop``); direction : −1 (τ_d falling toward stop) or +1.
     n_steps, n_attempts, n_failed, n_iterations, n_relays, n_recentred, n_written : counters.
-    last_predictor : "tangent", "length" or "secant", the predictor of the last attempt.
+    last_predictor : "tangent", "length", "secant" or "natural", the predictor of the last
+        attempt.
+    current, targets, h, shrink : natural steps: the current pulse on its grid, the targets not
+        yet reached, the next τ_d step, the β steps' factor.
+
+    :meth:`resume_step`, :meth:`hold`, :meth:`replace`, :meth:`restart` and
+    :meth:`recentre_front` act on arclength steps only.
     """
 
     def __init__(self, params, start, strategy: Strategy = AUTO, spec=GridSpec(),
                  stop=-math.inf, max_length=math.inf, spacing=0.0, on_attempt=None,
-                 on_accept=None, log=None):
+                 on_accept=None, log=None, targets=(), beta_cap=math.inf):
         if not isinstance(strategy, Strategy):
             raise TypeError(f"strategy={strategy!r}: must be a Strategy")
         self.params, self.spec, self.strategy = params, spec, strategy
         self.stop, self.max_length, self.spacing = stop, max_length, spacing
         self.on_attempt, self.on_accept, self.log = on_attempt, on_accept, log
+        self.status, self.message = "running", ""
+        self.n_steps = self.n_attempts = self.n_failed = self.n_iterations = 0
+        self.n_relays = self.n_recentred = self.n_written = 0
+        if strategy.parameter != "arclength":
+            self._start_natural(start, targets, beta_cap)
+            return
         if isinstance(start, SteadySolution):
             base, x = start.problem, np.asarray(start.x, float).copy()
         else:
@@ -88,16 +118,16 @@ class Continuation:
         # κ: |dq/da| at the start, so that one unit of ds moves a and q/κ alike
         n0 = family_tangent(base, x, (1.0, 0.0, 1.0))
         self.kappa = max(abs(n0[-1] / (-n0[-2] / (1.0 - self.beta))), 1e-5)
-        self._orient = (1.0, 0.0, self.kappa)
+        # the first step toward stop in τ_d (stop = −inf: toward β → 1)
+        self.direction = 1.0 if stop > self.q else -1.0
+        c_b = -1.0 if math.isfinite(stop) and self.direction * n0[-1] < 0 else 1.0
+        self._orient = (c_b, 0.0, self.kappa)
         self.ds = strategy.steps.ds
         self.L = self._L_grid = pulse_length(base.xi, np.exp(x[:-2]), params.v_star,
                                              crossings=False)
         self.sol = SteadySolution(base, x, SolveStats(True, "start", 0, 0.0), 0.0, 0)
         self.tangent = (math.nan, math.nan)
         self.fold = None
-        self.status, self.message = "running", ""
-        self.n_steps = self.n_attempts = self.n_failed = self.n_iterations = 0
-        self.n_relays = self.n_recentred = self.n_written = 0
         self.last_predictor = "tangent"
         # the history of the length and secant predictors: dL/ds of the last accepted step
         # (kept across replace/restart: those re-solve the same pulse on another grid); (x, ds)
@@ -148,7 +178,10 @@ class Continuation:
     def state_attrs(self) -> dict:
         """The driver's attributes of a written pulse: its strategy, the predictor and Newton
         iterations of the step that produced it, and the step control state (what a resumed march
-        restores, :meth:`resume_step`, :meth:`hold`)."""
+        restores, :meth:`resume_step`, :meth:`hold`); of a natural step, the parameter it stepped
+        ("tau_d", or "beta" for a pulse between targets) and the strategy."""
+        if self.strategy.parameter != "arclength":
+            return {"continuation": self._method, "continuation_strategy": str(self.strategy)}
         return {"continuation": "arclength", "continuation_strategy": str(self.strategy),
                 "continuation_predictor": self.last_predictor,
                 "continuation_iterations": int(self.sol.stats.iterations),
@@ -156,11 +189,14 @@ class Continuation:
 
     # ---------------------------------------------------------------- the public step
     def step(self):
-        """Advance by one accepted pulse, hand it to ``on_accept`` when it is due, and keep the
-        healing-front zone on its drop. Returns None, or the message once the march failed.
-        Raises RuntimeError when the march is not running."""
+        """Advance by one accepted pulse and hand it to ``on_accept`` when it is due (natural
+        steps: every one; arclength: per ``spacing``, then keep the healing-front zone on its
+        drop). Returns None, or the message once the march failed. Raises RuntimeError when the
+        march is not running."""
         if self.status != "running":
             raise RuntimeError(f"Continuation.step() with status {self.status!r}")
+        if self.strategy.parameter != "arclength":
+            return self._natural_step()
         if not self._started:
             self._started = True
             self.recentre_front()
@@ -183,6 +219,176 @@ class Continuation:
         while self.status == "running":
             self.step()
         return self.status
+
+    # ---------------------------------------------------------------- natural steps
+    def _start_natural(self, start, targets, beta_cap):
+        """The state of natural steps: the pulse on its grid, the targets, the step h (τ_d) or
+        the factor of 1 − β (β)."""
+        if isinstance(start, SteadySolution):
+            self.sol, current = start, PulseOnGrid.of(start, start.to_pulse().L)
+        elif isinstance(start, PulseOnGrid):
+            self.sol, current = None, start
+        else:
+            xi, y, beta, q = start
+            self.sol, current = None, PulseOnGrid(xi, np.asarray(y, float), beta, q)
+        self.targets = [float(t) for t in targets]
+        if not self.targets:
+            raise ValueError("natural steps need targets (tau_d/tau_min values to reach)")
+        self.beta_cap = beta_cap
+        steps = self.strategy.steps
+        self.h = steps.step if isinstance(steps, TargetSteps) else math.nan
+        self.shrink = steps.shrink if isinstance(steps, ShrinkSteps) else math.nan
+        self._tried = set()
+        self._method = self.strategy.parameter
+        self._n_start = current.xi.size
+        self.last_predictor = "natural"
+        self._set_current(current, math.nan)
+
+    def _set_current(self, current: PulseOnGrid, L):
+        self.current = current
+        self.beta, self.q, self.L = float(current.beta), float(current.q), float(L)
+
+    def _natural_step(self):
+        """One accepted natural pulse, handed to ``on_accept``; the march goes on from that pulse
+        on its grid, whatever ``on_accept`` returns (a check's refined pulse lies on 2N − 1
+        points, a grid the natural steps' policy does not lay out). Returns None, or the message
+        once the march failed."""
+        if isinstance(self.strategy.steps, TargetSteps):
+            accepted = self._step_to_target()
+        else:
+            accepted = self._step_in_beta()
+        if accepted:
+            self.n_steps += 1
+            self._hand(self.sol, {})
+        return self.message if self.status == "failed" else None
+
+    def _points(self):
+        """N of a grid laid out at the current β (the grid policy's)."""
+        return self.strategy.grid.points(self.beta, self._n_start)
+
+    def _tried_natural(self, value, sol, pulse, msg):
+        """Count an attempt at ``value`` and tell ``on_attempt``."""
+        self.n_attempts += 1
+        self.n_iterations += sol.stats.iterations
+        self.message = msg
+        if pulse is None:
+            self.n_failed += 1
+        if self.on_attempt:
+            self.on_attempt(value, pulse, msg)
+
+    def _step_to_target(self) -> bool:
+        """:class:`~.strategy.TargetSteps`: a τ_d step of h toward the next target, h halved after
+        a failure (a trial from the same pulse to the same τ_d is not repeated) and doubled up to
+        ``step`` after a success. Returns whether a pulse was accepted."""
+        st, grid = self.strategy.steps, self.strategy.grid
+        while True:
+            if self._tau_steps_end(st):
+                return False
+            target = self.targets[0]
+            trial = max(target, round(self.q - self.h, 10))
+            if (self.q, trial) in self._tried:
+                self.h *= 0.5
+                continue
+            self._tried.add((self.q, trial))
+            # predict along the tangent at fixed τ_d, correct (chord start on its LU)
+            sol, new = tangent_step(self.params, self.current, trial, "tau_d", self._points(),
+                                    self.spec, regrid=grid.regrid,
+                                    corrector=self.strategy.corrector)
+            pulse, ok, msg = judge_pulse(sol)
+            self._tried_natural(trial, sol, pulse if ok else None, msg)
+            if not ok:
+                self.h *= 0.5
+                continue
+            self._accept_natural(sol, new, pulse.L, "tau_d")
+            if abs(trial - target) < 1e-12:
+                self.targets.pop(0)
+            self.h = min(st.step, 2.0 * self.h)
+            if not self.targets:
+                self.status = "finished"
+                self.message = f"reached tau_d/tau_min={self.q:.6f}"
+            return True
+
+    def _tau_steps_end(self, st) -> bool:
+        """Whether the natural τ_d steps end here: no target left, β at the cap, or stalled."""
+        if not self.targets:
+            self.status, self.message = "finished", f"reached tau_d/tau_min={self.q:.6f}"
+        elif self.beta >= self.beta_cap:
+            self.status = "capped"
+            self.message = f"beta={self.beta:.6f} reached the natural steps' cap {self.beta_cap}"
+        elif self.h < st.floor - 1e-15 or self.beta > st.beta_switch:
+            self.status = "stalled"
+            self.message = (f"tau_d steps stalled at tau_d/tau_min={self.q:.6f}, beta="
+                            f"{self.beta:.6f} (step {self.h:.3g}, smallest {st.floor:.3g}; "
+                            f"beta_switch {st.beta_switch})")
+        return self.status != "running"
+
+    def _step_in_beta(self) -> bool:
+        """:class:`~.strategy.ShrinkSteps`: a β step, 1 − β ← f (1 − β), with τ_d free; f moves
+        halfway to 1 after a failure, and the march fails once f > ``min_shrink``. A pulse
+        still above the target is accepted; the first past it leads to the pulse at the target
+        (:meth:`_land`). Returns whether a pulse was accepted."""
+        st, grid = self.strategy.steps, self.strategy.grid
+        target = self.targets[0]
+        while True:
+            if self.beta >= self.beta_cap:
+                self.status = "capped"
+                self.message = (f"beta={self.beta:.6f} reached the natural steps' cap "
+                                f"{self.beta_cap}")
+                return False
+            b_new = 1.0 - (1.0 - self.beta) * self.shrink
+            sol, new = tangent_step(self.params, self.current, b_new, "beta", self._points(),
+                                    self.spec, regrid=grid.regrid,
+                                    corrector=self.strategy.corrector)
+            ok = sol.stats.converged
+            q_new = float(sol.x[-1])
+            pulse = sol.to_pulse() if ok else None
+            self._tried_natural(q_new, sol, pulse, f"beta-step to {b_new:.6f}: "
+                                                   f"{sol.stats.message}")
+            if not ok:
+                self.shrink = 1.0 - 0.5 * (1.0 - self.shrink)
+                if self.shrink > st.min_shrink:
+                    self.status = "failed"
+                    self.message = (f"beta-steps stopped converging at beta={self.beta:.6f}: the "
+                                    f"step 1-beta <- {1 - 2 * (1 - self.shrink):.4f}(1-beta), the "
+                                    f"smallest allowed, failed ({sol.stats.message})")
+                    return False
+                continue
+            self.shrink = st.shrink
+            if q_new > target:
+                self._accept_natural(sol, new, pulse.L, "beta")
+                return True
+            return self._land(sol, target)
+
+    def _land(self, below: SteadySolution, target) -> bool:
+        """The pulse at ``target`` from the first β pulse past it: a τ_d step on its grid by the
+        ``landing`` corrector; if that fails, the pair that brackets the target (the current
+        pulse above it, ``below``) interpolated in τ_d and solved on a grid adapted to it.
+        Returns whether it converged (then the march is "finished", else "failed")."""
+        st = self.strategy.steps
+        n = self._points()
+        sol, new = tangent_step(self.params, PulseOnGrid.of(below, math.inf), target, "tau_d", n,
+                                self.spec, regrid=math.inf, corrector=st.landing)
+        pulse, ok, msg = judge_pulse(sol)
+        self._tried_natural(target, sol, pulse if ok else None, msg)
+        if not ok:
+            sol = solve_between(self.params, self.current, below, target, n, self.spec,
+                                max_iter=st.landing.max_iter)
+            pulse, ok, msg = judge_pulse(sol)
+            self._tried_natural(target, sol, pulse if ok else None, msg)
+            new = PulseOnGrid.of(sol, pulse.L)
+        if not ok:
+            self.status = "failed"
+            self.message = (f"the solve at the target tau_d/tau_min={target:.4f} from the two "
+                            f"bracketing beta-step pulses failed ({msg})")
+            return False
+        self._accept_natural(sol, new, pulse.L, "tau_d")
+        self.targets.pop(0)
+        self.status, self.message = "finished", f"reached tau_d/tau_min={target:.6f}"
+        return True
+
+    def _accept_natural(self, sol, new: PulseOnGrid, L, method):
+        self.sol, self._method = sol, method
+        self._set_current(new, L)
 
     def _hand(self, sol, extra):
         """Hand ``sol`` to ``on_accept`` with the driver's attributes."""
@@ -314,7 +520,7 @@ class Continuation:
         # ln v stretched behind the leading edge by exp(ds · d ln L/ds): the healing edge moves
         # by many of its own widths per step, which the linear tangent in ln v cannot carry
         self.last_predictor = "tangent"
-        yp = _stretch(base.xi, x[:-2], base.xi[base.pin_index], math.exp(ds * dlnL))
+        yp = stretch_profile(base.xi, x[:-2], base.xi[base.pin_index], math.exp(ds * dlnL))
         n_cur = self.n_points
         if n_cur == base.n and abs(self.L / self._L_grid - 1.0) < S.grid.regrid:
             return base.xi, yp, base.pin_index, base.y_pin, base.H, bp, qp, n_cur
@@ -325,10 +531,11 @@ class Continuation:
     def _attempt(self):
         """One predictor–corrector attempt at the current ds: (ok, solution or None, message,
         (t_a, t_Q), predicted q)."""
-        S, ds = self.strategy, self.ds
+        S = self.strategy
         n = self._tangent()
         t_a, t_Q = -n[-2] / (1.0 - self.beta), n[-1] / self.kappa
         self._orient = (n[-2], n[-1], self.kappa)
+        self.ds = ds = self._toward_stop(self.ds, t_Q)
         new, its, n_cur = None, 0, self._base.n
         qp = self.q + ds * self.kappa * t_Q
         bp = math.nan
@@ -356,10 +563,21 @@ class Continuation:
             st.lu = st.jacobian = None
             ok, msg, its = st.converged, st.message, st.iterations
             self.n_iterations += its
-            if ok and not _judge(new)[1]:
+            if ok and not judge_pulse(new)[1]:
                 ok, msg = False, "converged to a multi-hump solution: rejected"
         msg = f"arclength step ds={ds:.3g} (N={n_cur}, {its} it.) to beta~{bp:.6f}: {msg}"
         return ok, new, msg, (t_a, t_Q), qp
+
+    def _toward_stop(self, ds, t_Q):
+        """``ds``, shortened where the predicted τ_d would pass ``stop`` by more than the step
+        control's ``overshoot`` times the distance left (to ds_min at least)."""
+        st = self.strategy.steps
+        left = self.direction * (self.stop - self.q)
+        rate = self.direction * self.kappa * t_Q          # > 0: moving toward stop
+        reach = (1.0 + st.overshoot) * left
+        if not (math.isfinite(reach) and left > 0 and rate > 0 and ds * rate > reach):
+            return ds
+        return max(reach / rate, st.ds_min)
 
     def advance(self):
         """One accepted pulse (halving ds on failure). Returns None, or the message when ds fell
@@ -411,7 +629,7 @@ class Continuation:
         ds_max = min(st.ds_max, self.cap) if self.held else st.ds_max
         self.ds = st.next_ds(self.ds, new.stats.iterations, ds_max)
         self.tangent = tangent
-        if tangent[1] > 0 and self.fold is None:
+        if self.direction * tangent[1] < 0 and self.fold is None:
             self.fold = self.q
         self.n_steps += 1
         self._update_status()
@@ -423,9 +641,10 @@ class Continuation:
         self.L = sol.to_pulse().L
 
     def _update_status(self):
-        if self.q <= self.stop + 1e-12:
+        if self.direction * (self.q - self.stop) >= -1e-12:
             self.status = "finished"
-            self.message = f"reached tau_d/tau_min={self.q:.6f} <= {self.stop}"
+            self.message = (f"reached tau_d/tau_min={self.q:.6f} "
+                            f"{'>=' if self.direction > 0 else '<='} {self.stop}")
         elif self.L >= self.max_length:
             self.status = "stopped"
             self.message = f"pulse length L={self.L:.5g} m reached max_length={self.max_length:g} m"

@@ -1,8 +1,10 @@
-"""The family run: natural continuation from the built-in guess down in τ_d, then the deep
-continuation driver, every pulse grid-checked and appended atomically to one HDF5 file (a rerun
-resumes)."""
+"""The family run: the continuation driver from the built-in guess down in τ_d — natural τ_d
+steps, β steps where they stall, the pseudo-arclength march from β ≈ 0.99 — every pulse
+grid-checked and appended atomically to one HDF5 file (a rerun resumes); or the march from a
+stored pulse, in either direction."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import time
@@ -12,13 +14,12 @@ import numpy as np
 from ...core.h5io import list_pulses, read_pulse, unique_label, write_pulse
 from ...core.params import ParameterError, Parameters
 from ..solver import MAX_POINTS, GridSpec, solve_pulse
-from .driver import Continuation
+from .driver import Accepted, Continuation
 from .gridcheck import as_both, check_pulse
-from .strategy import AUTO, Strategy
-from .tolerance import GRID_TOLERANCE, GridTolerance
-from .natural import (FAMILY_POINTS, FAMILY_POINTS_BETA, _Base, _beta_bridge, _judge, _targets,
-                      tangent_step)
+from .natural import PulseOnGrid, judge_pulse, round_targets
 from .report import FamilyReport
+from .strategy import AUTO, BETA_STEPS, FAMILY_POINTS, NATURAL, Strategy, TargetSteps
+from .tolerance import GRID_TOLERANCE, GridTolerance
 
 
 def _hint_first(first, n_points):
@@ -33,22 +34,23 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
                tolerance: GridTolerance = GRID_TOLERANCE, n_max: int = MAX_POINTS,
                max_length: float = math.inf, deep_points: int | None = None,
                spacing: float | None = None, log=None, monitor=None,
-               check: bool = True) -> FamilyReport:
+               check: bool = True, origin=None) -> FamilyReport:
     """Solve the family from `start` down to `stop` (τ_d/τ_min) into `out`, every pulse
     grid-checked; a rerun resumes from the deepest converged pulse of `out`.
 
-    Natural steps in τ_d (tangent predictor, chord corrector), halving on failure; in β (τ_d
-    free) once β > ``beta_switch`` or two τ_d steps in a row failed; from β ≥ :data:`DEEP_BETA`
-    the pseudo-arclength driver (:class:`~.driver.Continuation`) with ``strategy``. Every pulse is
-    checked by :func:`check_pulse` (``tolerance``, grids up to ``n_max``) and written with the
-    check's figures; one that cannot pass is written with ``converged=False``,
-    ``status="failed"`` and the reason.
+    One driver (:class:`~.driver.Continuation`) with three strategies in turn: natural τ_d steps
+    onto the targets (:data:`~.strategy.NATURAL` with ``step``, ``min_step``, ``beta_switch``,
+    ``max_iter``, ``n_points``); where they stall, β steps past the next target and onto it
+    (:data:`~.strategy.BETA_STEPS`), then τ_d steps again; from β ≥ :data:`DEEP_BETA` the
+    pseudo-arclength march with ``strategy``. Every pulse is checked by :func:`check_pulse`
+    (``tolerance``, grids up to ``n_max``) and written with the check's figures; one that cannot
+    pass is written with ``converged=False``, ``status="failed"`` and the reason.
 
     Parameters
     ----------
-    n_points : grid points of the natural steps; None: :data:`FAMILY_POINTS`.
+    n_points : grid points of the natural steps; None: :data:`~.strategy.FAMILY_POINTS`.
     progress : callable(tau_d_ratio, pulse_or_None, message), optional; after every attempt.
-    max_iter : Newton iterations allowed per natural step (converging steps take ≤ 6).
+    max_iter : Newton iterations allowed per natural τ_d step (converging steps take ≤ 6).
     strategy : the deep driver's :class:`~.strategy.Strategy` (default :data:`~.strategy.AUTO`).
     max_length : stop (cleanly, ``rep.limit_reached``) once a pulse is this long (m).
     deep_points : N of the adapted grid the deep driver starts on (default :data:`DEEP_POINTS`).
@@ -60,14 +62,19 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         per-pulse computation along the family, e.g. a bifurcation test function).
     check : False: write the pulses unchecked (for a walk whose pulses only guide a solve, as
         ``steady solve`` below 1.2; such a file is refused on resume by a checked run).
+    origin : a converged :class:`~slippulse.core.h5io.Pulse` (e.g. of another branch): instead
+        of the family from ``start``, continue it on its own grid by the pseudo-arclength march
+        (``strategy``) toward ``stop``, above or below its τ_d, through folds; ``out`` must not
+        hold pulses yet.
     """
-    check_family_args(params, start, stop, step)
     deep_points = DEEP_POINTS if deep_points is None else deep_points
     spacing = SPACING if spacing is None else spacing
+    if origin is not None:
+        check_origin(params, origin, stop, out)
+    else:
+        check_family_args(params, start, stop, step)
     _check_args(params, out, tolerance, n_max, deep_points, max_length, spacing, check)
     n_tau, n_deep = FAMILY_POINTS if n_points is None else (n_points, n_points)
-    if min_step is None:
-        min_step = 0.5 * step          # two failed τ_d steps in a row switch to stepping in β
     t0 = time.perf_counter()
     rep = FamilyReport()
     rep.strategy = str(strategy)
@@ -81,17 +88,24 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
         rep.wall_time = time.perf_counter() - t0
         return rep
 
+    if origin is not None:
+        rep.direction = 1 if stop > origin.tau_d_ratio else -1
+        go_deep((origin.xi, np.log(origin.v), origin.beta, origin.tau_d_ratio), resolve=False)
+        if rep.stopped_early:
+            rep.hint = ("smaller arclength steps (--ds-min); to go on, continue the last pulse "
+                        "written with --from-pulse OUT:LABEL into a new --out")
+        return rep
     # resume: continue below the deepest converged pulse already in `out`
     base = _resume(params, out, rep)
     if base is not None and (rep.resumed_method == "arclength" or base.beta >= DEEP_BETA):
         if base.q > stop + 1e-12 and rep.reached_L < max_length:
-            return go_deep((base.xi, base.y, base.beta, base.q),
-                           resolve=rep.resumed_method != "arclength",
+            return go_deep(_as_tuple(base), resolve=rep.resumed_method != "arclength",
                            previous=rep.resumed_previous, held=rep.resumed_held,
                            cap=rep.resumed_cap)
         rep.wall_time = time.perf_counter() - t0
         return rep
-    targets = [t for t in _targets(start, stop, step) if base is None or t < base.q - 1e-12]
+    targets = [t for t in round_targets(start, stop, step)
+               if base is None or t < base.q - 1e-12]
     if base is None:
         # the first pulse from the built-in guess
         first = targets.pop(0)
@@ -102,55 +116,79 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
             rep.wall_time = time.perf_counter() - t0
             return rep
         write(sol, pulse, "tau_d")
-        base = _Base.of(sol, pulse.L)
-    h = step
-    tried = set()
-    while targets:
-        target = targets[0]
-        if base.beta >= DEEP_BETA:
-            return go_deep((base.xi, base.y, base.beta, base.q), resolve=True)
-        if h < min_step - 1e-15 or base.beta > beta_switch:
-            # natural continuation stalls near τ_min: step in β with τ_d free past the target,
-            # then solve at the exact target from the β-solutions that bracket it
-            why = {}
-            res = _beta_bridge(params, out, base, target, n_deep, spec, max_iter, rep, progress,
-                               why, write=write, beta_cap=DEEP_BETA)
-            if res is None:
-                # the β-steps reached DEEP_BETA (or stalled): the deep driver from the last pulse
-                last = why.get("last")
-                if last is not None:
-                    return go_deep((last.xi, last.x[:-1], last.beta, float(last.x[-1])),
-                                   resolve=True)
-                return go_deep((base.xi, base.y, base.beta, base.q), resolve=True)
-            sol, base = res
-            targets.pop(0)
-            h = step
-            continue
-        trial = max(target, round(base.q - h, 10))
-        if (base.q, trial) in tried:
-            h *= 0.5
-            continue
-        tried.add((base.q, trial))
-        # predict along the family tangent (on the last grid while L is within REGRID of the
-        # L it was laid out for), correct by chord and Newton iterations
-        n_here = n_tau if base.beta <= FAMILY_POINTS_BETA else n_deep
-        sol, new = tangent_step(params, base, trial, "tau_d", n_here, spec, max_iter=max_iter)
-        pulse, ok, msg = _judge(sol)
-        rep.record(trial, ok, msg)
+        base = PulseOnGrid.of(sol, pulse.L)
+    tau_steps, beta_steps = natural_strategies(step, min_step, beta_switch, max_iter, n_tau,
+                                               n_deep)
+
+    def on_attempt(r, p, m):
+        rep.record(r, p is not None, m)
         if progress:
-            progress(trial, pulse if ok else None, msg)
-        # accept, or halve the step and retry
-        if not ok:
-            h *= 0.5
+            progress(r, p, m)
+
+    def on_accept(sol, extra):
+        return write(sol, sol.to_pulse(), extra["continuation"], extra=extra)
+
+    def march(strategy_, start_, targets_):
+        m = Continuation(params, start_, strategy_, spec=spec, targets=targets_,
+                         beta_cap=DEEP_BETA, on_attempt=on_attempt, on_accept=on_accept, log=log)
+        m.run()
+        return m
+
+    while targets:
+        if base.beta >= DEEP_BETA:
+            return go_deep(_as_tuple(base), resolve=True)
+        # τ_d steps onto the targets, until they stall
+        m = march(tau_steps, base, targets)
+        base, targets = m.current, m.targets
+        if m.status != "stalled":
             continue
-        # write the accepted pulse; it becomes the base of the next step
-        write(sol, pulse, "tau_d")
-        base = new
-        if abs(trial - target) < 1e-12:
-            targets.pop(0)
-        h = min(step, 2.0 * h)
+        # β steps with τ_d free past the next target, then the pulse at it; where they fail or
+        # reach DEEP_BETA, the deep driver from their last pulse above it
+        m = march(beta_steps, base, targets[:1])
+        base = m.current
+        if m.status != "finished":
+            return go_deep(_as_tuple(base), resolve=True)
+        targets = targets[1:]
     rep.wall_time = time.perf_counter() - t0
     return rep
+
+
+def natural_strategies(step, min_step, beta_switch, max_iter, n_tau, n_deep):
+    """The τ_d and β strategies of :func:`run_family` (:data:`~.strategy.NATURAL` and
+    :data:`~.strategy.BETA_STEPS` with the run's step, switch, iterations and grid points)."""
+    tau_corrector = dataclasses.replace(NATURAL.corrector, max_iter=max_iter)
+    tau_steps = NATURAL.replace(
+        corrector=tau_corrector,
+        steps=TargetSteps(step=step, min_step=min_step, beta_switch=beta_switch),
+        grid=dataclasses.replace(NATURAL.grid, n_points=n_tau, n_points_above=n_deep))
+    beta_steps = BETA_STEPS.replace(
+        steps=dataclasses.replace(BETA_STEPS.steps, landing=tau_corrector),
+        grid=dataclasses.replace(BETA_STEPS.grid, n_points=n_deep))
+    return tau_steps, beta_steps
+
+
+def _as_tuple(p: PulseOnGrid):
+    """(xi, y, β, q) of a pulse on its grid: the deep driver's start."""
+    return p.xi, p.y, p.beta, p.q
+
+
+def check_origin(params, origin, stop, out) -> None:
+    """Bad input of :func:`run_family` from ``origin`` as ParameterError: a pulse that did not
+    converge, a ``stop`` at its own τ_d or outside (τ_min, τ_peak), an ``out`` that already holds
+    pulses."""
+    if not origin.converged:
+        raise ParameterError(f"from-pulse={origin.label} is invalid: the pulse did not converge")
+    if not math.isfinite(stop):
+        raise ParameterError(f"to={stop!r} is invalid: must be a finite tau_d/tau_min")
+    try:
+        params.check_tau_d(stop * params.tau_min)
+    except ParameterError as exc:
+        raise ParameterError(f"to={stop:g} is invalid: {exc}") from None
+    if abs(stop - origin.tau_d_ratio) < 1e-9:
+        raise ParameterError(f"to={stop:g} is invalid: it is the pulse's own tau_d/tau_min")
+    if os.path.exists(out) and list_pulses(out):
+        raise ParameterError(f"out={out!r} is invalid: it holds pulses already; a --from-pulse "
+                             f"run writes a new file")
 
 
 def check_family_args(params, start, stop, step) -> None:
@@ -169,8 +207,9 @@ def check_family_args(params, start, stop, step) -> None:
 
 
 def _resume(params, out, rep: FamilyReport):
-    """The deepest converged pulse already in ``out`` as a :class:`_Base` (no Hilbert matrix: the
-    first step lays out a new grid), or None; a file of other parameters is an error."""
+    """The deepest converged pulse already in ``out`` as a :class:`~.natural.PulseOnGrid` (no
+    Hilbert matrix: the first step lays out a new grid), or None; a file of other parameters is
+    an error."""
     if not os.path.exists(out):
         return None
     done = []
@@ -189,7 +228,7 @@ def _resume(params, out, rep: FamilyReport):
     rep.resumed_held = bool(last.extra.get("march_held", False))
     rep.resumed_cap = float(last.extra.get("march_cap", math.nan))
     rep.reached, rep.reached_beta, rep.reached_L = last.tau_d_ratio, last.beta, last.L
-    return _Base(last.xi, np.log(last.v), last.beta, last.tau_d_ratio)
+    return PulseOnGrid(last.xi, np.log(last.v), last.beta, last.tau_d_ratio)
 
 
 def _previous_arclength(pulses, q_last):
@@ -207,7 +246,7 @@ def _attempt(params, tau_d_ratio, rep: FamilyReport, progress, **solve_args):
     """Solve at τ_d/τ_min = ``tau_d_ratio`` and judge it; the attempt is counted in ``rep`` and
     shown by ``progress``. Returns (solution, pulse, ok, message)."""
     sol = solve_pulse(params, tau_d_ratio, **solve_args)
-    pulse, ok, msg = _judge(sol)
+    pulse, ok, msg = judge_pulse(sol)
     rep.record(tau_d_ratio, ok, msg)
     if progress:
         progress(tau_d_ratio, pulse if ok else None, msg)
@@ -325,7 +364,6 @@ class _PlainWriter(_CheckedWriter):
     """Write a pulse as it is, unchecked (``run_family(check=False)``)."""
 
     def __call__(self, sol, pulse, method, extra=None):
-        from .driver import Accepted
         p = as_both(self.params, sol).to_pulse() if method == "arclength" else pulse
         p.extra["continuation"] = method
         p.extra.update(extra or {})
@@ -350,7 +388,7 @@ def _deep(params, start, stop, rep, progress, write, resolve_n, max_length, spec
     if resolve_n is not None:
         sol = solve_pulse(params, q, n_points=resolve_n, guess=(xi, y, beta), passes=0,
                           max_iter=30, spec=spec)
-        pulse, ok, msg = _judge(sol)
+        pulse, ok, msg = judge_pulse(sol)
         rep.record(q, ok, f"deep start re-solved at N={resolve_n}: {msg}")
         if progress:
             progress(q, pulse if ok else None, f"deep start N={resolve_n}: {msg}")

@@ -1,5 +1,6 @@
-"""Natural-parameter continuation: tangent steps in τ_d (β unknown) or in β (τ_d unknown), the
-β-march and the bridge back to a round τ_d target."""
+"""Natural-parameter steps, the maths of :class:`~.strategy.NaturalPredictor`: one tangent step
+in τ_d (β unknown) or in β (τ_d unknown), the solve between two pulses that bracket a τ_d target,
+and the test a natural step's pulse must pass (one hump). The driver is :mod:`.driver`."""
 from __future__ import annotations
 
 import math
@@ -9,24 +10,25 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from ...core.h5io import write_pulse
 from ..equations import SteadyProblem
-from ..newton import NEWTON_TOL, newton
 from ..measures import pulse_length
+from ..newton import NEWTON_TOL, newton
 from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess, solve_pulse
-from .stretch import _stretch
+from .strategy import REGRID, NewtonCorrector
+from .stretch import stretch_profile
 
 
-def _targets(start, stop, step):
+def round_targets(start, stop, step):
+    """The τ_d/τ_min targets start, start − step, ..., stop (rounded to 10 decimals)."""
     n = int(round((start - stop) / step))
     return [round(start - k * step, 10) for k in range(n + 1)]
 
 
 @dataclass
-class _Base:
-    """A converged pulse on its grid, the base of the next tangent step: ln v on ξ, β, q = τ_d/τ_min,
-    the grid's Hilbert matrix (None: not built), the phase condition (pin node, ln v there) and
-    the pulse length the grid was laid out for."""
+class PulseOnGrid:
+    """A converged pulse on its grid, the base of the next natural step: ln v on ξ, β,
+    q = τ_d/τ_min, the grid's Hilbert matrix (None: not built), the phase condition (pin node, ln v
+    there) and the pulse length the grid was laid out for."""
 
     xi: np.ndarray
     y: np.ndarray
@@ -46,14 +48,13 @@ class _Base:
                    L_grid)
 
 
-#: Re-lay the grid once L differs from the L it was laid out for by more than this fraction.
-REGRID = 0.1
-
-
-def tangent_step(params, base: _Base, value, fixed, n_points, spec=GridSpec(), max_iter=12,
-                 regrid=REGRID):
-    """One continuation step from a converged pulse to τ_d/τ_min = value (fixed="tau_d"; unknowns
-    y, β) or to β = value (fixed="beta"; unknowns y, q). Returns (SteadySolution, its _Base).
+def tangent_step(params, base: PulseOnGrid, value, fixed, n_points, spec=GridSpec(), max_iter=12,
+                 regrid=REGRID, corrector=None):
+    """One natural step from a converged pulse to τ_d/τ_min = value (fixed="tau_d"; unknowns
+    y, β) or to β = value (fixed="beta"; unknowns y, q): the predictor of
+    :class:`~.strategy.NaturalPredictor`, then ``corrector`` (a
+    :class:`~.strategy.NewtonCorrector`; None: chord start, ``max_iter`` iterations). Returns
+    (SteadySolution, its :class:`PulseOnGrid`).
 
     Notes
     -----
@@ -64,8 +65,10 @@ def tangent_step(params, base: _Base, value, fixed, n_points, spec=GridSpec(), m
     predict: with dp = value − p_base, the scalar unknown + dp t; ln v stretched behind the pin by
     s = exp(dp d ln L/dp) (d ln L/dp from t by a finite difference of the FWHM) plus dp times the
     part of t_y that the stretch does not hold (t_y + (ξ − ξ_pin) y′ d ln L/dp behind the pin).
-    correct: :func:`newton` with the LU of J_x (chord iterations, then Newton if they stall).
+    correct: the corrector (:func:`~slippulse.steady.newton.newton`) with the LU of J_x (chord iterations, then Newton if they stall).
     """
+    if corrector is None:
+        corrector = NewtonCorrector(max_iter=max_iter, chord=True, reuse_lu=False)
     t0 = time.perf_counter()
     L = pulse_length(base.xi, np.exp(base.y), params.v_star, crossings=False)
     keep = (base.H is not None and base.xi.size == n_points and abs(L / base.L_grid - 1) <= regrid)
@@ -96,7 +99,7 @@ def tangent_step(params, base: _Base, value, fixed, n_points, spec=GridSpec(), m
     behind = xi < xi[k]
     t_stretch = np.zeros(n)
     t_stretch[behind] = -(xi[behind] - xi[k]) * np.gradient(y, xi)[behind] * dlnL
-    y = _stretch(xi, y, xi[k], math.exp(dp * dlnL)) + dp * (t[:n] - t_stretch)
+    y = stretch_profile(xi, y, xi[k], math.exp(dp * dlnL)) + dp * (t[:n] - t_stretch)
     t = t[n:]
     if fixed == "tau_d":
         x0 = np.concatenate([y, [base.beta]]) + np.r_[np.zeros(n), dp * t]
@@ -107,9 +110,9 @@ def tangent_step(params, base: _Base, value, fixed, n_points, spec=GridSpec(), m
         if not _valid_q(params, x0[-1]):
             x0[-1] = base.q
         prob = SteadyProblem(params, x0[-1], xi, k, ky, H=both.H, free="tau_d", beta=value)
-    x, st = newton(prob, x0, tol=NEWTON_TOL, max_iter=max_iter, lu=lu)
+    x, st = corrector.solve(prob, x0, lu=lu)
     sol = SteadySolution(prob, x, st, time.perf_counter() - t0, 0)
-    return sol, _Base.of(sol, L_grid)
+    return sol, PulseOnGrid.of(sol, L_grid)
 
 
 def _valid_q(params, q):
@@ -128,49 +131,9 @@ def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_i
     return SteadySolution(prob, x, st, time.perf_counter() - t0, 1)
 
 
-def march_in_beta(params, start, target, n_points, spec=GridSpec(), shrink=0.92,
-                  min_shrink=0.97, progress=None, rep=None, why=None, beta_cap=None):
-    """From solution `start` (a :class:`_Base`), step β toward 1 (1−β ← shrink·(1−β)) with τ_d
-    free, until τ_d/τ_min ≤ target. Yields converged SteadySolutions; stops when a step below
-    `min_shrink` fails. Each step is a :func:`tangent_step` in β (tangent predictor, chord
-    corrector).
-
-    Every attempt is counted in `rep` (a :class:`FamilyReport`), failed ones with their message;
-    when the march gives up, ``why["reason"]`` says where and why. ``beta_cap``: stop (with
-    ``why["cap"] = True``) once β ≥ beta_cap, where the deep continuation takes over.
-    """
-    base = start
-    f = shrink
-    while base.q > target:
-        if beta_cap is not None and base.beta >= beta_cap:
-            if why is not None:
-                why["cap"] = True
-                why["reason"] = f"beta={base.beta:.6f} reached the deep continuation's {beta_cap}"
-            return
-        bnew = 1.0 - (1.0 - base.beta) * f
-        sol, new = tangent_step(params, base, bnew, "beta", n_points, spec, max_iter=40)
-        ok = sol.stats.converged
-        msg = f"beta-step to {bnew:.6f}: {sol.stats.message}"
-        if rep is not None:
-            rep.record(float(sol.x[-1]), ok, msg)
-        if progress:
-            progress(float(sol.x[-1]), sol.to_pulse() if ok else None, msg)
-        if not ok:
-            f = 1.0 - 0.5 * (1.0 - f)
-            if f > min_shrink:
-                if why is not None:
-                    why["reason"] = (f"beta-steps stopped converging at beta={base.beta:.6f}: the "
-                                     f"step 1-beta <- {1 - 2 * (1 - f):.4f}(1-beta), the smallest "
-                                     f"allowed, failed ({sol.stats.message})")
-                return
-            continue
-        base = new
-        f = shrink
-        yield sol
-
-
-def _judge(sol):
-    """(pulse, ok, message): a solve is accepted when it converged to a single-hump pulse."""
+def judge_pulse(sol):
+    """(pulse, ok, message): a solve is accepted when it converged to a single-hump pulse (a
+    step can converge to a solution with ripples behind the peak, another branch)."""
     pulse = sol.to_pulse()
     ok = pulse.converged and pulse.extra["n_humps"] == 1
     msg = sol.stats.message
@@ -179,64 +142,14 @@ def _judge(sol):
     return pulse, ok, msg
 
 
-def _beta_bridge(params, out, base, target, n_points, spec, max_iter, rep, progress, why,
-                 write=None, beta_cap=None):
-    """March in β from `base` (a :class:`_Base`) until τ_d passes `target`, writing the
-    intermediate pulses, then solve at `target` by a tangent step in τ_d from the first pulse past
-    it (if that fails, from the bracketing pair interpolated in τ_d). Returns (solution, its base)
-    for the continuation, or None on failure (reason in `why`)."""
-    hi, lo = None, None
-    if write is None:
-        def write(sol, pulse, method):
-            write_pulse(out, pulse, params)
-            rep.wrote(pulse)
-    for bsol in march_in_beta(params, base, target, n_points, spec, progress=progress, rep=rep,
-                              why=why, beta_cap=beta_cap):
-        q = float(bsol.x[-1])
-        if q > target:
-            write(bsol, bsol.to_pulse(), "beta")
-            hi = bsol
-            why["last"] = bsol
-        else:
-            lo = bsol
-    if lo is None:
-        return None
-    # tangent step in τ_d from the pulse just past the target
-    sol, new = tangent_step(params, _Base.of(lo, math.inf), target, "tau_d", n_points, spec,
-                            max_iter=max_iter, regrid=math.inf)
-    pulse, ok, msg = _judge(sol)
-    rep.record(target, ok, msg)
-    if progress:
-        progress(target, pulse if ok else None, msg)
-    if not ok:
-        # the bracketing pair interpolated in τ_d, solved on a grid adapted to it
-        if hi is None:
-            hi_xi, hi_y, hi_q, hi_b = base.xi, base.y, base.q, base.beta
-        else:
-            hi_xi, hi_y, hi_q, hi_b = hi.xi, hi.x[:-1], float(hi.x[-1]), hi.beta
-        w = (hi_q - target) / (hi_q - float(lo.x[-1]))
-        y_t = (1 - w) * np.interp(lo.xi, hi_xi, hi_y) + w * lo.x[:-1]
-        b_t = (1 - w) * hi_b + w * lo.beta
-        sol = solve_pulse(params, target, n_points=n_points, guess=(lo.xi, y_t, b_t), spec=spec,
-                          passes=0, max_iter=max_iter)
-        pulse, ok, msg = _judge(sol)
-        rep.record(target, ok, msg)
-        if progress:
-            progress(target, pulse if ok else None, msg)
-        new = _Base.of(sol, pulse.L)
-    if not ok:
-        why["reason"] = (f"the solve at the target tau_d/tau_min={target:.4f} from the two "
-                         f"bracketing beta-step pulses failed ({msg})")
-        return None
-    write(sol, pulse, "tau_d")
-    return sol, new
-
-
-
-#: Grid points per pulse of the family by default: (while β ≤ FAMILY_POINTS_BETA, beyond). With
-#: the order-4 state both are within 1e-5 in β and 1e-4 in L of N = 4000 (docs/steady.md §3.3);
-#: N = 1000 leaves ripples of 0.05 in ln v behind the peak near τ_min (20 "humps" at 1.015; τ_d
-#: steps to 1.03 rejected as 11- and 2-hump solutions, measured); 1250 not (one hump at
-#: 1.03–1.015, within 8.8e-7 in β and 1.2e-5 in L of N = 4000, BENCHMARKS.md), nor 1500.
-FAMILY_POINTS = (1000, 1250)
-FAMILY_POINTS_BETA = 0.7
+def solve_between(params, hi: PulseOnGrid, lo: SteadySolution, target, n_points, spec=GridSpec(),
+                  max_iter=12):
+    """Solve at τ_d/τ_min = ``target`` from the pair that brackets it, ``hi`` above and ``lo``
+    (a fixed-β solution) below, interpolated linearly in τ_d (ln v onto ``lo``'s grid), on a
+    grid of ``n_points`` adapted to the guess."""
+    lo_q = float(lo.x[-1])
+    w = (hi.q - target) / (hi.q - lo_q)
+    y_t = (1 - w) * np.interp(lo.xi, hi.xi, hi.y) + w * lo.x[:-1]
+    b_t = (1 - w) * hi.beta + w * lo.beta
+    return solve_pulse(params, target, n_points=n_points, guess=(lo.xi, y_t, b_t), spec=spec,
+                       passes=0, max_iter=max_iter)

@@ -12,7 +12,7 @@ class FamilyReport:
     resumed_from: str | None = None
     failures: list = field(default_factory=list)     # (tau_d_ratio, message), every failed solve
     attempts: int = 0                                # solves attempted this run (failed included)
-    reached: float = float("nan")                    # smallest τ_d/τ_min converged
+    reached: float = float("nan")                    # farthest τ_d/τ_min converged (direction)
     reached_beta: float = float("nan")               # β and L of that pulse
     reached_L: float = float("nan")
     stopped_early: bool = False
@@ -28,6 +28,7 @@ class FamilyReport:
     deep_steps: int = 0                              # accepted steps of the deep march
     limit_reached: bool = False                      # stopped cleanly at max_length
     strategy: str = ""                               # the deep driver's combination (printed)
+    direction: int = -1                              # −1: τ_d continued downward, +1: upward
 
     def record(self, tau_d_ratio, ok, message):
         """Count one attempted solve; a failed one is kept with its τ_d/τ_min and message."""
@@ -36,9 +37,11 @@ class FamilyReport:
             self.failures.append((float(tau_d_ratio), message))
 
     def wrote(self, pulse):
-        """A converged pulse was written: the run has reached its τ_d."""
+        """A converged pulse was written: the run has reached its τ_d (the farthest in its
+        direction)."""
         self.written.append(pulse.label)
-        if not (pulse.tau_d_ratio >= self.reached):         # NaN-safe: the first, or a deeper one
+        # NaN-safe: the first, or one farther along
+        if not (self.direction * (self.reached - pulse.tau_d_ratio) >= 0):
             self.reached, self.reached_beta, self.reached_L = pulse.tau_d_ratio, pulse.beta, pulse.L
 
     def stop(self, reason, hint):

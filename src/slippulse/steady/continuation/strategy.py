@@ -2,21 +2,26 @@
 their combination (:class:`Strategy`), a value: printed, stored with every pulse it writes, and
 refused when built if its parts cannot work together.
 
-* predictor — where the next pulse is guessed: :class:`TangentPredictor`,
-  :class:`LengthPredictor`, :class:`SecantPredictor`;
+* predictor — which parameter is stepped and where the next pulse is guessed: along the
+  family's arclength, :class:`TangentPredictor`, :class:`LengthPredictor`,
+  :class:`SecantPredictor`; at a fixed τ_d or β, :class:`NaturalPredictor`;
 * corrector — how the guess is driven to the family: :class:`NewtonCorrector` (Newton with a
   line search, optional chord start and creep stop);
-* step control — how the arclength step ds changes: :class:`FreeSteps`, :class:`HeldSteps`;
+* step control — how the step changes: the arclength step ds, :class:`FreeSteps`,
+  :class:`HeldSteps`; τ_d to round targets, :class:`TargetSteps`; β toward 1,
+  :class:`ShrinkSteps`;
 * grid policy — which grid carries the next pulse: :class:`AdaptGrid`, :class:`StretchGrid`.
 
-:data:`AUTO` is the product's combination (``slippulse steady family``).
+:data:`AUTO` is the product's deep combination; :data:`NATURAL` and :data:`BETA_STEPS` the
+shallow ones that ``slippulse steady family`` runs first (:data:`STRATEGIES` names them).
 """
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
-from ..newton import LINE_SEARCHES
+from ..newton import LINE_SEARCHES, SOLVERS
 from .tolerance import NEWTON_TOL
 
 
@@ -83,7 +88,29 @@ class SecantPredictor(LengthPredictor):
         return "secant" if m == "length" and has_secant else m
 
 
-PREDICTORS = {c.name: c for c in (TangentPredictor, LengthPredictor, SecantPredictor)}
+@dataclass(frozen=True)
+class NaturalPredictor:
+    """Step a natural parameter, τ_d (β unknown) or β (τ_d unknown), along the tangent at the
+    fixed parameter, J_x t = −J_p, with ln v stretched behind the leading edge by the change of L
+    the tangent gives (:func:`~.natural.tangent_step`). Near τ_min β and L change ever faster
+    with τ_d: the τ_d steps hand over to β steps (:class:`TargetSteps` ``beta_switch``), and
+    those to the arclength march (:data:`~.family.DEEP_BETA`)."""
+
+    parameter: str = "tau_d"
+    name = "natural"
+
+    def __post_init__(self):
+        if self.parameter not in ("tau_d", "beta"):
+            raise StrategyError(f"natural: parameter={self.parameter!r} is invalid: must be "
+                                f"'tau_d' or 'beta'")
+
+    def mode(self, ds, has_rate, has_secant) -> str:
+        """The predictor of a step: always the natural one."""
+        return "natural"
+
+
+PREDICTORS = {c.name: c for c in (TangentPredictor, LengthPredictor, SecantPredictor,
+                                  NaturalPredictor)}
 
 
 # ------------------------------------------------------------------------------ corrector
@@ -137,9 +164,9 @@ class NewtonCorrector:
     def solve(self, problem, x0, lu=None, creep=None):
         """Drive ``problem`` from ``x0``; ``lu``: the LU for the chord start (used only with
         ``chord``); ``creep``: this attempt's creep stop when it differs from ``self.creep``.
-        Returns (x, SolveStats) with the LU (and the Jacobian) kept for the next tangent."""
-        from ..newton import newton
-        return newton(problem, x0, tol=NEWTON_TOL, max_iter=self.max_iter,
+        Returns (x, SolveStats) with the LU (and the Jacobian) kept for the next tangent. Newton
+        is the solver registered as "newton" (:data:`~slippulse.steady.newton.SOLVERS`)."""
+        return SOLVERS["newton"](problem, x0, tol=NEWTON_TOL, max_iter=self.max_iter,
                       lu=lu if self.chord else None, keep=self.reuse_lu,
                       creep=self.creep if creep is None else creep,
                       line_search=self.line_search)
@@ -152,6 +179,10 @@ class FreeSteps:
     after one of > ``hard``, halves after a failure; the march fails below ``ds_min``.
 
     ds : the first step; ds_min, ds_max : its bounds (in the plane (ln(1 − β), q/κ)).
+    overshoot : a step whose predicted τ_d would pass the march's stop by more than this
+        fraction of the distance left is shortened to pass it by that fraction (to ds_min at
+        least), so that the march ends near stop; inf: never (the deep family's march, whose
+        spacing of written pulses is set in L).
     """
 
     ds: float = 0.1
@@ -161,6 +192,7 @@ class FreeSteps:
     shrink: float = 0.7
     easy: int = 6
     hard: int = 10
+    overshoot: float = math.inf
     name = "free"
 
     def __post_init__(self):
@@ -172,6 +204,8 @@ class FreeSteps:
             raise StrategyError(f"{self.name}: grow={self.grow}, shrink={self.shrink}, "
                                 f"easy={self.easy}, hard={self.hard} are invalid: need grow >= 1, "
                                 f"0 < shrink <= 1, easy <= hard")
+        if not self.overshoot > 0:
+            raise StrategyError(f"{self.name}: overshoot={self.overshoot} is invalid: must be > 0")
 
     def next_ds(self, ds, iterations, ds_max):
         """The step after an accepted one of ``ds`` whose corrector took ``iterations``."""
@@ -218,20 +252,89 @@ class HeldSteps(FreeSteps):
                                 f"be an integer >= 1")
 
 
+@dataclass(frozen=True)
+class TargetSteps:
+    """τ_d steps onto the round targets start − k · ``step``: each step goes ``h`` toward the next
+    target (h = ``step`` at first), halves h after a failure and doubles it (up to ``step``)
+    after a success. The steps stop ("stalled") once h < ``min_step`` or β > ``beta_switch``:
+    near τ_min a τ_d step moves β faster than the tangent follows, and the β steps take over.
+
+    step : the spacing of the targets (τ_d/τ_min); min_step : None, half of it (two failed steps
+        in a row); beta_switch : the β beyond which τ_d steps are not tried.
+    """
+
+    step: float = 0.005
+    min_step: float | None = None
+    beta_switch: float = 0.85
+    name = "targets"
+
+    def __post_init__(self):
+        if not (self.step > 0 and math.isfinite(self.step)):
+            raise StrategyError(f"targets: step={self.step} is invalid: must be a finite number > 0")
+        if self.min_step is not None and not (0 < self.min_step <= self.step):
+            raise StrategyError(f"targets: min_step={self.min_step} is invalid: must be in (0, "
+                                f"step={self.step:g}]")
+        if not (0 < self.beta_switch < 1):
+            raise StrategyError(f"targets: beta_switch={self.beta_switch} is invalid: must be in "
+                                f"(0, 1)")
+
+    @property
+    def floor(self) -> float:
+        """The smallest step tried (``min_step``, or half of ``step``)."""
+        return 0.5 * self.step if self.min_step is None else self.min_step
+
+
+@dataclass(frozen=True)
+class ShrinkSteps:
+    """β steps toward 1, 1 − β ← ``shrink`` · (1 − β), until τ_d passes the next target, then
+    one τ_d step onto the target from the first pulse past it, on that pulse's grid, by the
+    ``landing`` corrector (if it fails: the bracketing pair interpolated in τ_d, solved on a grid
+    adapted to it). After a failed β step the factor moves halfway to 1; the steps stop
+    ("failed") once it would exceed ``min_shrink``.
+    """
+
+    shrink: float = 0.92
+    min_shrink: float = 0.97
+    landing: NewtonCorrector = field(default_factory=lambda: NewtonCorrector(
+        max_iter=12, chord=True, reuse_lu=False))
+    name = "shrink"
+
+    def __post_init__(self):
+        if not (0 < self.shrink < self.min_shrink < 1):
+            raise StrategyError(f"shrink: shrink={self.shrink}, min_shrink={self.min_shrink} are "
+                                f"invalid: need 0 < shrink < min_shrink < 1")
+        if not isinstance(self.landing, NewtonCorrector):
+            raise StrategyError(f"shrink: landing={self.landing!r} is invalid: must be a "
+                                f"NewtonCorrector")
+
+
 # ------------------------------------------------------------------------------ grid policies
 @dataclass(frozen=True)
 class AdaptGrid:
     """Keep the grid (and its Hilbert matrix) while L stays within ``regrid`` of the L it was laid
-    out for; then lay out a grid adapted to the predicted pulse, ``n_points`` nodes (None: the
-    start's), ln v interpolated onto it."""
+    out for; then lay out a grid adapted to the pulse, ``n_points`` nodes (None: the start's;
+    ``n_points_above`` where β > ``beta_above``, if given), ln v interpolated onto it."""
 
     regrid: float = 0.05
     n_points: int | None = None
+    n_points_above: int | None = None
+    beta_above: float = 0.7
     name = "adapt"
 
     def __post_init__(self):
         if not self.regrid > 0:
             raise StrategyError(f"adapt: regrid={self.regrid} is invalid: must be > 0")
+        for what in ("n_points", "n_points_above"):
+            n = getattr(self, what)
+            if n is not None and not (isinstance(n, int) and n >= 2):
+                raise StrategyError(f"adapt: {what}={n!r} is invalid: must be an integer >= 2 "
+                                    f"or None")
+
+    def points(self, beta: float, start: int) -> int:
+        """The nodes of a grid laid out at β (``start``: the start's N)."""
+        if self.n_points_above is not None and beta > self.beta_above:
+            return self.n_points_above
+        return start if self.n_points is None else self.n_points
 
 
 @dataclass(frozen=True)
@@ -278,7 +381,9 @@ class Strategy:
       :class:`StretchGrid`;
     * :class:`HeldSteps` caps ds where the length or secant predictor acts, on a stretched grid:
       it needs both, and a ds_min below that cap (the predictor's ds_max);
-    * ``recentre`` acts once the steps are held: it needs :class:`HeldSteps` (or 0).
+    * ``recentre`` acts once the steps are held: it needs :class:`HeldSteps` (or 0);
+    * the natural predictor steps τ_d to round targets (:class:`TargetSteps`) or β toward 1
+      (:class:`ShrinkSteps`) on adapted grids (:class:`AdaptGrid`), and only it does.
     """
 
     predictor: object = field(default_factory=TangentPredictor)
@@ -287,14 +392,26 @@ class Strategy:
     grid: object = field(default_factory=AdaptGrid)
 
     def __post_init__(self):
-        kinds = ((self.predictor, (TangentPredictor, LengthPredictor), "predictor"),
+        kinds = ((self.predictor, (TangentPredictor, LengthPredictor, NaturalPredictor),
+                  "predictor"),
                  (self.corrector, (NewtonCorrector,), "corrector"),
-                 (self.steps, (FreeSteps,), "steps"),
+                 (self.steps, (FreeSteps, TargetSteps, ShrinkSteps), "steps"),
                  (self.grid, (AdaptGrid, StretchGrid), "grid"))
         for obj, cls, what in kinds:
             if not isinstance(obj, cls):
                 raise StrategyError(f"{what}={obj!r} is invalid: must be one of "
                                     f"{', '.join(c.__name__ for c in cls)}")
+        natural_steps = {"tau_d": TargetSteps, "beta": ShrinkSteps}
+        if isinstance(self.predictor, NaturalPredictor):
+            need = natural_steps[self.predictor.parameter]
+            if not (isinstance(self.steps, need) and isinstance(self.grid, AdaptGrid)):
+                raise StrategyError(f"predictor natural(parameter={self.predictor.parameter}) "
+                                    f"steps on adapted grids: it needs steps={need.__name__}() "
+                                    f"and grid=AdaptGrid()")
+            return
+        if isinstance(self.steps, (TargetSteps, ShrinkSteps)):
+            raise StrategyError(f"steps={self.steps.name} steps a natural parameter: it needs "
+                                f"predictor=NaturalPredictor()")
         stretch = isinstance(self.grid, StretchGrid)
         if isinstance(self.predictor, LengthPredictor) and not stretch:
             raise StrategyError(f"predictor {self.predictor.name!r} moves the healing-front zone "
@@ -311,6 +428,11 @@ class Strategy:
         elif stretch and self.grid.recentre > 0:
             raise StrategyError(f"stretch: recentre={self.grid.recentre} acts once the steps are "
                                 f"held: it needs steps=HeldSteps() (or recentre=0)")
+
+    @property
+    def parameter(self) -> str:
+        """What a step moves: "arclength", or the natural parameter "tau_d" or "beta"."""
+        return getattr(self.predictor, "parameter", "arclength")
 
     @property
     def held(self) -> bool:
@@ -348,5 +470,38 @@ AUTO = Strategy(predictor=SecantPredictor(ds_max=0.002),
                 grid=StretchGrid(front_zone=0.01, back_zone=0.05, relay=20, relay_levels=2,
                                  recentre=0.001))
 
-#: Named combinations (``STRATEGIES["auto"]`` is :data:`AUTO`).
-STRATEGIES = {"auto": AUTO}
+#: The natural steps re-lay the grid once L differs from the L it was laid out for by more than
+#: this fraction.
+REGRID = 0.1
+
+#: Grid points per pulse of the family by default: (while β ≤ FAMILY_POINTS_BETA, beyond). With
+#: the order-4 state both are within 1e-5 in β and 1e-4 in L of N = 4000 (docs/steady.md §3.3);
+#: N = 1000 leaves ripples of 0.05 in ln v behind the peak near τ_min (20 "humps" at 1.015; τ_d
+#: steps to 1.03 rejected as 11- and 2-hump solutions, measured); 1250 not (one hump at
+#: 1.03–1.015, within 8.8e-7 in β and 1.2e-5 in L of N = 4000, BENCHMARKS.md), nor 1500.
+FAMILY_POINTS = (1000, 1250)
+FAMILY_POINTS_BETA = 0.7
+
+#: The shallow family's τ_d steps: onto the targets 0.005 apart, tangent predictor, chord start
+#: on the tangent's LU (converging steps take ≤ 6 iterations), grids of :data:`FAMILY_POINTS`
+#: re-laid once L has moved by :data:`REGRID`.
+NATURAL = Strategy(predictor=NaturalPredictor("tau_d"),
+                   corrector=NewtonCorrector(max_iter=12, chord=True, reuse_lu=False),
+                   steps=TargetSteps(step=0.005, beta_switch=0.85),
+                   grid=AdaptGrid(regrid=REGRID, n_points=FAMILY_POINTS[0],
+                                  n_points_above=FAMILY_POINTS[1], beta_above=FAMILY_POINTS_BETA))
+
+#: Where the τ_d steps stall (β > 0.85): β steps toward 1 past each target, then onto it.
+BETA_STEPS = Strategy(predictor=NaturalPredictor("beta"),
+                      corrector=NewtonCorrector(max_iter=40, chord=True, reuse_lu=False),
+                      steps=ShrinkSteps(shrink=0.92, min_shrink=0.97,
+                                        landing=NewtonCorrector(max_iter=12, chord=True,
+                                                                reuse_lu=False)),
+                      grid=AdaptGrid(regrid=REGRID, n_points=FAMILY_POINTS[1]))
+
+#: :data:`AUTO` whose last step ends near its stop (``steady family --from-pulse``: a stored pulse
+#: continued to --to, where the first steps of ds = 0.1 would carry it far past).
+FROM_PULSE = AUTO.replace(steps=dataclasses.replace(AUTO.steps, overshoot=0.5))
+
+#: Named combinations (``STRATEGIES["auto"]`` is :data:`AUTO`, the deep march).
+STRATEGIES = {"auto": AUTO, "natural": NATURAL, "beta": BETA_STEPS, "from-pulse": FROM_PULSE}

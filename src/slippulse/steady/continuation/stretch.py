@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def _stretch(xi, y, x0, s):
+def stretch_profile(xi, y, x0, s):
     """ln v stretched by the factor s about x0 behind it: y_new(ξ) = y(x0 + (ξ − x0)/s) for ξ < x0."""
     out = y.copy()
     behind = xi < x0
