@@ -25,11 +25,6 @@ ALLOWED = {
 
 #: Private names a module imports from another, each with its reason (same list discipline).
 ALLOWED_PRIVATE = {
-    # steady/continuation/ imports between its own modules: part of the refactor above
-    "steady/continuation/__init__.py": "continuation refactor under way",
-    "steady/continuation/driver.py": "continuation refactor under way",
-    "steady/continuation/family.py": "continuation refactor under way",
-    "steady/continuation/natural.py": "continuation refactor under way",
 }
 
 

@@ -288,13 +288,13 @@ def test_arclength_follows_a_fold():
 def test_grid_check_equals_fixed_tau_d_difference(params):
     """check_grid_2n solves the 2N pulse on the normal to the tangent and converts the change
     to fixed τ_d along the tangent; a fixed-τ_d solve on the same 2N grid gives the same Δβ, ΔL/L."""
-    from slippulse.steady.continuation import _as_both, check_grid_2n, solve_at_beta
+    from slippulse.steady.continuation import as_both, check_grid_2n, solve_at_beta
     from slippulse.steady.solver import solve_pulse
     # N = 300: with the order-4 state integration N = 400 and 800 agree in τ_d to 3e-8 only
     a = solve_pulse(params, 1.19, n_points=300)
     coarse = solve_at_beta(params, (a.xi, a.x[:-1]), 1.19, a.beta, 300)     # τ_d ≈ 1.19 at this β
     assert coarse.stats.converged
-    sol = _as_both(params, coarse)
+    sol = as_both(params, coarse)
     fine, db, dl = check_grid_2n(params, sol, 300)
     assert fine.stats.converged and fine.problem.n == 600
     q = float(sol.x[-1])
@@ -328,12 +328,12 @@ def test_tangent_step_converges_by_chord_iterations_to_the_direct_solution(param
     """A τ_d step of the family from 1.2 to 1.195 τ_min on the 1.2 pulse's grid: the tangent
     predictor lands close enough for chord iterations with the tangent's LU alone, and the result
     is the solution of a fresh Newton solve on the same grid."""
-    from slippulse.steady.continuation import _Base, tangent_step
+    from slippulse.steady.continuation import PulseOnGrid, tangent_step
     from slippulse.steady.equations import SteadyProblem
     from slippulse.steady.newton import newton
     from slippulse.steady.solver import solve_pulse
     a = solve_pulse(params, 1.2, n_points=500)
-    sol, base = tangent_step(params, _Base.of(a, a.to_pulse().L), 1.195, "tau_d", 500)
+    sol, base = tangent_step(params, PulseOnGrid.of(a, a.to_pulse().L), 1.195, "tau_d", 500)
     assert sol.stats.converged and sol.stats.iterations == 0 and sol.stats.chord_iterations > 0
     assert sol.xi is a.xi and base.q == 1.195 and base.H is a.problem.H
     # the same equations solved by plain Newton from the 1.2 pulse

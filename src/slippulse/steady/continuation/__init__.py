@@ -19,7 +19,7 @@
 from .arclength import ArclengthProblem, family_tangent
 from .driver import Accepted, Continuation
 from .family import run_family
-from .gridcheck import _as_both, check_grid_2n, grid_change
+from .gridcheck import as_both, check_grid_2n, grid_change
 from .homotopy import solve_robust
 from .natural import PulseOnGrid, judge_pulse, round_targets, solve_at_beta, tangent_step
 from .report import FamilyReport
@@ -30,14 +30,11 @@ from .strategy import (AUTO, BETA_STEPS, FAMILY_POINTS, FAMILY_POINTS_BETA, FROM
 from .stretch import stretch_grid, stretch_profile
 from .tolerance import GRID_TOLERANCE, NEWTON_TOL, GridTolerance
 
-#: :class:`~.natural.PulseOnGrid` under the name tests/test_continuation.py imports.
-_Base = PulseOnGrid
-
 __all__ = ["AUTO", "Accepted", "AdaptGrid", "ArclengthProblem", "BETA_STEPS", "Continuation",
            "FAMILY_POINTS", "FAMILY_POINTS_BETA", "FROM_PULSE", "FamilyReport", "FreeSteps", "GRID_TOLERANCE",
            "GridTolerance", "HeldSteps", "LengthPredictor", "NATURAL", "NEWTON_TOL",
            "NaturalPredictor", "NewtonCorrector", "PulseOnGrid", "REGRID", "STRATEGIES",
-           "SecantPredictor", "ShrinkSteps", "Strategy", "StrategyError", "StretchGrid",
+           "SecantPredictor", "ShrinkSteps", "Strategy", "StrategyError", "StretchGrid", "as_both",
            "TangentPredictor", "TargetSteps", "check_grid_2n", "family_tangent", "grid_change",
            "judge_pulse", "round_targets", "run_family", "solve_at_beta", "solve_robust",
            "stretch_grid", "stretch_profile", "tangent_step"]
