@@ -12,10 +12,6 @@ MAX_PARAMS = 12
 
 #: Functions over a limit, each with the reason it is allowed for now.
 ALLOWED = {
-    # steady/continuation/ is being refactored by its owner (the march's stages and its
-    # settings object); these leave the list when that lands
-    "steady/continuation/family.py:run_family": "continuation refactor under way",
-    "steady/continuation/family.py:_deep": "continuation refactor under way",
     # steady/newton.py belongs to the solver's speed work
     "steady/newton.py:_newton": "Newton's speed work under way",
     # its keywords are the API steady/continuation/ calls (max_iter, spec, passes...): it takes

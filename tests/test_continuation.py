@@ -4,14 +4,14 @@ import math
 import numpy as np
 import pytest
 
-from slippulse.steady.continuation import run_family
+from slippulse.steady.continuation import FamilyRun, run_family
 from slippulse.core.h5io import list_pulses, read_pulse
 from slippulse.core.params import ParameterError
 
 
 def test_short_family_and_resume(params, tmp_path):
     out = str(tmp_path / "fam.h5")
-    rep = run_family(params, out, start=1.2, stop=1.19, step=0.005, n_points=500)
+    rep = run_family(params, out, FamilyRun(start=1.2, stop=1.19, step=0.005, n_points=500))
     assert rep.written == ["td1.2000", "td1.1950", "td1.1900"] and not rep.stopped_early
     pulses = [read_pulse(out, lab)[0] for lab in list_pulses(out)]
     assert all(p.converged and p.max_residual <= 1e-13 for p in pulses)
@@ -19,7 +19,7 @@ def test_short_family_and_resume(params, tmp_path):
     assert np.all(np.diff(beta) > 0)                # pulses speed up as τ_d decreases
     # "interrupted" run: extend the range; the existing pulses are not recomputed
     before = {lab: read_pulse(out, lab)[0].wall_time for lab in list_pulses(out)}
-    rep2 = run_family(params, out, start=1.2, stop=1.18, step=0.005, n_points=500)
+    rep2 = run_family(params, out, FamilyRun(start=1.2, stop=1.18, step=0.005, n_points=500))
     assert rep2.resumed_from == "td1.1900"
     assert rep2.written == ["td1.1850", "td1.1800"]
     after = {lab: read_pulse(out, lab)[0].wall_time for lab in before}
@@ -30,11 +30,11 @@ def test_short_family_and_resume(params, tmp_path):
 
 def test_family_refuses_bad_ranges(params, tmp_path):
     with pytest.raises(ParameterError, match="to="):
-        run_family(params, str(tmp_path / "f.h5"), start=1.1, stop=1.2)
+        run_family(params, str(tmp_path / "f.h5"), FamilyRun(start=1.1, stop=1.2))
     with pytest.raises(ParameterError, match="tau_d/tau_min"):
-        run_family(params, str(tmp_path / "f.h5"), start=1.2, stop=0.99)
+        run_family(params, str(tmp_path / "f.h5"), FamilyRun(start=1.2, stop=0.99))
     with pytest.raises(ParameterError, match="step"):
-        run_family(params, str(tmp_path / "f.h5"), start=1.2, stop=1.1, step=-0.01)
+        run_family(params, str(tmp_path / "f.h5"), FamilyRun(start=1.2, stop=1.1, step=-0.01))
 
 
 def test_beta_mode_inverts_tau_d_mode(params):
@@ -62,11 +62,11 @@ def test_interrupted_family_leaves_valid_file_and_resumes(params, tmp_path):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run_family(params, out, start=1.2, stop=1.185, step=0.005, n_points=500,
-                   progress=interrupt_after_two)
+        run_family(params, out, FamilyRun(start=1.2, stop=1.185, step=0.005, n_points=500),
+                                          progress=interrupt_after_two)
     # the pulse whose progress call was interrupted had not been written yet
     assert list_pulses(out) == ["td1.2000"]
-    rep = run_family(params, out, start=1.2, stop=1.185, step=0.005, n_points=500)
+    rep = run_family(params, out, FamilyRun(start=1.2, stop=1.185, step=0.005, n_points=500))
     assert rep.resumed_from == "td1.2000"
     assert list_pulses(out) == ["td1.2000", "td1.1950", "td1.1900", "td1.1850"]
     assert all(read_pulse(out, lab)[0].converged for lab in list_pulses(out))
@@ -130,9 +130,12 @@ def test_family_counts_every_failed_attempt_and_says_why_it_stopped(params, tmp_
     inj = _inject(monkeypatch, _deep_failures)
     FAILED[0] = 0
     calls = []
-    rep = run_family(params, str(tmp_path / "f.h5"), start=1.2, stop=1.185, step=0.005,
-                     n_points=500, deep_points=500, n_max=4000,
-                     progress=lambda r, p, m: calls.append(p is None), strategy=_failing_strategy())
+    rep = run_family(params, str(tmp_path / "f.h5"), FamilyRun(start=1.2, stop=1.185, step=0.005,
+                                                               n_points=500, deep_points=500,
+                                                               n_max=4000,
+                                                               strategy=_failing_strategy()),
+                                                               progress=lambda r, p,
+                                                               m: calls.append(p is None))
     # 1.19 fails, 1.1925 (halved) fails, then two β-steps (shrink 0.92, 0.96) fail: four; the
     # deep march's three attempts (ds 0.1, 0.05, 0.025; a predictor out of range fails before
     # its corrector)
@@ -655,8 +658,8 @@ def test_the_monitor_sees_every_written_pulse_and_its_figures_are_stored(params,
         seen.append(pulse.tau_d_ratio)
         return {"test_function": float(sol.beta) ** 2}
 
-    rep = run_family(params, out, start=1.2, stop=1.19, step=0.005, n_points=500,
-                     monitor=monitor)
+    rep = run_family(params, out, FamilyRun(start=1.2, stop=1.19, step=0.005, n_points=500),
+                                            monitor=monitor)
     labels = list_pulses(out)
     assert labels == rep.written == ["td1.2000", "td1.1950", "td1.1900"]
     assert seen == [read_pulse(out, lab)[0].tau_d_ratio for lab in labels]

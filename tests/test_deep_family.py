@@ -18,7 +18,7 @@ from slippulse.steady.continuation import (AUTO, GRID_TOLERANCE, NEWTON_TOL, Ada
                                            Continuation, FreeSteps, GridTolerance, HeldSteps,
                                            LengthPredictor, NewtonCorrector, SecantPredictor,
                                            Strategy, StrategyError, StretchGrid,
-                                           TangentPredictor, run_family)
+                                           TangentPredictor, FamilyRun, run_family)
 
 
 def _strategy(ds=0.1, ds_max=0.4, ds_min=0.004, max_iter=15, stretch=False, predictor="tangent",
@@ -193,8 +193,9 @@ def test_auto_family_goes_deep_checks_every_pulse_and_stops_at_max_length(params
     monkeypatch.setattr(fam, "DEEP_BETA", 0.0)
     tol = GridTolerance(1e-5, 3e-4)
     out = str(tmp_path / "deep.h5")
-    rep = run_family(params, out, start=1.2, stop=1.15, step=0.01, n_points=500,
-                     deep_points=500, n_max=4000, tolerance=tol, max_length=1.3)
+    rep = run_family(params, out, FamilyRun(start=1.2, stop=1.15, step=0.01, n_points=500,
+                                            deep_points=500, n_max=4000, tolerance=tol,
+                                            max_length=1.3))
     assert rep.limit_reached and not rep.stopped_early and rep.deep_steps >= 1
     labels = list_pulses(out)
     assert labels[0] == "td1.2000" and len(labels) >= 2
@@ -208,8 +209,9 @@ def test_auto_family_goes_deep_checks_every_pulse_and_stops_at_max_length(params
     assert all(p.extra["continuation"] == "arclength" and len(p.label) == 10 for p in deep)
     assert deep[-1].L >= 1.3
     # a rerun resumes the deep march from the deepest pulse, on its own grid
-    rep2 = run_family(params, out, start=1.2, stop=1.15, step=0.01, n_points=500,
-                      deep_points=500, n_max=4000, tolerance=tol, max_length=1.4)
+    rep2 = run_family(params, out, FamilyRun(start=1.2, stop=1.15, step=0.01, n_points=500,
+                                             deep_points=500, n_max=4000, tolerance=tol,
+                                             max_length=1.4))
     assert rep2.resumed_from == labels[-1] and rep2.resumed_method == "arclength"
     assert rep2.deep_steps >= 1 and rep2.written and not rep2.stopped_early
     assert all(read_pulse(out, lab)[0].tau_d_ratio < deep[-1].tau_d_ratio for lab in rep2.written)
@@ -448,9 +450,8 @@ def test_the_deep_march_refines_the_healing_front_where_the_corrector_stalls(
     written like every deep pulse, and goes on from it; a refined pulse that fails its check is
     written failed and ends the march, as does a re-solve that does not converge (nothing
     written); relay=0: the march ends at the stall."""
-    from slippulse.steady.continuation import driver, family
+    from slippulse.steady.continuation import driver
     from slippulse.steady.continuation.gridcheck import as_both
-    from slippulse.steady.continuation.report import FamilyReport
     start = as_both(params, pulse12)
     STALL_N[:] = [start.xi.size, 0, 0]
     if case == "re-solve fails":
@@ -458,16 +459,14 @@ def test_the_deep_march_refines_the_healing_front_where_the_corrector_stalls(
             None, math.inf, math.inf, "healing front refined: the re-solve did not "
                                       "converge (mocked)"))
     out = str(tmp_path / "fam.h5")
-    rep = FamilyReport()
     tol = GridTolerance(1e-30, 1e-30) if case == "check fails" else GRID_TOLERANCE
-    n_max = 2 * 700 - 1
-    write = family._CheckedWriter(params, out, rep, tol, n_max, None)
     strategy = AUTO.replace(corrector=_StallingCorrector(),
                             steps=FreeSteps(ds=0.008, ds_min=0.004),
                             grid=StretchGrid(relay=0 if case == "off" else 3, recentre=0.0))
     L0 = start.to_pulse().L
-    family._deep(params, (start.xi, start.x[:-2], start.beta, 1.2), 1.0, rep, None, write, None,
-                 L0 * 1.004, None, strategy, 0.0)
+    run = FamilyRun(stop=1.001, strategy=strategy, tolerance=tol, n_max=2 * 700 - 1,
+                    deep_points=700, max_length=L0 * 1.004, spacing=0.0)
+    rep = run_family(params, out, run, origin=pulse12.to_pulse())
     labels = list_pulses(out) if os.path.exists(out) else []
     pulses = [read_pulse(out, lab)[0] for lab in labels]
     # the stall: ds halved from 0.008 below 0.004, two failed attempts on the start's grid
@@ -656,13 +655,13 @@ def test_a_stored_pulse_continued_both_ways_reproduces_its_neighbours(tmp_path, 
     from slippulse.steady.continuation import FROM_PULSE
     from slippulse.steady.solver import solve_pulse
     fam = str(tmp_path / "fam.h5")
-    rep = run_family(params, fam, start=1.2, stop=1.175, step=0.005, n_points=500)
+    rep = run_family(params, fam, FamilyRun(start=1.2, stop=1.175, step=0.005, n_points=500))
     assert not rep.stopped_early and len(list_pulses(fam)) == 6
     family = [read_pulse(fam, lab)[0] for lab in list_pulses(fam)]
     start = read_pulse(fam, "td1.1900")[0]
     for to in (1.18, 1.195):
         out = str(tmp_path / f"to{to}.h5")
-        r = run_family(params, out, stop=to, origin=start, strategy=FROM_PULSE)
+        r = run_family(params, out, FamilyRun(stop=to, strategy=FROM_PULSE), origin=start)
         assert not r.stopped_early and r.deep_steps >= 1, r.stop_reason
         pulses = [read_pulse(out, lab)[0] for lab in list_pulses(out)]
         assert pulses and all(p.converged and p.extra["grid_check_passed"] for p in pulses)

@@ -225,9 +225,9 @@ def test_seeded_mode_grows_at_its_eigenvalue_at_1p1(params, tmp_path):
     on 4+4 L the mode's periodic images lower the rate by 1.4 %). ~2 min."""
     from slippulse.timedomain.perturbation import mode_pair_growth, read_series, run_case
     from slippulse.spectrum.family import SpectrumSettings, run_spectrum
-    from slippulse.steady.continuation import run_family
+    from slippulse.steady.continuation import FamilyRun, run_family
     path = str(tmp_path / "fam.h5")
-    run_family(params, path, start=1.2, stop=1.1, step=0.02, n_points=2000)
+    run_family(params, path, FamilyRun(start=1.2, stop=1.1, step=0.02, n_points=2000))
     run_spectrum(path, SpectrumSettings(extra=False), labels=["td1.1000"])
     rows = []
     for eps in (1e-2, -1e-2):

@@ -293,7 +293,7 @@ def test_the_held_corrector_at_9_5_km_converges_with_the_natural_line_search(tmp
     import shutil
 
     from slippulse.core.params import Parameters
-    from slippulse.steady.continuation import AUTO, NEWTON_TOL, run_family
+    from slippulse.steady.continuation import AUTO, NEWTON_TOL, FamilyRun, run_family
     from slippulse.steady.newton import newton
     seed = os.path.join(os.path.dirname(__file__), os.pardir, "steady", "seeds",
                         "seed_9473m.h5")
@@ -305,8 +305,8 @@ def test_the_held_corrector_at_9_5_km_converges_with_the_natural_line_search(tmp
                                 max_iter=25, line_search="natural", creep=4, chord=True)),
                             grid=dataclasses.replace(AUTO.grid, recentre=0.0))
     with pytest.raises(_Got):
-        run_family(Parameters(), out, start=1.2, stop=1.008, max_length=9700, spacing=0.03,
-                   strategy=strategy)
+        run_family(Parameters(), out, FamilyRun(start=1.2, stop=1.008, max_length=9700,
+                                                spacing=0.03, strategy=strategy))
     problem, x0 = CAPTURE[2:]
     assert problem.ds == pytest.approx(0.00064) and problem.base.n == 6614
     x, st = newton(problem, x0, tol=NEWTON_TOL, max_iter=12, line_search="natural")

@@ -37,10 +37,10 @@ TOL = 2e-3
 
 @pytest.fixture(scope="module")
 def pulse105(params, tmp_path_factory):
-    from slippulse.steady.continuation import run_family
+    from slippulse.steady.continuation import FamilyRun, run_family
     from slippulse.core.h5io import read_pulse
     path = str(tmp_path_factory.mktemp("fam") / "fam.h5")
-    run_family(params, path, start=1.2, stop=1.05, step=0.025, n_points=1000)
+    run_family(params, path, FamilyRun(start=1.2, stop=1.05, step=0.025, n_points=1000))
     return read_pulse(path, "td1.0500")[0]
 
 

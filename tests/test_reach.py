@@ -9,7 +9,7 @@ import pytest
 
 from slippulse.core import h5io
 from slippulse.core.params import DEFAULT as P
-from slippulse.steady.continuation import run_family
+from slippulse.steady.continuation import FamilyRun, run_family
 from slippulse.steady.reach import SOLVE_RANGE, reach_pulse
 
 BETA_TOL, L_TOL = 1e-5, 1e-4
@@ -18,9 +18,9 @@ BETA_TOL, L_TOL = 1e-5, 1e-4
 def _family_pulse(tmp_path, x):
     out = str(tmp_path / f"fam{x}.h5")
     if x < 1.2:
-        rep = run_family(P, out, start=1.2, stop=x, step=0.005)
+        rep = run_family(P, out, FamilyRun(start=1.2, stop=x, step=0.005))
     else:
-        rep = run_family(P, out, start=x, stop=x - 0.005, step=0.005)
+        rep = run_family(P, out, FamilyRun(start=x, stop=x - 0.005, step=0.005))
     assert not rep.stopped_early, rep.stop_reason
     return h5io.read_pulse(out, h5io.pulse_label(x))[0]
 

@@ -542,9 +542,9 @@ def test_order2_pulse_is_resolved_at_order4_and_a_coarse_grid_refused(tmp_path, 
 def default_family_to_1p02(tmp_path_factory, params):
     """A family file made with the defaults of `slippulse steady family` from 1.2 to 1.02 τ_min
     (≈ 5 min on 2 cores)."""
-    from slippulse.steady.continuation import run_family
+    from slippulse.steady.continuation import FamilyRun, run_family
     f = str(tmp_path_factory.mktemp("fam") / "fam.h5")
-    run_family(params, f, 1.2, 1.02)
+    run_family(params, f, FamilyRun(start=1.2, stop=1.02))
     return f
 
 

@@ -337,7 +337,7 @@ def from_pulse_run_args(args, params) -> dict:
 
 def cmd_family(args) -> int:
     from ..steady.bifurcation import FamilyMonitor, events, stored_rows
-    from ..steady.continuation import run_family
+    from ..steady.continuation import FamilyRun, run_family
     from .branches import event_lines
     out = args.out or os.path.join("runs", "steady", "family.h5")
     params = params_for_output(args, out)
@@ -357,8 +357,9 @@ def cmd_family(args) -> int:
             tqdm.write(msg, file=sys.stderr)
 
     try:
-        rep = run_family(params, out, progress=prog, log=log, monitor=FamilyMonitor(params),
-                         **kw)
+        origin = kw.pop("origin", None)
+        rep = run_family(params, out, FamilyRun(**kw), origin=origin, progress=prog, log=log,
+                         monitor=FamilyMonitor(params))
     finally:
         bar.close()
     if rep.resumed_from:

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..core.h5io import read_pulse
 from ..core.params import Parameters
-from .continuation import run_family
+from .continuation import FamilyRun, run_family
 from .newton import NEWTON_TOL
 from .solver import SteadySolution, solve_pulse
 
@@ -118,8 +118,8 @@ def reach_pulse(params: Parameters, tau_d_ratio: float, n_points: int = 2000,
     else:
         with tempfile.TemporaryDirectory(prefix="slippulse-reach-") as tmp:
             out = os.path.join(tmp, "walk.h5")
-            rep = run_family(params, out, start=GUESS_RATIO, stop=tau_d_ratio, step=-h,
-                             progress=progress, check=False)
+            rep = run_family(params, out, FamilyRun(start=GUESS_RATIO, stop=tau_d_ratio, step=-h,
+                                                    check=False), progress=progress)
             if rep.stopped_early or not rep.written:
                 return None, (f"the family continuation from {GUESS_RATIO} stopped at "
                               f"tau_d/tau_min={rep.reached:.5f}: {rep.stop_reason}")

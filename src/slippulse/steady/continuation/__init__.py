@@ -18,7 +18,7 @@
 """
 from .arclength import ArclengthProblem, family_tangent
 from .driver import Accepted, Continuation
-from .family import run_family
+from .family import FamilyRun, run_family
 from .gridcheck import as_both, check_grid_2n, grid_change
 from .homotopy import solve_robust
 from .natural import PulseOnGrid, judge_pulse, round_targets, solve_at_beta, tangent_step
@@ -30,7 +30,7 @@ from .strategy import (AUTO, BETA_STEPS, FAMILY_POINTS, FAMILY_POINTS_BETA, FROM
 from .stretch import stretch_grid, stretch_profile
 from .tolerance import GRID_TOLERANCE, NEWTON_TOL, GridTolerance
 
-__all__ = ["AUTO", "Accepted", "AdaptGrid", "ArclengthProblem", "BETA_STEPS", "Continuation",
+__all__ = ["AUTO", "Accepted", "FamilyRun", "AdaptGrid", "ArclengthProblem", "BETA_STEPS", "Continuation",
            "FAMILY_POINTS", "FAMILY_POINTS_BETA", "FROM_PULSE", "FamilyReport", "FreeSteps", "GRID_TOLERANCE",
            "GridTolerance", "HeldSteps", "LengthPredictor", "NATURAL", "NEWTON_TOL",
            "NaturalPredictor", "NewtonCorrector", "PulseOnGrid", "REGRID", "STRATEGIES",

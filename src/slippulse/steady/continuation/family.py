@@ -27,14 +27,46 @@ def _hint_first(first, n_points):
             f"(--points {2 * n_points})")
 
 
-def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1.015,
-               step: float = 0.005, n_points: int | None = None, min_step: float | None = None,
-               spec: GridSpec = GridSpec(), progress=None, max_iter: int = 12,
-               beta_switch: float = 0.85, strategy: Strategy = AUTO,
-               tolerance: GridTolerance = GRID_TOLERANCE, n_max: int = MAX_POINTS,
-               max_length: float = math.inf, deep_points: int | None = None,
-               spacing: float | None = None, log=None, monitor=None,
-               check: bool = True, origin=None) -> FamilyReport:
+@dataclasses.dataclass(frozen=True)
+class FamilyRun:
+    """The options of one family run (:func:`run_family`), one value: printed with the report and
+    checked before any solve (:meth:`check`).
+
+    start, stop, step : the natural τ_d targets (τ_d/τ_min), from the built-in guess's pulse down.
+    n_points : grid points of the natural steps; None: :data:`~.strategy.FAMILY_POINTS`.
+    min_step, beta_switch, max_iter : the natural steps' smallest step, the β at which they hand
+        over to β steps, and Newton's iterations per step (converging steps take ≤ 6).
+    strategy : the deep driver's :class:`~.strategy.Strategy` (default :data:`~.strategy.AUTO`).
+    tolerance, n_max : the grid check's criterion and its largest grid.
+    max_length : stop (cleanly, ``rep.limit_reached``) once a pulse is this long (m).
+    deep_points : N of the adapted grid the deep driver starts on (default :data:`DEEP_POINTS`).
+    spacing : the deep driver writes an accepted pulse once L has grown by this fraction since
+        the last written one (0: every one; the last always); default :data:`SPACING`.
+    check : False: write the pulses unchecked (for a walk whose pulses only guide a solve, as
+        ``steady solve`` below 1.2; such a file is refused on resume by a checked run).
+    """
+    start: float = 1.2
+    stop: float = 1.015
+    step: float = 0.005
+    n_points: int | None = None
+    min_step: float | None = None
+    spec: GridSpec = dataclasses.field(default_factory=GridSpec)
+    max_iter: int = 12
+    beta_switch: float = 0.85
+    strategy: Strategy = AUTO
+    tolerance: GridTolerance = GRID_TOLERANCE
+    n_max: int = MAX_POINTS
+    max_length: float = math.inf
+    deep_points: int | None = None
+    spacing: float | None = None
+    check: bool = True
+
+    def replace(self, **changes) -> "FamilyRun":
+        return dataclasses.replace(self, **changes)
+
+
+def run_family(params: Parameters, out: str, run: FamilyRun = FamilyRun(), *, origin=None,
+               progress=None, log=None, monitor=None) -> FamilyReport:
     """Solve the family from `start` down to `stop` (τ_d/τ_min) into `out`, every pulse
     grid-checked; a rerun resumes from the deepest converged pulse of `out`.
 
@@ -48,109 +80,148 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
 
     Parameters
     ----------
-    n_points : grid points of the natural steps; None: :data:`~.strategy.FAMILY_POINTS`.
+    run : the run's options (:class:`FamilyRun`).
     progress : callable(tau_d_ratio, pulse_or_None, message), optional; after every attempt.
-    max_iter : Newton iterations allowed per natural τ_d step (converging steps take ≤ 6).
-    strategy : the deep driver's :class:`~.strategy.Strategy` (default :data:`~.strategy.AUTO`).
-    max_length : stop (cleanly, ``rep.limit_reached``) once a pulse is this long (m).
-    deep_points : N of the adapted grid the deep driver starts on (default :data:`DEEP_POINTS`).
-    spacing : the deep driver writes an accepted pulse once L has grown by this fraction since
-        the last written one (0: every one; the last always); default :data:`SPACING`.
     log : callable(str), optional; one line per grid check, relay or recentring.
     monitor : callable(solution, pulse) → dict or None, optional: called on every checked pulse
         just before it is written; the dict's items are stored as the pulse's attributes (a
         per-pulse computation along the family, e.g. a bifurcation test function).
-    check : False: write the pulses unchecked (for a walk whose pulses only guide a solve, as
-        ``steady solve`` below 1.2; such a file is refused on resume by a checked run).
     origin : a converged :class:`~slippulse.core.h5io.Pulse` (e.g. of another branch): instead
         of the family from ``start``, continue it on its own grid by the pseudo-arclength march
         (``strategy``) toward ``stop``, above or below its τ_d, through folds; ``out`` must not
         hold pulses yet.
     """
-    deep_points = DEEP_POINTS if deep_points is None else deep_points
-    spacing = SPACING if spacing is None else spacing
+    run = run.replace(deep_points=DEEP_POINTS if run.deep_points is None else run.deep_points,
+                      spacing=SPACING if run.spacing is None else run.spacing)
     if origin is not None:
-        check_origin(params, origin, stop, out)
+        check_origin(params, origin, run.stop, out)
     else:
-        check_family_args(params, start, stop, step)
-    _check_args(params, out, tolerance, n_max, deep_points, max_length, spacing, check)
-    n_tau, n_deep = FAMILY_POINTS if n_points is None else (n_points, n_points)
-    t0 = time.perf_counter()
-    rep = FamilyReport()
-    rep.strategy = str(strategy)
-    write = (_CheckedWriter if check else _PlainWriter)(params, out, rep, tolerance, n_max, log,
-                                                        monitor)
-
-    def go_deep(start_sol, resolve, previous=None, held=False, cap=None):
-        _deep(params, start_sol, stop, rep, progress, write, deep_points if resolve else None,
-              max_length, spec, strategy, spacing, previous=previous, log=log, held=held,
-              cap=cap)
-        rep.wall_time = time.perf_counter() - t0
-        return rep
-
+        check_family_args(params, run.start, run.stop, run.step)
+    _check_args(params, out, run.tolerance, run.n_max, run.deep_points, run.max_length,
+                run.spacing, run.check)
+    runner = _Runner(params, out, run, progress, log, monitor)
     if origin is not None:
-        rep.direction = 1 if stop > origin.tau_d_ratio else -1
-        go_deep((origin.xi, np.log(origin.v), origin.beta, origin.tau_d_ratio), resolve=False)
+        runner.from_origin(origin)
+    else:
+        runner.family()
+    runner.rep.wall_time = time.perf_counter() - runner.t0
+    return runner.rep
+
+
+class _Runner:
+    """One family run's state: the options, the report, the checked writer and the callbacks;
+    its stages (the march from a stored pulse; resume or the first pulse; the natural steps;
+    the deep march) are its methods."""
+
+    def __init__(self, params, out, run: FamilyRun, progress, log, monitor):
+        self.params, self.out, self.run = params, out, run
+        self.progress, self.log = progress, log
+        self.t0 = time.perf_counter()
+        self.rep = FamilyReport()
+        self.rep.strategy = str(run.strategy)
+        self.write = (_CheckedWriter if run.check else _PlainWriter)(
+            params, out, self.rep, run.tolerance, run.n_max, log, monitor)
+        self.n_tau, self.n_deep = (FAMILY_POINTS if run.n_points is None
+                                   else (run.n_points, run.n_points))
+
+    def on_attempt(self, r, p, m):
+        self.rep.record(r, p is not None, m)
+        if self.progress:
+            self.progress(r, p, m)
+
+    def from_origin(self, origin):
+        """The pseudo-arclength march from a stored pulse, on its own grid, toward ``stop``."""
+        rep = self.rep
+        rep.direction = 1 if self.run.stop > origin.tau_d_ratio else -1
+        self.deep((origin.xi, np.log(origin.v), origin.beta, origin.tau_d_ratio), resolve=False)
         if rep.stopped_early:
             rep.hint = ("smaller arclength steps (--ds-min); to go on, continue the last pulse "
                         "written with --from-pulse OUT:LABEL into a new --out")
-        return rep
-    # resume: continue below the deepest converged pulse already in `out`
-    base = _resume(params, out, rep)
-    if base is not None and (rep.resumed_method == "arclength" or base.beta >= DEEP_BETA):
-        if base.q > stop + 1e-12 and rep.reached_L < max_length:
-            return go_deep(_as_tuple(base), resolve=rep.resumed_method != "arclength",
-                           previous=rep.resumed_previous, held=rep.resumed_held,
-                           cap=rep.resumed_cap)
-        rep.wall_time = time.perf_counter() - t0
-        return rep
-    targets = [t for t in round_targets(start, stop, step)
-               if base is None or t < base.q - 1e-12]
-    if base is None:
-        # the first pulse from the built-in guess
-        first = targets.pop(0)
-        sol, pulse, ok, msg = _attempt(params, first, rep, progress, n_points=n_tau, spec=spec)
-        if not ok:
-            rep.stop(f"the first pulse, at tau_d/tau_min={first:.4f}, from the built-in guess "
-                     f"failed ({msg})", _hint_first(first, n_tau))
-            rep.wall_time = time.perf_counter() - t0
-            return rep
-        write(sol, pulse, "tau_d")
-        base = PulseOnGrid.of(sol, pulse.L)
-    tau_steps, beta_steps = natural_strategies(step, min_step, beta_switch, max_iter, n_tau,
-                                               n_deep)
 
-    def on_attempt(r, p, m):
-        rep.record(r, p is not None, m)
-        if progress:
-            progress(r, p, m)
+    def family(self):
+        """Resume below the deepest converged pulse of the file (or solve the first pulse from
+        the built-in guess), then the natural steps, then the deep march."""
+        params, run, rep = self.params, self.run, self.rep
+        base = _resume(params, self.out, rep)
+        if base is not None and (rep.resumed_method == "arclength" or base.beta >= DEEP_BETA):
+            if base.q > run.stop + 1e-12 and rep.reached_L < run.max_length:
+                self.deep(_as_tuple(base), resolve=rep.resumed_method != "arclength",
+                          previous=rep.resumed_previous, held=rep.resumed_held,
+                          cap=rep.resumed_cap)
+            return
+        targets = [t for t in round_targets(run.start, run.stop, run.step)
+                   if base is None or t < base.q - 1e-12]
+        if base is None:
+            first = targets.pop(0)
+            sol, pulse, ok, msg = _attempt(params, first, rep, self.progress,
+                                           n_points=self.n_tau, spec=run.spec)
+            if not ok:
+                rep.stop(f"the first pulse, at tau_d/tau_min={first:.4f}, from the built-in "
+                         f"guess failed ({msg})", _hint_first(first, self.n_tau))
+                return
+            self.write(sol, pulse, "tau_d")
+            base = PulseOnGrid.of(sol, pulse.L)
+        self.natural(base, targets)
 
-    def on_accept(sol, extra):
-        return write(sol, sol.to_pulse(), extra["continuation"], extra=extra)
-
-    def march(strategy_, start_, targets_):
-        m = Continuation(params, start_, strategy_, spec=spec, targets=targets_,
-                         beta_cap=DEEP_BETA, on_attempt=on_attempt, on_accept=on_accept, log=log)
+    def march(self, strategy, start, targets):
+        """One run of the driver with a natural ``strategy`` from ``start`` onto ``targets``."""
+        m = Continuation(self.params, start, strategy, spec=self.run.spec, targets=targets,
+                         beta_cap=DEEP_BETA, on_attempt=self.on_attempt, log=self.log,
+                         on_accept=lambda sol, extra: self.write(
+                             sol, sol.to_pulse(), extra["continuation"], extra=extra))
         m.run()
         return m
 
-    while targets:
-        if base.beta >= DEEP_BETA:
-            return go_deep(_as_tuple(base), resolve=True)
-        # τ_d steps onto the targets, until they stall
-        m = march(tau_steps, base, targets)
-        base, targets = m.current, m.targets
-        if m.status != "stalled":
-            continue
-        # β steps with τ_d free past the next target, then the pulse at it; where they fail or
-        # reach DEEP_BETA, the deep driver from their last pulse above it
-        m = march(beta_steps, base, targets[:1])
-        base = m.current
-        if m.status != "finished":
-            return go_deep(_as_tuple(base), resolve=True)
-        targets = targets[1:]
-    rep.wall_time = time.perf_counter() - t0
-    return rep
+    def natural(self, base, targets):
+        """τ_d steps onto the targets until they stall; then β steps with τ_d free past the
+        next target and onto it; where they fail or reach DEEP_BETA, the deep march from their
+        last pulse."""
+        run = self.run
+        tau_steps, beta_steps = natural_strategies(run.step, run.min_step, run.beta_switch,
+                                                   run.max_iter, self.n_tau, self.n_deep)
+        while targets:
+            if base.beta >= DEEP_BETA:
+                return self.deep(_as_tuple(base), resolve=True)
+            m = self.march(tau_steps, base, targets)
+            base, targets = m.current, m.targets
+            if m.status != "stalled":
+                continue
+            m = self.march(beta_steps, base, targets[:1])
+            base = m.current
+            if m.status != "finished":
+                return self.deep(_as_tuple(base), resolve=True)
+            targets = targets[1:]
+        return None
+
+    def deep(self, start, resolve, previous=None, held=False, cap=None):
+        """The deep family: from ``start`` = (xi, y, β, q) — re-solved at its τ_d on the deep
+        grid when ``resolve``, else taken on its own grid — the :class:`Continuation` with the
+        run's strategy, every pulse it hands over checked and written. Ends at ``stop``, at
+        ``max_length`` (clean: ``rep.limit_reached``), or where the march fails (``rep.stop``).
+        A resumed march goes on at its pace (``previous`` = (β, q, L) of the pulse before
+        ``start``) and, if its pulse was written held, held at its ``cap``."""
+        params, run, rep = self.params, self.run, self.rep
+        xi, y, beta, q = start
+        if resolve:
+            n = run.deep_points
+            sol = solve_pulse(params, q, n_points=n, guess=(xi, y, beta), passes=0,
+                              max_iter=30, spec=run.spec)
+            pulse, ok, msg = judge_pulse(sol)
+            rep.record(q, ok, f"deep start re-solved at N={n}: {msg}")
+            if self.progress:
+                self.progress(q, pulse if ok else None, f"deep start N={n}: {msg}")
+            start = as_both(params, sol) if ok else start
+        march = Continuation(params, start, run.strategy, spec=run.spec, stop=run.stop,
+                             max_length=run.max_length, spacing=run.spacing,
+                             on_attempt=self.on_attempt, log=self.log,
+                             on_accept=lambda s, extra: self.write(s, s.to_pulse(), "arclength",
+                                                                   extra=extra))
+        if previous is not None:              # a resumed march: go on at the pace it had
+            march.resume_step(*previous)
+        if held:
+            march.hold(cap)
+        march.run()
+        _deep_outcome(rep, march)
 
 
 def natural_strategies(step, min_step, beta_switch, max_iter, n_tau, n_deep):
@@ -376,38 +447,9 @@ class _PlainWriter(_CheckedWriter):
         return Accepted(True, sol)
 
 
-def _deep(params, start, stop, rep, progress, write, resolve_n, max_length, spec, strategy,
-          spacing, previous=None, log=None, held=False, cap=None):
-    """The deep family: from ``start`` = (xi, y, β, q) — re-solved at its τ_d on ``resolve_n``
-    adapted points unless None (then taken on its own grid) — the :class:`Continuation` with
-    ``strategy``, every pulse it hands over checked and written by ``write``. Ends at ``stop``,
-    at ``max_length`` (clean: ``rep.limit_reached``), or where the march fails (``rep.stop``).
-    A resumed march goes on at its pace (``previous`` = (β, q, L) of the pulse before ``start``)
-    and, if its pulse was written held, held at its ``cap``."""
-    xi, y, beta, q = start
-    if resolve_n is not None:
-        sol = solve_pulse(params, q, n_points=resolve_n, guess=(xi, y, beta), passes=0,
-                          max_iter=30, spec=spec)
-        pulse, ok, msg = judge_pulse(sol)
-        rep.record(q, ok, f"deep start re-solved at N={resolve_n}: {msg}")
-        if progress:
-            progress(q, pulse if ok else None, f"deep start N={resolve_n}: {msg}")
-        start = as_both(params, sol) if ok else start
-
-    def on_attempt(r, p, m):
-        rep.record(r, p is not None, m)
-        if progress:
-            progress(r, p, m)
-
-    march = Continuation(params, start, strategy, spec=spec, stop=stop, max_length=max_length,
-                         spacing=spacing, on_attempt=on_attempt, log=log,
-                         on_accept=lambda s, extra: write(s, s.to_pulse(), "arclength",
-                                                          extra=extra))
-    if previous is not None:              # a resumed march: go on at the pace it had
-        march.resume_step(*previous)
-    if held:
-        march.hold(cap)
-    march.run()
+def _deep_outcome(rep, march) -> None:
+    """The deep march's end in the report: its steps, a failure (with the hint), or the clean
+    stop at the length limit."""
     rep.deep_steps += march.n_steps
     if march.status == "failed":
         rep.stop(march.message, "smaller arclength steps (--ds-min) or more points; rerun the "
