@@ -22,3 +22,37 @@ def test_longer_domain_gives_the_same_pulse(tmp_path, capsys):
         assert main(["steady", "long-domain", fam, *argv]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and word in err[0]
+
+
+def test_one_side_extension_keeps_the_grid_and_the_pulse(tmp_path):
+    """--side ahead / behind: the pulse's own nodes are kept, that side's distance from the
+    leading edge doubles, the other end stays, and the pulse (β, L) does not move."""
+    import numpy as np
+
+    from slippulse.steady.solver import extended_grid
+    fam = str(tmp_path / "f.h5")
+    assert main(["steady", "solve", "--tau-d", "1.2", "--points", "500", "--out", fam]) == 0
+    short = read_pulse(fam)[0]
+    lead = short.xi[np.argmax(short.v)]
+    for side in ("ahead", "behind"):
+        out = str(tmp_path / f"{side}.h5")
+        assert main(["steady", "long-domain", fam, "--label", "td1.2000", "--side", side,
+                     "--factor", "2", "--out", out]) == 0
+        long = read_pulse(out)[0]
+        assert long.converged and long.extra["domain_side"] == side
+        assert np.isin(short.xi, long.xi).all() and long.n_points > short.n_points
+        front, back = long.xi[-1] - lead, lead - long.xi[0]
+        if side == "ahead":
+            assert front == pytest.approx(2 * (short.xi[-1] - lead), rel=1e-12)
+            assert long.xi[0] == short.xi[0]
+        else:
+            assert back == pytest.approx(2 * (lead - short.xi[0]), rel=1e-12)
+            assert long.xi[-1] == short.xi[-1]
+        assert long.L == pytest.approx(short.L, rel=1e-4)
+        assert long.beta == pytest.approx(short.beta, rel=1e-4)
+    # the new cells grow at the end cells' ratio, and a factor below 1 is refused
+    xi = np.cumsum(1.1 ** np.arange(20.0))
+    ext = extended_grid(xi, xi[5], ahead=3.0)
+    assert np.all(np.diff(ext) > 0) and ext[-1] == pytest.approx(xi[5] + 3 * (xi[-1] - xi[5]))
+    with pytest.raises(ValueError, match="behind"):
+        extended_grid(xi, xi[5], behind=0.5)

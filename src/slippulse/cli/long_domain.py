@@ -9,7 +9,7 @@ def cmd_long_domain(args) -> int:
     import os
 
     from ..core.h5io import list_pulses, read_pulse, write_pulse
-    from ..steady.solver import resolve_on_longer_domain
+    from ..steady.solver import resolve_on_extended_domain, resolve_on_longer_domain
     from .checks import finite
 
     finite(args.factor, "--factor", lo=1.0, hi=1000.0, lo_open=False)
@@ -20,10 +20,15 @@ def cmd_long_domain(args) -> int:
     out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.file)),
                                    f"long_domain_{args.label}.h5")
     pulse, params = read_pulse(args.file, args.label)
-    long = resolve_on_longer_domain(params, pulse, args.factor).to_pulse()
+    if args.side == "both":
+        long = resolve_on_longer_domain(params, pulse, args.factor).to_pulse()
+    else:
+        long = resolve_on_extended_domain(params, pulse, **{args.side: args.factor}).to_pulse()
     long.extra["domain_factor"] = args.factor
+    long.extra["domain_side"] = args.side
     if not long.converged:
         print(f"long-domain {args.label}: NOT CONVERGED on the {args.factor:g}x domain "
+              f"({args.side}) "
               f"(max|D| = {long.max_residual:.2e}); nothing written")
         return 1
     write_pulse(out, long, params)
@@ -39,13 +44,21 @@ def register(ss) -> None:
     p = ss.add_parser("long-domain", help="re-solve one pulse on a much longer domain (Fig. S1b)",
                       description="Solves pulse --label of FILE again on a domain --factor times "
                                   "longer ahead and behind (N grown by 1 + 0.1 ln factor) and "
-                                  "writes it to --out; `slippulse figures FILE --compare OUT` "
+                                  "writes it to --out; with --side ahead or behind, on its own "
+                                  "grid extended on that side only (the distance from the "
+                                  "leading edge to that end times --factor, every node kept: "
+                                  "a domain check at unchanged near-field resolution, e.g. for "
+                                  "`slippulse steady stability`); "
+                                  "`slippulse figures FILE --compare OUT` "
                                   "overlays the two (paper Fig. S1b). A solve that does not "
                                   "converge writes nothing (exit 1).")
     p.add_argument("file", metavar="FILE", help="HDF5 family file")
     p.add_argument("--label", default="td1.0500", help="pulse label (default td1.0500)")
     p.add_argument("--factor", type=float, default=40.0,
                    help="domain length factor, in [1, 1000] (default 40)")
+    p.add_argument("--side", choices=("both", "ahead", "behind"), default="both",
+                   help="both (default): a grid re-adapted to the longer domain; ahead or "
+                        "behind: the pulse's own grid extended on that side only")
     p.add_argument("--out", default=None,
                    help="output HDF5 (default: long_domain_LABEL.h5 beside FILE)")
     p.set_defaults(func=cmd_long_domain)

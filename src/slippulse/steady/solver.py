@@ -359,6 +359,48 @@ def refine_nested(params, pulse, method="newton", tol=NEWTON_TOL, state_order=ST
     return resolve_on_grid(params, pulse, xin, method, tol, state_order)
 
 
+def extended_grid(xi, lead, ahead=1.0, behind=1.0, max_ratio=1.3):
+    """``xi`` with nodes appended at its ends so that the front end lies ``ahead`` times and the
+    back end ``behind`` times as far from ``lead`` (the leading edge) as before. Every node of
+    ``xi`` is kept, so the pulse's discretisation is unchanged where it was; the new cells
+    continue the end cell's geometric growth (ratio of the last two cells, clipped to
+    [1, max_ratio]), so the far field is graded as the grid already grades it."""
+    xi = np.asarray(xi, float)
+    for name, f in (("ahead", ahead), ("behind", behind)):
+        if not (math.isfinite(f) and f >= 1.0):
+            raise ValueError(f"{name}={f!r}: must be a finite number >= 1")
+    if not xi[0] < lead < xi[-1]:
+        raise ValueError(f"lead={lead!r}: must lie inside the grid ({xi[0]}, {xi[-1]})")
+
+    def grow(end, h, r, target):
+        # the fewest cells h r, h r², ... that reach the target, scaled down to end on it
+        dist = abs(target - end)
+        cells = []
+        while sum(cells) < dist * (1.0 - 1e-12):
+            cells.append(h * r ** (len(cells) + 1))
+        cells = np.asarray(cells) * (dist / sum(cells)) if cells else np.empty(0)
+        return list(end + np.sign(target - end) * np.cumsum(cells))
+
+    def ratio(h1, h0):
+        return min(max(h1 / h0, 1.0), max_ratio)
+
+    h = np.diff(xi)
+    front = grow(xi[-1], h[-1], ratio(h[-1], h[-2]), lead + ahead * (xi[-1] - lead))
+    back = grow(xi[0], h[0], ratio(h[0], h[1]), lead - behind * (lead - xi[0]))
+    return np.concatenate([back[::-1], xi, front])
+
+
+def resolve_on_extended_domain(params, pulse, ahead=1.0, behind=1.0):
+    """``pulse`` solved again on its own grid extended ahead and behind of its leading edge (the
+    node of largest v) by the factors ``ahead`` and ``behind`` (:func:`extended_grid`): a
+    one-sided domain check that keeps the near field's discretisation, unlike
+    :func:`resolve_on_longer_domain`, which re-adapts the grid. Returns a
+    :class:`SteadySolution`."""
+    xi = np.asarray(pulse.xi, float)
+    lead = float(xi[int(np.argmax(pulse.v))])
+    return resolve_on_grid(params, pulse, extended_grid(xi, lead, ahead, behind))
+
+
 def resolve_on_longer_domain(params, pulse, factor):
     """``pulse`` solved again on a domain ``factor`` times longer (paper Fig. S1b: the pulse does
     not depend on the domain): the domain ahead (in pulse lengths) and the healing tail behind
