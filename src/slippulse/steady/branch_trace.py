@@ -77,12 +77,14 @@ def _pulse(prob, x, params):
 
 def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_steps=80,
           n_points=None, regrid=0.25, q_min=1.0005, L_max=1e3, max_iter=12, progress=None,
-          tol=1e-11, stop_on_humps=False) -> Trace:
+          tol=1e-11, stop_on_humps=False, on_pulse=None) -> Trace:
     """Trace the branch of ``pulse`` (a converged Pulse) starting toward decreasing τ_d
     (direction −1) or increasing (+1). Stops at ``max_steps``, when the step falls below
     ``ds_min``, when τ_d leaves (q_min, τ_peak/τ_min − 1e-4) or L exceeds ``L_max`` (m), and, with
-    ``stop_on_humps``, when the hump count changes (always reported as an event 'humps'). Returns
-    a :class:`Trace`."""
+    ``stop_on_humps``, when the hump count changes (always reported as an event 'humps').
+    ``on_pulse(point, pulse)`` is called with each accepted point and its pulse as it comes (a
+    caller that writes them keeps what a long trace found if it is interrupted). Returns a
+    :class:`Trace`."""
     t0 = time.perf_counter()
     n_points = n_points or int(pulse.n_points)
     xi = np.asarray(pulse.xi, float)
@@ -120,6 +122,8 @@ def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_step
                                    f"q={a.q:.6f} and {pt.q:.6f}"))
         out.points.append(pt)
         out.pulses.append(_pulse(prob, x, params))
+        if on_pulse:
+            on_pulse(pt, out.pulses[-1])
         if progress:
             progress(pt)
         return pt
