@@ -42,7 +42,7 @@ def test_series_reads_counts_and_trace_order_and_the_cli_draws(tmp_path, params,
     base = pulse12.to_pulse()
     for step, q in enumerate((1.2, 1.25, 1.22)):
         p = dataclasses.replace(base, tau_d_ratio=q, tau_d=q * base.tau_min,
-                                extra=dict(base.extra, trace_step=step))
+                                extra=dict(base.extra, trace_position=step))
         write_pulse(path, p, params)
     with h5py.File(path, "r+") as h5:
         for lab, count in (("td1.2000", 3), ("td1.2500", None)):

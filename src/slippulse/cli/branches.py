@@ -213,10 +213,7 @@ def cmd_branches(args) -> int:
 
 def cmd_branch_trace(args) -> int:
     """Trace the branch of a stored pulse by pseudo-arclength and write its pulses as they come."""
-    from ..core.h5io import check_writable, unique_label, write_pulse
-    from ..steady.branch_search import grid_check
-    from ..steady.branch_trace import trace
-    from ..steady.continuation.tolerance import GRID_TOLERANCE
+    from ..core.h5io import check_writable
 
     if ":" not in args.source:
         raise UsageError(f"source={args.source!r} is invalid: must be FILE:LABEL "
@@ -247,8 +244,24 @@ def cmd_branch_trace(args) -> int:
     pulse, _ = read_pulse(path, label)
     taken = {}
     written = []
-    direction = -1 if args.direction == "down" else 1
-    bar = tqdm(total=args.max_steps + 1, desc=f"trace {args.direction}", unit="step",
+    dirs = {"down": ["down"], "up": ["up"], "both": ["down", "up"]}[args.direction]
+    for n_dir, name in enumerate(dirs):
+        rc = _trace_one(args, params, pulse, name, out, taken, written, skip_start=n_dir > 0)
+        if rc:
+            return rc
+    return 0
+
+
+def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> int:
+    """One direction of ``steady branch-trace``: trace, write, print. ``skip_start``: the start
+    pulse is already written (by the other direction)."""
+    from ..core.h5io import unique_label, write_pulse
+    from ..steady.branch_search import grid_check
+    from ..steady.branch_trace import trace
+    from ..steady.continuation.tolerance import GRID_TOLERANCE
+    direction = -1 if name == "down" else 1
+    mine = []
+    bar = tqdm(total=args.max_steps + 1, desc=f"trace {name}", unit="step",
                disable=args.quiet, file=sys.stderr)
 
     def on_pulse(pt, p):
@@ -256,18 +269,19 @@ def cmd_branch_trace(args) -> int:
         bar_steps.append(pt)
         bar.update(1)
         bar.set_postfix_str(f"q={pt.q:.6f} beta={pt.beta:.4g} L={pt.L:.4g}")
-        if k % args.every and k != 0:
+        if (k % args.every and k != 0) or (k == 0 and skip_start):
             return
         write(k, pt, p)
 
     def write(k, pt, p):
         p.name = unique_label(p.tau_d_ratio, taken)
         taken[p.name] = p.tau_d_ratio
-        p.extra.update({"trace_source": args.source, "trace_direction": args.direction,
-                        "trace_step": int(k), "trace_t_q": float(pt.t_q),
+        p.extra.update({"trace_source": args.source, "trace_direction": name,
+                        "trace_step": int(k), "trace_position": int(k * direction),
+                        "trace_t_q": float(pt.t_q),
                         "trace_fold_sign": int(pt.fold_sign),
                         "trace_bordered_sign": int(pt.bordered_sign),
-                        "trace_grid": int(pt.grid)})
+                        "trace_grid": int(pt.grid), "trace_extent": float(pt.extent)})
         if args.grid_check:
             c = grid_check(params, p)
             ok = bool(c.get("passed")) and GRID_TOLERANCE.passes(c["dbeta"], c["dL_rel"])
@@ -278,27 +292,35 @@ def cmd_branch_trace(args) -> int:
                             "grid_check_dL_rel": float(c.get("dL_rel", math.nan))})
         write_pulse(out, p, params)
         written.append((k, pt, p))
+        mine.append((k, pt, p))
 
     bar_steps = []
-    tr = trace(params, pulse, direction=direction, ds=args.ds, ds_min=args.ds_min,
-               ds_max=args.ds_max, max_steps=args.max_steps, n_points=args.points,
-               regrid=args.regrid, on_pulse=on_pulse)
+    try:
+        tr = trace(params, pulse, direction=direction, ds=args.ds, ds_min=args.ds_min,
+                   ds_max=args.ds_max, max_steps=args.max_steps, n_points=args.points,
+                   regrid=args.regrid, on_pulse=on_pulse, relay_start=args.relay)
+    except RuntimeError as exc:        # the start pulse's re-lay, or a tangent with no (β, q) part
+        bar.close()
+        print(f"slippulse: trace {name} from {args.source} failed: {exc}; "
+              f"{len(written)} pulses written to {out}", file=sys.stderr)
+        return 1
     bar.close()
-    if written and written[-1][0] != len(bar_steps) - 1:        # the last point always
+    if (not mine or mine[-1][0] != len(bar_steps) - 1) and len(bar_steps) > 1:  # the last point
         write(len(bar_steps) - 1, tr.points[-1], tr.pulses[-1])
-    print("step label tau_d/tau_min beta L(m) humps N sign(detA) t_q sign(detB) grid "
-          "grid_check(dbeta dL/L passed)")
-    for k, pt, p in written:
+    print(f"trace {name}: step label tau_d/tau_min beta L(m) extent(m) humps N sign(detA) t_q "
+          "sign(detB) grid grid_check(dbeta dL/L passed)")
+    for k, pt, p in mine:
         gc = ("-" if not args.grid_check else
               f"{p.extra['grid_check_dbeta']:.1e} {p.extra['grid_check_dL_rel']:.1e} "
               f"{'yes' if p.extra['grid_check_passed'] else 'NO'}")
-        print(f"{k} {p.label} {pt.q:.7f} {pt.beta:.8g} {pt.L:.6g} {pt.humps} {pt.n_points} "
+        print(f"{k} {p.label} {pt.q:.7f} {pt.beta:.8g} {pt.L:.6g} {pt.extent:.4g} {pt.humps} "
+              f"{pt.n_points} "
               f"{pt.fold_sign:+d} {pt.t_q:+.3e} {pt.bordered_sign:+d} {pt.grid} {gc}")
     for kind, i, detail in tr.events:
-        print(f"event: {kind} at step {i}: {detail}")
-    n_pass = sum(bool(p.extra.get("grid_check_passed")) for _, _, p in written)
-    print(f"{len(tr.points)} points traced {args.direction} from {args.source} "
-          f"(q {tr.points[0].q:.6f} -> {tr.points[-1].q:.6f}), {len(written)} written to {out}"
+        print(f"event ({name}): {kind} at step {i}: {detail}")
+    n_pass = sum(bool(p.extra.get("grid_check_passed")) for _, _, p in mine)
+    print(f"{len(tr.points)} points traced {name} from {args.source} "
+          f"(q {tr.points[0].q:.6f} -> {tr.points[-1].q:.6f}), {len(mine)} written to {out}"
           + (f", {n_pass} pass the grid check (|dbeta| <= {GRID_TOLERANCE.beta:g}, "
              f"|dL/L| <= {GRID_TOLERANCE.L:g} at 2N-1)" if args.grid_check else
              ", not grid-checked")
@@ -373,8 +395,9 @@ def register_steady(ss) -> None:
                                   "points, the events (fold: t_q changes sign; branch point: det B "
                                   "changes sign on one grid; hump count) and why it stopped.")
     p.add_argument("source", metavar="FILE:LABEL", help="the start pulse")
-    p.add_argument("--direction", choices=("down", "up"), required=True,
-                   help="start toward decreasing (down) or increasing (up) tau_d")
+    p.add_argument("--direction", choices=("down", "up", "both"), required=True,
+                   help="start toward decreasing (down) or increasing (up) tau_d, or both, one "
+                        "after the other, into one file")
     p.add_argument("--out", required=True, help="output HDF5 (refused if it exists, unless "
                                                 "--overwrite)")
     p.add_argument("--ds", type=float, default=0.1, help="first arclength step (default 0.1)")
@@ -386,6 +409,9 @@ def register_steady(ss) -> None:
                    help="N of the re-laid grids (default: the start pulse's)")
     p.add_argument("--regrid", type=float, default=0.25,
                    help="re-lay the grid when L has moved by this fraction (default 0.25)")
+    p.add_argument("--relay", action="store_true",
+                   help="first re-lay the start pulse's grid (adapted, --points) and re-solve it "
+                        "(e.g. from the end of a trace whose grid no longer fits the pulse)")
     p.add_argument("--every", type=int, default=1,
                    help="write every k-th point (and the first and last; default 1)")
     p.add_argument("--grid-check", action="store_true",

@@ -6,7 +6,8 @@ A pulse's number is the argument-principle count stored with its spectrum (``ste
 (filled marker), else the number of eigenvalues with Re σ > 0 that the eigen-search found (hollow
 marker: a lower bound, the search is not exhaustive); a pulse with no spectrum is only a point of
 its branch's line. A branch is one file; its pulses are joined in the order they were traced
-(``trace_step``, from ``steady branch-trace``) or, without it, by decreasing τ_d.
+(``trace_position``, the step signed by the direction, from ``steady branch-trace``: traces up
+and down from one pulse merge into one order) or, without it, by decreasing τ_d.
 """
 from __future__ import annotations
 
@@ -59,7 +60,7 @@ def branch_series(path, name=None) -> BranchSeries:
                 found = int(sa.get("n_unstable", 0))
                 if "count" in sa:
                     count = float(sa["count"])
-            step = a.get("trace_step")
+            step = a.get("trace_position")
             rows.append((float(a["tau_d_ratio"]), float(a["L"]), count, found,
                          None if step is None else int(step)))
     if not rows:

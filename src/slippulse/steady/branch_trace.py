@@ -6,7 +6,8 @@ that :mod:`.branch_search` finds). Unknowns x = (ln v, β, q); the arclength is 
 scalars z = (ln β, q/Q_SCALE) only (ln v follows), so a fold in τ_d (q turning while β moves on)
 is passed; the corrector is Newton on [F(x); τ·(z(x) − z₀) − ds] with τ the unit tangent in z.
 The grid is the start pulse's, re-laid (adapted to the current pulse, N points, re-solved at fixed
-τ_d) whenever L has moved by more than ``regrid`` since the grid was laid. At every accepted step:
+τ_d) whenever L or the extent of the humps (:func:`extent`: a trailing hump that comes apart
+from the first moves it, not L) has moved by more than ``regrid`` since the grid was laid. At every accepted step:
 β, L, the hump count, sign det A, t_q (continuity-oriented) and sign det B (comparable between
 re-lays only); a sign change of t_q is a fold, of det B on one grid a branch point.
 """
@@ -39,6 +40,7 @@ class TracePoint:
     bordered_sign: int
     grid: int            # index of the grid (re-lays counted); det B signs compare within one
     n_points: int
+    extent: float = math.nan   # m, first to last node at or above half the maximum of ln(v/v*+1)
 
 
 @dataclass
@@ -67,6 +69,16 @@ def _tangent(J, x, orient=None):
     return tz / nz, t / nz
 
 
+def extent(xi, v, v_star) -> float:
+    """Distance from the first to the last node where y = ln(v/v* + 1) is at least half its
+    maximum: L where the region y ≥ max/2 is connected, and the span of all humps where a trailing
+    hump has come apart from the first (there L, the width of the region that holds the
+    maximum, no longer sees it)."""
+    y = np.log(np.asarray(v, float) / v_star + 1.0)
+    above = np.flatnonzero(y >= 0.5 * float(y.max()))
+    return float(xi[above[-1]] - xi[above[0]])
+
+
 def _pulse(prob, x, params):
     from .solver import SteadySolution
     from .newton import SolveStats
@@ -77,18 +89,31 @@ def _pulse(prob, x, params):
 
 def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_steps=80,
           n_points=None, regrid=0.25, q_min=1.0005, L_max=1e3, max_iter=12, progress=None,
-          tol=1e-11, stop_on_humps=False, on_pulse=None) -> Trace:
+          tol=1e-11, stop_on_humps=False, on_pulse=None, relay_start=False) -> Trace:
     """Trace the branch of ``pulse`` (a converged Pulse) starting toward decreasing τ_d
     (direction −1) or increasing (+1). Stops at ``max_steps``, when the step falls below
     ``ds_min``, when τ_d leaves (q_min, τ_peak/τ_min − 1e-4) or L exceeds ``L_max`` (m), and, with
     ``stop_on_humps``, when the hump count changes (always reported as an event 'humps').
     ``on_pulse(point, pulse)`` is called with each accepted point and its pulse as it comes (a
-    caller that writes them keeps what a long trace found if it is interrupted). Returns a
-    :class:`Trace`."""
+    caller that writes them keeps what a long trace found if it is interrupted).
+    ``relay_start``: first re-lay the grid on the start pulse (adapted, ``n_points``) and re-solve
+    it at its τ_d (a stored pulse whose grid no longer fits it, e.g. the end of a trace).
+    Returns a :class:`Trace`."""
     t0 = time.perf_counter()
     n_points = n_points or int(pulse.n_points)
     xi = np.asarray(pulse.xi, float)
     y = np.log(np.asarray(pulse.v, float))
+    if relay_start:
+        xi_new = adapted_grid(xi, y, np.asarray(pulse.phi, float), pulse.beta, params,
+                              pulse.v_stick, n_points)
+        p2, x2, st = solve_on_grid(params, pulse.tau_d_ratio, xi_new,
+                                   interpolate(xi, y, xi_new, pulse.v_stick), pulse.beta)
+        if not st.converged:
+            raise RuntimeError(f"re-lay of the start pulse's grid failed: {st.message}")
+        xi, y = xi_new, x2[:-1]
+        pulse = _pulse(SteadyProblem(params, pulse.tau_d_ratio, xi, p2.pin_index, p2.y_pin,
+                                     free="both", H=p2.H),
+                       np.concatenate([x2, [pulse.tau_d_ratio]]), params)
     k, _ = front_pin(xi, y, math.log(pulse.v_stick))
     prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, float(y[k]), free="both")
     x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
@@ -98,6 +123,7 @@ def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_step
         tz, t = -tz, -t
     out = Trace()
     L_grid = pulse_length(xi, np.exp(y), params.v_star, crossings=False)
+    E_grid = extent(xi, np.exp(y), params.v_star)
     grid_id = 0
     humps0 = count_humps(np.exp(y))
     q_hi = params.tau_peak / params.tau_min - 1e-4
@@ -110,7 +136,8 @@ def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_step
         sgn = 1 if float(tzv @ tz_or) >= 0 else -1
         Lx = pulse_length(prob.xi, np.exp(x[:-2]), params.v_star, crossings=False)
         pt = TracePoint(float(x[-1]), float(x[-2]), float(Lx), count_humps(np.exp(x[:-2])),
-                        v.fold_sign, sgn * v.t_param, sgn * v.bordered_sign, grid_id, prob.n)
+                        v.fold_sign, sgn * v.t_param, sgn * v.bordered_sign, grid_id, prob.n,
+                        extent(prob.xi, np.exp(x[:-2]), params.v_star))
         if out.points:
             a = out.points[-1]
             if a.t_q * pt.t_q < 0:
@@ -180,7 +207,7 @@ def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_step
             if stop_on_humps:
                 out.stop_reason = out.events[-1][2]
                 break
-        if abs(pt.L / L_grid - 1.0) > regrid:
+        if abs(pt.L / L_grid - 1.0) > regrid or abs(pt.extent / E_grid - 1.0) > regrid:
             # re-lay the grid on the current pulse, re-solve at fixed τ_d, keep going
             yv = x[:-2]
             vst = params.v_stick(pt.q * params.tau_min)
@@ -198,6 +225,7 @@ def trace(params, pulse, direction=-1, ds=0.1, ds_min=1e-3, ds_max=0.4, max_step
             J = prob.residual_and_jacobian(x)[1]
             tz, t = _tangent(J, x, orient=tz)
             L_grid = pulse_length(xi_new, np.exp(x2[:-1]), params.v_star, crossings=False)
+            E_grid = extent(xi_new, np.exp(x2[:-1]), params.v_star)
             grid_id += 1
     else:
         out.stop_reason = f"max_steps={max_steps} reached"
