@@ -7,7 +7,8 @@ import pytest
 
 import cli_inproc
 from slippulse.core.h5io import write_pulse
-from slippulse.plotting.branches import COUNT_COLORS, BranchSeries, branch_series, plot_branch_map
+from slippulse.plotting.branches import (COUNT_COLORS, BranchSeries, branch_series, length_ratio,
+                                        plot_branch_map)
 
 
 def _has_colour(png, hexcol, tol=8):
@@ -60,3 +61,36 @@ def test_series_reads_counts_and_trace_order_and_the_cli_draws(tmp_path, params,
     assert out.exists() and "synthetic: 3 pulses" in r.stdout and "1 counted (unstable: [3])" in r.stdout
     r = cli_inproc.run(["steady", "branch-map", path, "--names", "a", "b", "--out", out])
     assert r.returncode == 2 and "names" in r.stderr
+
+
+def test_two_files_make_one_branch_by_tau_d(tmp_path, params, pulse12):
+    """A family in two files (no trace positions): one series by decreasing τ_d, a pulse stored
+    in both taken once."""
+    base = pulse12.to_pulse()
+    a, b = str(tmp_path / "a.h5"), str(tmp_path / "b.h5")
+    for path, qs in ((a, (1.2, 1.1)), (b, (1.3, 1.2))):
+        for q in qs:
+            write_pulse(path, dataclasses.replace(base, tau_d_ratio=q, tau_d=q * base.tau_min),
+                        params)
+    s = branch_series([a, b], "family")
+    assert s.q.tolist() == [1.3, 1.2, 1.1]
+    out = tmp_path / "m.png"
+    r = cli_inproc.run(["steady", "branch-map", f"{a}+{b}", a, "--out", out])
+    assert r.returncode == 0, r.stderr
+    assert "family" not in r.stdout and "a: 2 pulses" in r.stdout
+    assert "L / L(a) at equal tau_d = 1-1 over 2 pulses" in r.stdout
+
+
+def test_length_ratio_at_equal_tau_d():
+    """The reference's ln L is interpolated in τ_d: L = e^{−10 q} against twice it is 2 at any q
+    inside the range, nan outside; a folded reference is refused."""
+    qr = np.linspace(1.0, 1.3, 7)
+    ref = BranchSeries("f", qr[::-1], np.exp(-10 * qr[::-1]), np.full(7, np.nan), np.full(7, -1))
+    q = np.array([0.9, 1.02, 1.17, 1.31])
+    b = BranchSeries("b", q, 2 * np.exp(-10 * q), np.full(4, np.nan), np.full(4, -1))
+    r = length_ratio(b, ref)
+    assert np.isnan(r[0]) and np.isnan(r[3]) and np.allclose(r[1:3], 2.0, rtol=1e-12)
+    folded = BranchSeries("g", np.array([1.0, 1.2, 1.1]), np.ones(3), np.full(3, np.nan),
+                          np.full(3, -1))
+    with pytest.raises(ValueError):
+        length_ratio(b, folded)

@@ -1,11 +1,11 @@
 """The branches of steady pulses in (τ_d/τ_min, L), each pulse coloured by its number of unstable
-eigenvalues (docs/branches.md §5).
+eigenvalues (docs/branches.md §4).
 
 A pulse's number is the argument-principle count stored with its spectrum (``steady stability
 --count``: the eigenvalues in the counted box, exact for the discrete operator) where there is one
 (filled marker), else the number of eigenvalues with Re σ > 0 that the eigen-search found (hollow
 marker: a lower bound, the search is not exhaustive); a pulse with no spectrum is only a point of
-its branch's line. A branch is one file; its pulses are joined in the order they were traced
+its branch's line. A branch is one file (or several taken together); its pulses are joined in the order they were traced
 (``trace_position``, the step signed by the direction, from ``steady branch-trace``: traces up
 and down from one pulse merge into one order) or, without it, by decreasing τ_d.
 """
@@ -44,32 +44,55 @@ class BranchSeries:
         return n, counted
 
 
-def branch_series(path, name=None) -> BranchSeries:
-    """The converged pulses of one file as a :class:`BranchSeries` (τ_d, L, stored counts)."""
+def length_ratio(branch: BranchSeries, reference: BranchSeries):
+    """L of ``branch`` over L of ``reference`` at the same τ_d, at each pulse of ``branch`` inside
+    the reference's τ_d range (the reference's ln L interpolated linearly in τ_d; the reference
+    must be single-valued in τ_d, as the main family is); nan outside it."""
+    d = np.diff(reference.q)
+    if not (np.all(d > 0) or np.all(d < 0)):       # turns in τ_d along the branch: a fold
+        raise ValueError(f"{reference.name}: tau_d not monotone along it; no ratio at equal tau_d")
+    o = np.argsort(reference.q)
+    qr, lr = reference.q[o], np.log(reference.L[o])
+    inside = (branch.q >= qr[0]) & (branch.q <= qr[-1])
+    out = np.full(branch.q.size, np.nan)
+    out[inside] = branch.L[inside] / np.exp(np.interp(branch.q[inside], qr, lr))
+    return out
+
+
+def branch_series(paths, name=None) -> BranchSeries:
+    """The converged pulses of one file, or of several files taken as one branch (e.g. a family
+    and its continuation above 1.2 τ_min), as a :class:`BranchSeries` (τ_d, L, stored counts)."""
+    import os
     from ..core.h5io import labels_in, open_h5, pulse_converged
-    rows = []
-    with open_h5(path, "FILE") as h5:
-        for lab in labels_in(h5, path):
-            grp = h5["pulses"][lab]
-            if not pulse_converged(grp, path):
-                continue
-            a = grp.attrs
-            count, found = math.nan, -1
-            if "spectrum" in grp and grp["spectrum"].attrs.get("status") == "converged":
-                sa = grp["spectrum"].attrs
-                found = int(sa.get("n_unstable", 0))
-                if "count" in sa:
-                    count = float(sa["count"])
-            step = a.get("trace_position")
-            rows.append((float(a["tau_d_ratio"]), float(a["L"]), count, found,
-                         None if step is None else int(step)))
+    paths = [paths] if isinstance(paths, (str, os.PathLike)) else list(paths)
+    rows = {}
+    for path in paths:
+        with open_h5(path, "FILE") as h5:
+            for lab in labels_in(h5, path):
+                grp = h5["pulses"][lab]
+                if not pulse_converged(grp, path):
+                    continue
+                a = grp.attrs
+                count, found = math.nan, -1
+                if "spectrum" in grp and grp["spectrum"].attrs.get("status") == "converged":
+                    sa = grp["spectrum"].attrs
+                    found = int(sa.get("n_unstable", 0))
+                    if "count" in sa:
+                        count = float(sa["count"])
+                step = a.get("trace_position")
+                q = float(a["tau_d_ratio"])
+                key = (round(q, 9), None if step is None else int(step))
+                if key not in rows or (math.isnan(rows[key][2]) and not math.isnan(count)):
+                    rows[key] = (q, float(a["L"]), count, found, key[1])   # a pulse in two files: once
+    rows = list(rows.values())
     if not rows:
-        raise ValueError(f"{path}: no converged pulse")
+        raise ValueError(f"{', '.join(map(str, paths))}: no converged pulse")
     if all(r[4] is not None for r in rows):
         rows.sort(key=lambda r: r[4])
+    else:
+        rows.sort(key=lambda r: -r[0])
     q, L, c, f, _ = (np.array(col) for col in zip(*rows))
-    import os
-    return BranchSeries(name or os.path.splitext(os.path.basename(path))[0], q.astype(float),
+    return BranchSeries(name or os.path.splitext(os.path.basename(paths[0]))[0], q.astype(float),
                         L.astype(float), c.astype(float), f.astype(int))
 
 
