@@ -140,3 +140,35 @@ def test_trace_follows_the_main_family_down_from_1p2(params, pulse12):
     last = tr.pulses[-1]
     prob, x, st = solve_on_grid(params, last.tau_d_ratio, last.xi, np.log(last.v), 1.05 * last.beta)
     assert st.converged and x[-1] == pytest.approx(last.beta, rel=1e-9)
+
+
+def test_cli_branch_trace_writes_each_point_and_refuses_bad_input(tmp_path, params, pulse12):
+    """One step each way from the 1.2 pulse (--direction both): three pulses in one file, the
+    start written once; along the trace position (step signed by direction) τ_d rises and β
+    falls, t_q is oriented along each march (negative down, positive up) and each pulse carries
+    its grid check; a missing label and a ds outside [ds-min, ds-max] are one-line refusals with
+    no file."""
+    src = str(tmp_path / "src.h5")
+    write_pulse(src, pulse12.to_pulse(), params)
+    out = str(tmp_path / "t.h5")
+    r = cli_inproc.run(["steady", "branch-trace", f"{src}:td1.2000", "--direction", "both",
+                        "--max-steps", "1", "--ds", "0.05", "--grid-check", "--out", out, "-q"])
+    assert r.returncode == 0, r.stderr
+    labs = list_pulses(out)
+    assert len(labs) == 3
+    pulses = sorted((read_pulse(out, lab)[0] for lab in labs),
+                    key=lambda p: p.extra["trace_position"])
+    assert [p.extra["trace_position"] for p in pulses] == [-1, 0, 1]
+    assert all(np.diff([p.tau_d_ratio for p in pulses]) > 0)
+    assert pulses[1].tau_d_ratio == pytest.approx(1.2, abs=1e-12)
+    assert all(np.diff([p.beta for p in pulses]) < 0)
+    assert pulses[0].extra["trace_t_q"] < 0 < pulses[2].extra["trace_t_q"]
+    assert all(p.extra["grid_check_converged"] for p in pulses)
+    assert "2 points traced down" in r.stdout and "2 points traced up" in r.stdout
+    for bad, name in ((f"{src}:td1.1000", "td1.1000"), (f"{src}:td1.2000", "ds=")):
+        extra = ["--ds", "0.5"] if name == "ds=" else []
+        o2 = tmp_path / "bad.h5"
+        r = cli_inproc.run(["steady", "branch-trace", bad, "--direction", "down", *extra,
+                            "--out", o2, "-q"])
+        assert r.returncode == 2 and name in r.stderr and not o2.exists(), r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1

@@ -1,5 +1,7 @@
-"""``slippulse steady branches`` (every pulse at one τ_d, by deflated Newton) and ``slippulse steady
-bifurcations`` (fold and branch-point test functions along a family file)."""
+"""``slippulse steady branches`` (every pulse at one τ_d, by deflated Newton), ``slippulse steady
+branch-trace`` (one branch by pseudo-arclength, its pulses written) and ``slippulse steady
+bifurcations`` (fold and branch-point test functions along a family file); ``steady branch-map``
+(cli/branch_map.py) is registered from here."""
 from __future__ import annotations
 
 import math
@@ -209,6 +211,129 @@ def cmd_branches(args) -> int:
     return 0
 
 
+def cmd_branch_trace(args) -> int:
+    """Trace the branch of a stored pulse by pseudo-arclength and write its pulses as they come."""
+    from ..core.h5io import check_writable
+
+    if ":" not in args.source:
+        raise UsageError(f"source={args.source!r} is invalid: must be FILE:LABEL "
+                         "(e.g. branches.h5:td1.20000)")
+    path, label = args.source.rsplit(":", 1)
+    from ..core.h5io import list_pulses, open_h5, read_parameters, read_pulse, SchemaError
+    with open_h5(path, "source") as h5:
+        stored = read_parameters(h5)
+    params_for_input(args, stored, path)
+    if label not in list_pulses(path):
+        raise SchemaError(f"source={args.source!r}: no pulse label={label!r} in {path}")
+    params = stored
+    for name, lo in (("ds", 0.0), ("ds_min", 0.0), ("ds_max", 0.0)):
+        val = getattr(args, name)
+        if not (math.isfinite(val) and val > lo):
+            raise ParameterError(f"{name.replace('_', '-')}={val!r} is invalid: must be > 0")
+    if not args.ds_min <= args.ds <= args.ds_max:
+        raise ParameterError(f"ds={args.ds:g} is invalid: must lie in [ds-min, ds-max] = "
+                             f"[{args.ds_min:g}, {args.ds_max:g}]")
+    if args.max_steps < 1 or args.every < 1:
+        raise ParameterError("max-steps and every must be integers >= 1")
+    if not (math.isfinite(args.regrid) and args.regrid > 0):
+        raise ParameterError(f"regrid={args.regrid!r} is invalid: must be > 0 (a fraction of L)")
+    if args.points is not None and args.points < 10:
+        raise ParameterError(f"points={args.points!r} is invalid: must be >= 10")
+    out = args.out
+    check_writable(out, "out")
+    if os.path.exists(out) and not args.overwrite:
+        raise UsageError(f"out={out!r} exists; --overwrite replaces it")
+    if os.path.exists(out):
+        os.remove(out)
+    pulse, _ = read_pulse(path, label)
+    taken = {}
+    written = []
+    dirs = {"down": ["down"], "up": ["up"], "both": ["down", "up"]}[args.direction]
+    for n_dir, name in enumerate(dirs):
+        rc = _trace_one(args, params, pulse, name, out, taken, written, skip_start=n_dir > 0)
+        if rc:
+            return rc
+    return 0
+
+
+def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> int:
+    """One direction of ``steady branch-trace``: trace, write, print. ``skip_start``: the start
+    pulse is already written (by the other direction)."""
+    from ..core.h5io import unique_label, write_pulse
+    from ..steady.branch_search import grid_check
+    from ..steady.branch_trace import TraceSettings, trace
+    from ..steady.continuation.tolerance import GRID_TOLERANCE
+    direction = -1 if name == "down" else 1
+    mine = []
+    bar = tqdm(total=args.max_steps + 1, desc=f"trace {name}", unit="step",
+               disable=args.quiet, file=sys.stderr)
+
+    def on_pulse(pt, p):
+        k = len(bar_steps)
+        bar_steps.append(pt)
+        bar.update(1)
+        bar.set_postfix_str(f"q={pt.q:.6f} beta={pt.beta:.4g} L={pt.L:.4g}")
+        if (k % args.every and k != 0) or (k == 0 and skip_start):
+            return
+        write(k, pt, p)
+
+    def write(k, pt, p):
+        p.name = unique_label(p.tau_d_ratio, taken)
+        taken[p.name] = p.tau_d_ratio
+        p.extra.update({"trace_source": args.source, "trace_direction": name,
+                        "trace_step": int(k), "trace_position": int(k * direction),
+                        "trace_t_q": float(pt.t_q),
+                        "trace_fold_sign": int(pt.fold_sign),
+                        "trace_bordered_sign": int(pt.bordered_sign),
+                        "trace_grid": int(pt.grid), "trace_extent": float(pt.extent)})
+        if args.grid_check:
+            c = grid_check(params, p)
+            ok = bool(c.get("passed")) and GRID_TOLERANCE.passes(c["dbeta"], c["dL_rel"])
+            p.extra.update({"grid_check_converged": bool(c.get("passed", False)),
+                            "grid_check_passed": ok,
+                            "grid_check_n_fine": int(c.get("n_fine", 0)),
+                            "grid_check_dbeta": float(c.get("dbeta", math.nan)),
+                            "grid_check_dL_rel": float(c.get("dL_rel", math.nan))})
+        write_pulse(out, p, params)
+        written.append((k, pt, p))
+        mine.append((k, pt, p))
+
+    bar_steps = []
+    try:
+        settings = TraceSettings(direction=direction, ds=args.ds, ds_min=args.ds_min,
+                                 ds_max=args.ds_max, max_steps=args.max_steps,
+                                 n_points=args.points, regrid=args.regrid,
+                                 relay_start=args.relay)
+        tr = trace(params, pulse, settings, on_pulse=on_pulse)
+    except RuntimeError as exc:        # the start pulse's re-lay, or a tangent with no (β, q) part
+        bar.close()
+        print(f"slippulse: trace {name} from {args.source} failed: {exc}; "
+              f"{len(written)} pulses written to {out}", file=sys.stderr)
+        return 1
+    bar.close()
+    if (not mine or mine[-1][0] != len(bar_steps) - 1) and len(bar_steps) > 1:  # the last point
+        write(len(bar_steps) - 1, tr.points[-1], tr.pulses[-1])
+    print(f"trace {name}: step label tau_d/tau_min beta L(m) extent(m) humps N sign(detA) t_q "
+          "sign(detB) grid grid_check(dbeta dL/L passed)")
+    for k, pt, p in mine:
+        gc = ("-" if not args.grid_check else
+              f"{p.extra['grid_check_dbeta']:.1e} {p.extra['grid_check_dL_rel']:.1e} "
+              f"{'yes' if p.extra['grid_check_passed'] else 'NO'}")
+        print(f"{k} {p.label} {pt.q:.7f} {pt.beta:.8g} {pt.L:.6g} {pt.extent:.4g} {pt.humps} "
+              f"{pt.n_points} "
+              f"{pt.fold_sign:+d} {pt.t_q:+.3e} {pt.bordered_sign:+d} {pt.grid} {gc}")
+    for kind, i, detail in tr.events:
+        print(f"event ({name}): {kind} at step {i}: {detail}")
+    n_pass = sum(bool(p.extra.get("grid_check_passed")) for _, _, p in mine)
+    print(f"{len(tr.points)} points traced {name} from {args.source} "
+          f"(q {tr.points[0].q:.6f} -> {tr.points[-1].q:.6f}), {len(mine)} written to {out}"
+          + (f", {n_pass} pass the grid check (|dbeta| <= {GRID_TOLERANCE.beta:g}, "
+             f"|dL/L| <= {GRID_TOLERANCE.L:g} at 2N-1)" if args.grid_check else
+             ", not grid-checked")
+          + f"; stopped: {tr.stop_reason}; wall={tr.wall_time:.1f} s")
+    return 0
+
+
 def register_steady(ss) -> None:
     """Add ``branches`` and ``bifurcations`` to the ``steady`` sub-parsers."""
     p = ss.add_parser("bifurcations", help="fold and branch-point test functions along a family",
@@ -266,3 +391,42 @@ def register_steady(ss) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_branches)
+
+    p = ss.add_parser("branch-trace", help="trace the branch of one stored pulse in tau_d",
+                      description="Pseudo-arclength in (ln beta, tau_d/tau_min/0.04) from a stored "
+                                  "pulse (steady.branch_trace; docs/branches.md section 3), each "
+                                  "accepted point written to --out as it comes, with its tangent's "
+                                  "tau_d component t_q, sign det A, sign det B and grid index; "
+                                  "--grid-check re-solves each written pulse at 2N-1. Prints the "
+                                  "points, the events (fold: t_q changes sign; branch point: det B "
+                                  "changes sign on one grid; hump count) and why it stopped.")
+    p.add_argument("source", metavar="FILE:LABEL", help="the start pulse")
+    p.add_argument("--direction", choices=("down", "up", "both"), required=True,
+                   help="start toward decreasing (down) or increasing (up) tau_d, or both, one "
+                        "after the other, into one file")
+    p.add_argument("--out", required=True, help="output HDF5 (refused if it exists, unless "
+                                                "--overwrite)")
+    p.add_argument("--ds", type=float, default=0.1, help="first arclength step (default 0.1)")
+    p.add_argument("--ds-min", type=float, default=1e-3,
+                   help="stop when the step falls below this (default 1e-3)")
+    p.add_argument("--ds-max", type=float, default=0.4, help="largest step (default 0.4)")
+    p.add_argument("--max-steps", type=int, default=80, help="most steps (default 80)")
+    p.add_argument("--points", type=int, default=None,
+                   help="N of the re-laid grids (default: the start pulse's)")
+    p.add_argument("--regrid", type=float, default=0.25,
+                   help="re-lay the grid when L has moved by this fraction (default 0.25)")
+    p.add_argument("--relay", action="store_true",
+                   help="first re-lay the start pulse's grid (adapted, --points) and re-solve it "
+                        "(e.g. from the end of a trace whose grid no longer fits the pulse)")
+    p.add_argument("--every", type=int, default=1,
+                   help="write every k-th point (and the first and last; default 1)")
+    p.add_argument("--grid-check", action="store_true",
+                   help="re-solve each written pulse at 2N-1 (nested) and store dbeta, dL/L and "
+                        "whether they meet the family's criterion (1e-5, 1e-4)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_params_args(p)
+    p.set_defaults(func=cmd_branch_trace)
+
+    from .branch_map import register as register_branch_map
+    register_branch_map(ss)

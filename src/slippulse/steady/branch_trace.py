@@ -6,7 +6,8 @@ that :mod:`.branch_search` finds). Unknowns x = (ln v, β, q); the arclength is 
 scalars z = (ln β, q/Q_SCALE) only (ln v follows), so a fold in τ_d (q turning while β moves on)
 is passed; the corrector is Newton on [F(x); τ·(z(x) − z₀) − ds] with τ the unit tangent in z.
 The grid is the start pulse's, re-laid (adapted to the current pulse, N points, re-solved at fixed
-τ_d) whenever L has moved by more than ``regrid`` since the grid was laid. At every accepted step:
+τ_d) whenever L or the extent of the humps (:func:`extent`: a trailing hump that comes apart
+from the first moves it, not L) has moved by more than ``regrid`` since the grid was laid. At every accepted step:
 β, L, the hump count, sign det A, t_q (continuity-oriented) and sign det B (comparable between
 re-lays only); a sign change of t_q is a fold, of det B on one grid a branch point.
 """
@@ -39,6 +40,7 @@ class TracePoint:
     bordered_sign: int
     grid: int            # index of the grid (re-lays counted); det B signs compare within one
     n_points: int
+    extent: float = math.nan   # m, first to last node at or above half the maximum of ln(v/v*+1)
 
 
 @dataclass
@@ -48,6 +50,16 @@ class Trace:
     stop_reason: str = ""
     wall_time: float = 0.0
     pulses: list = field(default_factory=list, repr=False)   # the accepted solutions (Pulse)
+
+
+def extent(xi, v, v_star) -> float:
+    """Distance from the first to the last node where y = ln(v/v* + 1) is at least half its
+    maximum: L where the region y ≥ max/2 is connected, and the span of all humps where a trailing
+    hump has come apart from the first (there L, the width of the region that holds the
+    maximum, no longer sees it)."""
+    y = np.log(np.asarray(v, float) / v_star + 1.0)
+    above = np.flatnonzero(y >= 0.5 * float(y.max()))
+    return float(xi[above[-1]] - xi[above[0]])
 
 
 def _z(x):
@@ -84,7 +96,9 @@ class TraceSettings:
     took at most 3 iterations); max_steps: accepted steps; n_points: points of a re-laid grid
     (None: the start pulse's); regrid: the relative change of L that re-lays the grid; q_min and
     L_max (m): where the trace stops; max_iter and tol: the corrector's iterations and its max|F|;
-    stop_on_humps: stop when the hump count changes (always reported as an event 'humps').
+    stop_on_humps: stop when the hump count changes (always reported as an event 'humps');
+    relay_start: first re-lay the grid on the start pulse (adapted, ``n_points``) and re-solve it
+    at its τ_d (a stored pulse whose grid no longer fits it, e.g. the end of a trace).
     """
 
     direction: int = -1
@@ -99,6 +113,7 @@ class TraceSettings:
     max_iter: int = 12
     tol: float = 1e-11
     stop_on_humps: bool = False
+    relay_start: bool = False
 
     def __post_init__(self):
         if self.direction not in (-1, 1):
@@ -119,8 +134,8 @@ class _Record:
     """The accepted points of a trace, their pulses and the events between them (a sign change
     of t_q: a fold; of det B on one grid: a branch point)."""
 
-    def __init__(self, params, progress):
-        self.params, self.progress = params, progress
+    def __init__(self, params, progress, on_pulse=None):
+        self.params, self.progress, self.on_pulse = params, progress, on_pulse
         self.out = Trace()
         self.grid_id = 0
 
@@ -133,7 +148,8 @@ class _Record:
         sgn = 1 if float(tzv @ tz_or) >= 0 else -1
         Lx = pulse_length(prob.xi, np.exp(x[:-2]), params.v_star, crossings=False)
         pt = TracePoint(float(x[-1]), float(x[-2]), float(Lx), count_humps(np.exp(x[:-2])),
-                        v.fold_sign, sgn * v.t_param, sgn * v.bordered_sign, self.grid_id, prob.n)
+                        v.fold_sign, sgn * v.t_param, sgn * v.bordered_sign, self.grid_id, prob.n,
+                        extent(prob.xi, np.exp(x[:-2]), params.v_star))
         if out.points:
             a = out.points[-1]
             if a.t_q * pt.t_q < 0:
@@ -145,6 +161,8 @@ class _Record:
                                    f"q={a.q:.6f} and {pt.q:.6f}"))
         out.points.append(pt)
         out.pulses.append(_pulse(prob, x, params))
+        if self.on_pulse:
+            self.on_pulse(pt, out.pulses[-1])
         if self.progress:
             self.progress(pt)
         return pt
@@ -205,17 +223,37 @@ def _stop(pt, s: TraceSettings, q_hi):
     return ""
 
 
-def trace(params, pulse, settings: TraceSettings | None = None, progress=None) -> Trace:
+def _relay_start(params, pulse, n_points):
+    """The start pulse re-solved at its τ_d on a grid adapted to it: (xi, ln v, Pulse)."""
+    xi = np.asarray(pulse.xi, float)
+    y = np.log(np.asarray(pulse.v, float))
+    xi_new = adapted_grid(xi, y, np.asarray(pulse.phi, float), pulse.beta, params,
+                          pulse.v_stick, n_points)
+    p2, x2, st = solve_on_grid(params, pulse.tau_d_ratio, xi_new,
+                               interpolate(xi, y, xi_new, pulse.v_stick), pulse.beta)
+    if not st.converged:
+        raise RuntimeError(f"re-lay of the start pulse's grid failed: {st.message}")
+    pulse = _pulse(SteadyProblem(params, pulse.tau_d_ratio, xi_new, p2.pin_index, p2.y_pin,
+                                 free="both", H=p2.H),
+                   np.concatenate([x2, [pulse.tau_d_ratio]]), params)
+    return xi_new, x2[:-1], pulse
+
+
+def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
+          on_pulse=None) -> Trace:
     """Trace the branch of ``pulse`` (a converged Pulse) as ``settings`` say (default
     :class:`TraceSettings`: toward decreasing τ_d). Stops at ``max_steps``, when the step falls
     below ``ds_min``, when τ_d leaves (q_min, τ_peak/τ_min − 1e-4) or L exceeds ``L_max`` (m),
     and, with ``stop_on_humps``, when the hump count changes. ``progress(point)`` is called at
-    each accepted point. Returns a :class:`Trace`."""
+    each accepted point, ``on_pulse(point, pulse)`` with its pulse as it comes (a caller that
+    writes them keeps what a long trace found if it is interrupted). Returns a :class:`Trace`."""
     s = settings if settings is not None else TraceSettings()
     t0 = time.perf_counter()
     n_points = s.n_points or int(pulse.n_points)
     xi = np.asarray(pulse.xi, float)
     y = np.log(np.asarray(pulse.v, float))
+    if s.relay_start:
+        xi, y, pulse = _relay_start(params, pulse, n_points)
     k, _ = front_pin(xi, y, math.log(pulse.v_stick))
     prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, float(y[k]), free="both")
     x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
@@ -223,9 +261,10 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None) -
     tz, t = _tangent(J, x)
     if tz[1] * s.direction < 0:
         tz, t = -tz, -t
-    log = _Record(params, progress)
+    log = _Record(params, progress, on_pulse)
     out = log.out
     L_grid = pulse_length(xi, np.exp(y), params.v_star, crossings=False)
+    E_grid = extent(xi, np.exp(y), params.v_star)
     humps0 = count_humps(np.exp(y))
     q_hi = params.tau_peak / params.tau_min - 1e-4
     ds = s.ds
@@ -254,7 +293,7 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None) -
             if s.stop_on_humps:
                 out.stop_reason = out.events[-1][2]
                 break
-        if abs(pt.L / L_grid - 1.0) > s.regrid:
+        if abs(pt.L / L_grid - 1.0) > s.regrid or abs(pt.extent / E_grid - 1.0) > s.regrid:
             # re-lay the grid on the current pulse, re-solve at fixed τ_d, keep going
             prob, x = _relay(params, prob, x, pt, n_points)
             if prob is None:
@@ -263,6 +302,7 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None) -
             J = prob.residual_and_jacobian(x)[1]
             tz, t = _tangent(J, x, orient=tz)
             L_grid = pulse_length(prob.xi, np.exp(x[:-2]), params.v_star, crossings=False)
+            E_grid = extent(prob.xi, np.exp(x[:-2]), params.v_star)
             log.grid_id += 1
     if not out.stop_reason:
         out.stop_reason = f"max_steps={s.max_steps} reached"
