@@ -233,6 +233,8 @@ def attractor_figure(series, path: str, sbi=(), line=(), clip: float = 1.5, dpi=
     """Overlap of the unstable mode with the family tangent (left) and the departure fraction
     f (right) against τ_d (docs/stability.md §4). Returns ``path``.
 
+    Parameters
+    ----------
     series : list of (name, rows)
         :func:`slippulse.timedomain.eigenmode.family_overlaps` rows (or those of
         ``attractor.read_overlap_csv``), one style per series; with one series the overlap of
@@ -242,7 +244,8 @@ def attractor_figure(series, path: str, sbi=(), line=(), clip: float = 1.5, dpi=
     line : list of dict
         :func:`slippulse.timedomain.attractor.base_pair_departures`: the median
         |c_p/c_p⁰(L) − 1| of a scan's base ±ε runs along their whole trajectory.
-    clip : f is drawn clipped to [−clip, clip] (it diverges where the mode leaves c_p unchanged).
+    clip : float
+        f is drawn clipped to [−clip, clip] (it diverges where the mode leaves c_p unchanged).
     """
     fig = Figure(figsize=(11, 4.3))
     ax, bx = fig.subplots(1, 2)

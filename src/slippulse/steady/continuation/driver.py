@@ -44,6 +44,9 @@ class Continuation:
     * natural β (with :class:`~.strategy.ShrinkSteps`): β steps until τ_d passes ``targets[0]``
       (the pulses above it handed over), then the pulse at that target.
 
+    :meth:`resume_step`, :meth:`hold`, :meth:`replace`, :meth:`restart` and
+    :meth:`recentre_front` act on arclength steps only.
+
     Parameters
     ----------
     params : Parameters
@@ -86,8 +89,6 @@ class Continuation:
     current, targets, h, shrink : natural steps: the current pulse on its grid, the targets not
         yet reached, the next τ_d step, the β steps' factor.
 
-    :meth:`resume_step`, :meth:`hold`, :meth:`replace`, :meth:`restart` and
-    :meth:`recentre_front` act on arclength steps only.
     """
 
     def __init__(self, params, start, strategy: Strategy = AUTO, spec=GridSpec(),

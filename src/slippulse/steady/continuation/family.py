@@ -35,15 +35,15 @@ class FamilyRun:
     start, stop, step : the natural τ_d targets (τ_d/τ_min), from the built-in guess's pulse down.
     n_points : grid points of the natural steps; None: :data:`~.strategy.FAMILY_POINTS`.
     min_step, beta_switch, max_iter : the natural steps' smallest step, the β at which they hand
-        over to β steps, and Newton's iterations per step (converging steps take ≤ 6).
+    over to β steps, and Newton's iterations per step (converging steps take ≤ 6).
     strategy : the deep driver's :class:`~.strategy.Strategy` (default :data:`~.strategy.AUTO`).
     tolerance, n_max : the grid check's criterion and its largest grid.
     max_length : stop (cleanly, ``rep.limit_reached``) once a pulse is this long (m).
     deep_points : N of the adapted grid the deep driver starts on (default :data:`DEEP_POINTS`).
     spacing : the deep driver writes an accepted pulse once L has grown by this fraction since
-        the last written one (0: every one; the last always); default :data:`SPACING`.
+    the last written one (0: every one; the last always); default :data:`SPACING`.
     check : False: write the pulses unchecked (for a walk whose pulses only guide a solve, as
-        ``steady solve`` below 1.2; such a file is refused on resume by a checked run).
+    ``steady solve`` below 1.2; such a file is refused on resume by a checked run).
     """
     start: float = 1.2
     stop: float = 1.015

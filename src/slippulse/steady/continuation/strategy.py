@@ -180,9 +180,9 @@ class FreeSteps:
 
     ds : the first step; ds_min, ds_max : its bounds (in the plane (ln(1 − β), q/κ)).
     overshoot : a step whose predicted τ_d would pass the march's stop by more than this
-        fraction of the distance left is shortened to pass it by that fraction (to ds_min at
-        least), so that the march ends near stop; inf: never (the deep family's march, whose
-        spacing of written pulses is set in L).
+    fraction of the distance left is shortened to pass it by that fraction (to ds_min at
+    least), so that the march ends near stop; inf: never (the deep family's march, whose
+    spacing of written pulses is set in L).
     """
 
     ds: float = 0.1
