@@ -1,8 +1,8 @@
 """Continuation of the pulse family in τ_d, one module per concept.
 
 * :mod:`.tolerance` — the tolerances, in one place (grid criterion, Newton tolerance);
-* :mod:`.strategy` — the driver's strategies (predictor, corrector, step control, grid policy)
-  and their combination :class:`Strategy`, with the product's :data:`AUTO`;
+* :mod:`.strategy` — the driver's strategies (predictor, corrector, step control, grid policy,
+  grid check) and their combination :class:`Strategy`, with the product's :data:`AUTO`;
 * :mod:`.driver` — :class:`Continuation`, the pseudo-arclength driver (``step()``, status,
   counters, ``on_accept``);
 * :mod:`.natural` — natural-parameter steps in τ_d or β (tangent predictor, chord corrector);
@@ -22,14 +22,14 @@ from .natural import (FAMILY_POINTS, FAMILY_POINTS_BETA, REGRID, _Base, march_in
                       solve_at_beta, tangent_step)
 from .report import FamilyReport
 from .strategy import (AUTO, STRATEGIES, AdaptGrid, FreeSteps, HeldSteps, LengthPredictor,
-                       NewtonCorrector, SecantPredictor, Strategy, StrategyError, StretchGrid,
-                       TangentPredictor)
+                       NestedCheck, NewtonCorrector, SecantPredictor, Strategy, StrategyError,
+                       StretchGrid, TangentPredictor)
 from .stretch import stretch_grid
 from .tolerance import GRID_TOLERANCE, NEWTON_TOL, GridTolerance
 
 __all__ = ["AUTO", "Accepted", "AdaptGrid", "ArclengthProblem", "Continuation", "FAMILY_POINTS",
            "FAMILY_POINTS_BETA", "FamilyReport", "FreeSteps", "GRID_TOLERANCE", "GridTolerance",
-           "HeldSteps", "LengthPredictor", "NEWTON_TOL", "NewtonCorrector", "REGRID",
+           "HeldSteps", "LengthPredictor", "NEWTON_TOL", "NestedCheck", "NewtonCorrector", "REGRID",
            "STRATEGIES", "SecantPredictor", "Strategy", "StrategyError", "StretchGrid",
            "TangentPredictor", "check_grid_2n", "family_tangent", "grid_change", "march_in_beta",
            "run_family", "solve_at_beta", "solve_robust", "stretch_grid", "tangent_step"]

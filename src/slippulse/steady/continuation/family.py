@@ -72,7 +72,7 @@ def run_family(params: Parameters, out: str, start: float = 1.2, stop: float = 1
     rep = FamilyReport()
     rep.strategy = str(strategy)
     write = (_CheckedWriter if check else _PlainWriter)(params, out, rep, tolerance, n_max, log,
-                                                        monitor)
+                                                        monitor, strategy.check)
 
     def go_deep(start_sol, resolve, previous=None, held=False, cap=None):
         _deep(params, start_sol, stop, rep, progress, write, deep_points if resolve else None,
@@ -273,10 +273,11 @@ class _CheckedWriter:
     overwritten: the new pulse gets a longer label (:func:`unique_label`). Returns the
     :class:`GridCheck`."""
 
-    def __init__(self, params, out, rep, tol, n_max, log, monitor=None):
+    def __init__(self, params, out, rep, tol, n_max, log, monitor=None, method=None):
         self.params, self.out, self.rep, self.tol, self.n_max, self.log = \
             params, out, rep, tol, n_max, log
         self.monitor = monitor
+        self.method = AUTO.check if method is None else method      # the grid check
         self.taken = {}
         self.homotopy_first = 0
         # the last deep check's (x, x_fine, LU): the next check's warm start (check_pulse)
@@ -291,7 +292,8 @@ class _CheckedWriter:
         deep = method == "arclength"
         res = check_pulse(self.params, sol, self.tol, self.n_max, log=self.log,
                           body_levels=2 if deep else 0, locate=deep,
-                          plain=self.homotopy_first == 0, warm=self.warm if deep else None)
+                          plain=self.homotopy_first == 0, warm=self.warm if deep else None,
+                          method=self.method)
         self.warm = res.warm if res.warm is not None else ()
         if self.homotopy_first:
             self.homotopy_first -= 1

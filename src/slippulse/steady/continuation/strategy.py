@@ -7,7 +7,8 @@ refused when built if its parts cannot work together.
 * corrector — how the guess is driven to the family: :class:`NewtonCorrector` (Newton with a
   line search, optional chord start and creep stop);
 * step control — how the arclength step ds changes: :class:`FreeSteps`, :class:`HeldSteps`;
-* grid policy — which grid carries the next pulse: :class:`AdaptGrid`, :class:`StretchGrid`.
+* grid policy — which grid carries the next pulse: :class:`AdaptGrid`, :class:`StretchGrid`;
+* grid check — how every written pulse is checked against a refined grid: :class:`NestedCheck`.
 
 :data:`AUTO` is the product's combination (``slippulse steady family``).
 """
@@ -16,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
-from ..newton import LINE_SEARCHES
+from ..newton import LINE_SEARCHES, PRECISIONS
 from .tolerance import NEWTON_TOL
 
 
@@ -268,11 +269,36 @@ class StretchGrid:
                                 f"relay_levels >= 1, recentre >= 0")
 
 
+# ------------------------------------------------------------------------------ grid check
+@dataclass(frozen=True)
+class NestedCheck:
+    """Every written pulse re-solved on its own grid with the midpoints inserted (2N − 1), on the
+    line normal to the family tangent, by Newton to :data:`~.tolerance.NEWTON_TOL`, and its change
+    of β and L at fixed τ_d held to the :class:`~.tolerance.GridTolerance`
+    (:func:`~.gridcheck.check_pulse`).
+
+    lu : precision of the 2N − 1 LU (:data:`~slippulse.steady.newton.PRECISIONS`). "single":
+        LAPACK sgetrf, half the time of "double" (0.15 against 0.28 s CPU at 2499 points); the
+        residual, the iterates and the convergence test stay in double, so the re-solve meets
+        the same tolerance and the check's (Δβ, ΔL/L) are those of "double" to round-off
+        (measured on the 57 checks of the shallow family and on the committed deep seeds:
+        BENCHMARKS.md "Family"); Newton and its chord iterations contract as fast as with the
+        double LU (the Jacobian's change along the iteration limits them, not the LU's 6e−8).
+    """
+
+    lu: str = "single"
+    name = "nested"
+
+    def __post_init__(self):
+        if self.lu not in PRECISIONS:
+            raise StrategyError(f"nested: lu={self.lu!r} is invalid: must be one of {PRECISIONS}")
+
+
 # ------------------------------------------------------------------------------ combination
 @dataclass(frozen=True)
 class Strategy:
-    """A combination of a predictor, a corrector, a step control and a grid policy. Refused when
-    built (:class:`StrategyError`) if they cannot work together:
+    """A combination of a predictor, a corrector, a step control, a grid policy and a grid check.
+    Refused when built (:class:`StrategyError`) if they cannot work together:
 
     * the length and secant predictors move the healing-front zone of a stretched grid: they need
       :class:`StretchGrid`;
@@ -285,12 +311,14 @@ class Strategy:
     corrector: NewtonCorrector = field(default_factory=NewtonCorrector)
     steps: FreeSteps = field(default_factory=FreeSteps)
     grid: object = field(default_factory=AdaptGrid)
+    check: NestedCheck = field(default_factory=NestedCheck)
 
     def __post_init__(self):
         kinds = ((self.predictor, (TangentPredictor, LengthPredictor), "predictor"),
                  (self.corrector, (NewtonCorrector,), "corrector"),
                  (self.steps, (FreeSteps,), "steps"),
-                 (self.grid, (AdaptGrid, StretchGrid), "grid"))
+                 (self.grid, (AdaptGrid, StretchGrid), "grid"),
+                 (self.check, (NestedCheck,), "check"))
         for obj, cls, what in kinds:
             if not isinstance(obj, cls):
                 raise StrategyError(f"{what}={obj!r} is invalid: must be one of "
@@ -332,13 +360,14 @@ class Strategy:
 
     def __str__(self):
         return " + ".join(_describe(p) for p in (self.predictor, self.corrector, self.steps,
-                                                 self.grid))
+                                                 self.grid, self.check))
 
 
 #: The product's combination: the deep family from β ≈ 0.99 toward τ̃*, on a grid deformed with
 #: the pulse, with the secant predictor below ds = 0.002, the step held there once the tangent's
 #: larger steps fail (down to ds_min = 0.0002, a tenth of that cap, before the healing front is
-#: refined), and the held corrector's chord start, natural line search and creep stop.
+#: refined), and the held corrector's chord start, natural line search and creep stop; every
+#: written pulse (the natural steps' too) checked at 2N − 1 with a single-precision LU.
 AUTO = Strategy(predictor=SecantPredictor(ds_max=0.002),
                 corrector=NewtonCorrector(max_iter=25),
                 steps=HeldSteps(ds=0.1, ds_min=0.0002, ds_max=0.4, cap_shrink=0.8,
@@ -346,7 +375,8 @@ AUTO = Strategy(predictor=SecantPredictor(ds_max=0.002),
                                 corrector=NewtonCorrector(max_iter=25, line_search="natural",
                                                           creep=4, chord=True)),
                 grid=StretchGrid(front_zone=0.01, back_zone=0.05, relay=20, relay_levels=2,
-                                 recentre=0.001))
+                                 recentre=0.001),
+                check=NestedCheck(lu="single"))
 
 #: Named combinations (``STRATEGIES["auto"]`` is :data:`AUTO`).
 STRATEGIES = {"auto": AUTO}
