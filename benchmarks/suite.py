@@ -38,10 +38,26 @@ def _cli(*args, timeout=3600):
     return wall
 
 
+def _module(*names):
+    """The first of the modules ``names`` that this tree has: the layout moved (``slippulse.h5io``
+    before the subpackages, ``slippulse.core.h5io`` after), and a base commit may be older."""
+    import importlib
+    for name in names:
+        try:
+            return importlib.import_module(name)
+        except ModuleNotFoundError:
+            continue
+    raise ModuleNotFoundError(f"none of {names}")
+
+
+def _h5io():
+    return _module("slippulse.core.h5io", "slippulse.h5io")
+
+
 def _warm_steady():
     """Compile (or load) the steady kernels before a clock starts."""
-    from slippulse.core.params import DEFAULT
-    from slippulse.steady.solver import solve_pulse
+    DEFAULT = _module("slippulse.core.params", "slippulse.params").DEFAULT
+    solve_pulse = _module("slippulse.steady.solver", "slippulse.solver").solve_pulse
     solve_pulse(DEFAULT, 1.2, n_points=300)
 
 
@@ -70,8 +86,10 @@ def steady_solve(quick, work):
 # ---------------------------------------------------------------- family
 def family_continuation(quick, work):
     """``slippulse steady family`` from an empty file, every pulse grid-checked (the default
-    strategy): quick 1.2 → 1.1 τ_min (step 0.01), full the defaults (1.2 → 1.015, 0.005)."""
-    from slippulse.core.h5io import list_pulses, read_pulse
+    strategy): quick 1.2 → 1.1 τ_min (step 0.01), full the defaults (1.2 → 1.015, 0.005). Runs on
+    the flat layout of older commits too (the side-by-side record against 7b59bbb)."""
+    io = _h5io()
+    list_pulses, read_pulse = io.list_pulses, io.read_pulse
     _warm_steady()
     out_file = os.path.join(work, "family.h5")
     args = ["--to", "1.1", "--step", "0.01"] if quick else []
