@@ -54,6 +54,14 @@ def _h5io():
     return _module("slippulse.core.h5io", "slippulse.h5io")
 
 
+def _child_cpu():
+    """User + system seconds of this process's finished children: the command's CPU time, which
+    the load of a shared machine changes far less than its wall time."""
+    import resource
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
 def _warm_steady():
     """Compile (or load) the steady kernels before a clock starts."""
     DEFAULT = _module("slippulse.core.params", "slippulse.params").DEFAULT
@@ -93,11 +101,13 @@ def family_continuation(quick, work):
     _warm_steady()
     out_file = os.path.join(work, "family.h5")
     args = ["--to", "1.1", "--step", "0.01"] if quick else []
+    cpu0 = _child_cpu()
     wall = _cli("steady", "family", "--out", out_file, "-q", *args)
+    cpu = _child_cpu() - cpu0
     labels = list_pulses(out_file)
     pulses = [read_pulse(out_file, lab)[0] for lab in labels]
     deep = max(pulses, key=lambda p: p.L)
-    return {"wall s": wall, "pulses": len(pulses), "beta (longest)": deep.beta,
+    return {"wall s": wall, "cpu s": cpu, "pulses": len(pulses), "beta (longest)": deep.beta,
             "L m (longest)": deep.L, "max abs r": max(p.max_residual for p in pulses)}
 
 
