@@ -28,8 +28,11 @@ ROOT = os.path.dirname(HERE)
 def _cli(*args, timeout=3600):
     """Run ``python -m slippulse ARGS`` (this process's tree and threads); its wall seconds.
     A failure raises with the command's last line."""
+    import importlib.util
+    # ``python -m slippulse``; older trees (the flat layout) had no __main__: their slippulse.cli
+    main = "slippulse" if importlib.util.find_spec("slippulse.__main__") else "slippulse.cli"
     t0 = time.perf_counter()
-    r = subprocess.run([sys.executable, "-m", "slippulse", *args], capture_output=True, text=True,
+    r = subprocess.run([sys.executable, "-m", main, *args], capture_output=True, text=True,
                        timeout=timeout)
     wall = time.perf_counter() - t0
     if r.returncode != 0:
