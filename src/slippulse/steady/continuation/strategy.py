@@ -281,7 +281,7 @@ class NestedCheck:
         LAPACK sgetrf, half the time of "double" (0.15 against 0.28 s CPU at 2499 points); the
         residual, the iterates and the convergence test stay in double, so the re-solve meets
         the same tolerance and the check's (Δβ, ΔL/L) are those of "double" to round-off
-        (measured on the 57 checks of the shallow family and on the committed deep seeds:
+        (measured on the 57 checks of the shallow family and the 2550 m and 4892 m seeds:
         BENCHMARKS.md "Family"); Newton and its chord iterations contract as fast as with the
         double LU (the Jacobian's change along the iteration limits them, not the LU's 6e−8).
     """
