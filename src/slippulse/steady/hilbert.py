@@ -266,7 +266,7 @@ def hilbert_matrix(xi, kind: str = "cubic", tails: bool = True, center: float | 
 #: then builds the stability operator on the same grid (0.9 s at N = 5009); a family keeps
 #: its grid for several pulses, and each pulse's grid check (the nested 2N − 1 grid) and test
 #: functions (its own grid) come back to the same two grids: 145 assemblies for the 57 pulses of
-#: the shallow family with one matrix kept, 58 with this cache.
+#: the shallow family with one matrix kept, 60 with this cache (29 grids).
 _CACHE = OrderedDict()
 #: The most bytes :data:`_CACHE` keeps beyond its last matrix (four 2N − 1 = 2499 matrices).
 CACHE_BYTES = 256 * 2 ** 20
