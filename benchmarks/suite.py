@@ -28,8 +28,11 @@ ROOT = os.path.dirname(HERE)
 def _cli(*args, timeout=3600):
     """Run ``python -m slippulse ARGS`` (this process's tree and threads); its wall seconds.
     A failure raises with the command's last line."""
+    import importlib.util
+    # ``python -m slippulse``; older trees (the flat layout) had no __main__: their slippulse.cli
+    main = "slippulse" if importlib.util.find_spec("slippulse.__main__") else "slippulse.cli"
     t0 = time.perf_counter()
-    r = subprocess.run([sys.executable, "-m", "slippulse", *args], capture_output=True, text=True,
+    r = subprocess.run([sys.executable, "-m", main, *args], capture_output=True, text=True,
                        timeout=timeout)
     wall = time.perf_counter() - t0
     if r.returncode != 0:
@@ -38,10 +41,34 @@ def _cli(*args, timeout=3600):
     return wall
 
 
+def _module(*names):
+    """The first of the modules ``names`` that this tree has: the layout moved (``slippulse.h5io``
+    before the subpackages, ``slippulse.core.h5io`` after), and a base commit may be older."""
+    import importlib
+    for name in names:
+        try:
+            return importlib.import_module(name)
+        except ModuleNotFoundError:
+            continue
+    raise ModuleNotFoundError(f"none of {names}")
+
+
+def _h5io():
+    return _module("slippulse.core.h5io", "slippulse.h5io")
+
+
+def _child_cpu():
+    """User + system seconds of this process's finished children: the command's CPU time, which
+    the load of a shared machine changes far less than its wall time."""
+    import resource
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
 def _warm_steady():
     """Compile (or load) the steady kernels before a clock starts."""
-    from slippulse.core.params import DEFAULT
-    from slippulse.steady.solver import solve_pulse
+    DEFAULT = _module("slippulse.core.params", "slippulse.params").DEFAULT
+    solve_pulse = _module("slippulse.steady.solver", "slippulse.solver").solve_pulse
     solve_pulse(DEFAULT, 1.2, n_points=300)
 
 
@@ -70,16 +97,20 @@ def steady_solve(quick, work):
 # ---------------------------------------------------------------- family
 def family_continuation(quick, work):
     """``slippulse steady family`` from an empty file, every pulse grid-checked (the default
-    strategy): quick 1.2 → 1.1 τ_min (step 0.01), full the defaults (1.2 → 1.015, 0.005)."""
-    from slippulse.core.h5io import list_pulses, read_pulse
+    strategy): quick 1.2 → 1.1 τ_min (step 0.01), full the defaults (1.2 → 1.015, 0.005). Runs on
+    the flat layout of older commits too (the side-by-side record against 7b59bbb)."""
+    io = _h5io()
+    list_pulses, read_pulse = io.list_pulses, io.read_pulse
     _warm_steady()
     out_file = os.path.join(work, "family.h5")
     args = ["--to", "1.1", "--step", "0.01"] if quick else []
+    cpu0 = _child_cpu()
     wall = _cli("steady", "family", "--out", out_file, "-q", *args)
+    cpu = _child_cpu() - cpu0
     labels = list_pulses(out_file)
     pulses = [read_pulse(out_file, lab)[0] for lab in labels]
     deep = max(pulses, key=lambda p: p.L)
-    return {"wall s": wall, "pulses": len(pulses), "beta (longest)": deep.beta,
+    return {"wall s": wall, "cpu s": cpu, "pulses": len(pulses), "beta (longest)": deep.beta,
             "L m (longest)": deep.L, "max abs r": max(p.max_residual for p in pulses)}
 
 

@@ -250,3 +250,31 @@ def test_family_stores_the_test_functions_of_every_pulse_and_reports_their_event
         h5["pulses"][rows[1].label].attrs["bif_t_q"] = -rows[1].values.t_param
     kinds = [e.kind for e in events(stored_rows(str(path)))]
     assert kinds.count("fold") == 2
+
+
+def test_null_vector_from_the_lu_of_A_is_the_qr_one_even_at_a_fold(
+        params, pulse12):
+    """null_vector_from_lu: the unit null vector of J = [A c] from the LU of A is the QR one up to
+    sign, on a random J and on the 1.2 τ_min pulse's extended Jacobian (N = 700, scaled as the
+    test functions scale it); at a fold (A singular) it still gives J's null vector, or None
+    (indicators then takes the QR)."""
+    import scipy.linalg as sla
+    from slippulse.steady.bifurcation import null_vector, null_vector_from_lu, pulse_system
+    rng = np.random.default_rng(7)
+    J = rng.standard_normal((40, 41))
+    t = null_vector_from_lu(J, sla.lu_factor(J[:, :40]))
+    assert abs(abs(t @ null_vector(J)) - 1) < 1e-12
+    prob, x, scale = pulse_system(pulse12.to_pulse(), params)
+    Js = prob.residual_and_jacobian(x)[1] * scale[None, :]
+    n = Js.shape[0]
+    t = null_vector_from_lu(Js, sla.lu_factor(Js[:, :n]))
+    assert abs(abs(t @ null_vector(Js)) - 1) < 1e-12 and np.linalg.norm(Js @ t) < 1e-10
+    S = J.copy()
+    S[:, 3] = S[:, 5]                           # a fold: A singular, J still of rank 40, t_λ = 0
+    with np.errstate(all="ignore"):
+        t = null_vector_from_lu(S, sla.lu_factor(S[:, :40]))
+    # A⁻¹c blows up along A's null direction, which is J's: the normalised t is still right
+    assert t is None or (abs(abs(t @ null_vector(S)) - 1) < 1e-12 and abs(t[-1]) < 1e-12)
+    v = indicators(S)
+    assert abs(v.t_param) < 1e-12                 # the fold shows as t_λ = 0
+    assert np.linalg.norm(S @ v.tangent) < 1e-12 and abs(v.tangent @ null_vector(S)) > 1 - 1e-12

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from slippulse.steady.continuation import FamilyRun, run_family
+from slippulse.steady.continuation import GRID_TOLERANCE, FamilyRun, run_family
 from slippulse.core.h5io import list_pulses, read_pulse
 from slippulse.core.params import ParameterError
 
@@ -327,6 +327,33 @@ def test_grid_check_reusing_the_lu_gives_the_same_check_with_fewer_factorisation
     assert abs(db1 - db0) < 1e-6 * abs(db0) and abs(dl1 - dl0) < 1e-6 * abs(dl0)
 
 
+def test_grid_check_with_a_single_precision_lu_gives_the_double_check(params):
+    """NestedCheck(lu="single"): the 2N − 1 re-solve factors the Jacobian in float32, keeps the
+    residual and the iterates in double, and converges to the same tolerance: the same fine
+    pulse and the same Δβ, ΔL/L as the double LU, in as many LUs; the check's attributes name
+    the method; a precision that does not exist is refused."""
+    from slippulse.steady.continuation.gridcheck import as_both, check_pulse, grid_change
+    from slippulse.steady.continuation.strategy import NestedCheck
+    from slippulse.steady.newton import newton
+    from slippulse.steady.solver import solve_pulse
+    sol = as_both(params, solve_pulse(params, 1.2, n_points=400))
+    dbl, db0, dl0 = grid_change(params, sol, 400, nested=True, stages=4, max_iter=15,
+                                precision="double")
+    sgl, db1, dl1 = grid_change(params, sol, 400, nested=True, stages=4, max_iter=15,
+                                precision="single")
+    assert dbl.stats.converged and sgl.stats.converged
+    assert sgl.stats.iterations == dbl.stats.iterations
+    assert np.max(np.abs(sgl.x - dbl.x)) < 1e-9
+    assert abs(db1 - db0) < 1e-6 * abs(db0) and abs(dl1 - dl0) < 1e-6 * abs(dl0)
+    assert abs(dl0) > 1e-6                                   # a change the grids make
+    res = check_pulse(params, sol, method=NestedCheck(lu="single"), body_levels=0,
+                      n_max=2 * 400 - 1)                  # one level: the re-solve above
+    assert res.attrs(GRID_TOLERANCE)["grid_check_method"] == "nested(lu=single)"
+    assert (res.dbeta, res.dL_rel) == pytest.approx((abs(db1), abs(dl1)), rel=1e-12)
+    with pytest.raises(ValueError, match="precision"):
+        newton(sol.problem, sol.x, precision="half")
+
+
 def test_tangent_step_converges_by_chord_iterations_to_the_direct_solution(params):
     """A τ_d step of the family from 1.2 to 1.195 τ_min on the 1.2 pulse's grid: the tangent
     predictor lands close enough for chord iterations with the tangent's LU alone, and the result
@@ -515,7 +542,7 @@ def test_checks_start_with_the_homotopy_after_one_needed_it(monkeypatch):
     crept = iter([False, True] + [True] * family.HOMOTOPY_FIRST + [False, False])
 
     def check(params, sol, tol, n_max, log=None, body_levels=0, locate=False, plain=True,
-              warm=None):
+              warm=None, method=None):
         asked.append(plain)
         homotopy = next(crept)
         return SimpleNamespace(passed=False, homotopy=homotopy, message="mock", sol=sol,

@@ -16,7 +16,8 @@ import pytest
 from slippulse.core.h5io import label_ratio, list_pulses, pulse_label, read_pulse, write_pulse
 from slippulse.steady.continuation import (AUTO, GRID_TOLERANCE, NEWTON_TOL, AdaptGrid,
                                            Continuation, FreeSteps, GridTolerance, HeldSteps,
-                                           LengthPredictor, NewtonCorrector, SecantPredictor,
+                                           LengthPredictor, NestedCheck, NewtonCorrector,
+                                           SecantPredictor,
                                            Strategy, StrategyError, StretchGrid,
                                            TangentPredictor, FamilyRun, run_family)
 
@@ -315,9 +316,14 @@ def test_a_strategy_is_a_value_refused_when_it_cannot_work():
     parameters of a part."""
     text = str(AUTO)
     for word in ("secant(ds_max=0.002)", "newton(max_iter=25", "held(", "line_search=natural",
-                 "stretch(", "recentre=0.001"):
+                 "stretch(", "recentre=0.001", "nested(lu=single)"):
         assert word in text
     assert AUTO == Strategy(SecantPredictor(), NewtonCorrector(), HeldSteps(), StretchGrid())
+    assert AUTO.replace(check=NestedCheck(lu="double")) != AUTO
+    with pytest.raises(StrategyError, match="lu='half'"):
+        NestedCheck(lu="half")
+    with pytest.raises(StrategyError, match="check="):
+        AUTO.replace(check="nested")
     assert AUTO.replace(grid=StretchGrid(relay=0)) != AUTO
     with pytest.raises(StrategyError, match="held"):
         Strategy(TangentPredictor(), NewtonCorrector(), HeldSteps(), StretchGrid())

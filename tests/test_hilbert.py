@@ -59,3 +59,25 @@ def test_refuses_bad_grids():
         hilbert_matrix(np.array([0.0, 1.0, 1.0, 2.0, 3.0]))
     with pytest.raises(ValueError):
         hilbert_matrix(np.linspace(0, 1, 10), kind="quintic")
+
+
+def test_cache_returns_the_matrix_of_each_recent_grid_and_drops_the_oldest(monkeypatch):
+    """hilbert_matrix keeps the latest matrices by grid (least recently used dropped beyond
+    CACHE_BYTES, the last one always kept): a grid seen again gets its own matrix back, equal to
+    a fresh assembly; beyond the budget the oldest is rebuilt."""
+    from slippulse.steady import hilbert
+    grids = [np.linspace(-1.25, 1.0, 40 + k) for k in range(3)]      # grids no other test uses
+    first = [hilbert_matrix(g) for g in grids]
+    again = [hilbert_matrix(g) for g in grids]
+    assert all(a is b for a, b in zip(first, again))
+    for g, H in zip(grids, again):
+        assert np.array_equal(H, hilbert._hilbert_matrix(g, "cubic", True, None))
+        assert not H.flags.writeable
+    monkeypatch.setattr(hilbert, "CACHE_BYTES", first[2].nbytes + first[1].nbytes)
+    hilbert_matrix(np.linspace(-1.25, 1.0, 30))          # over budget: the two oldest go
+    assert hilbert_matrix(grids[2]) is first[2]
+    assert hilbert_matrix(grids[0]) is not first[0]
+    monkeypatch.setattr(hilbert, "CACHE_BYTES", 0)
+    last = hilbert_matrix(grids[1])
+    assert hilbert_matrix(grids[1]) is last               # the last one is always kept
+    assert hilbert_matrix(grids[2]) is not first[2]       # nothing else

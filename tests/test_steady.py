@@ -237,3 +237,26 @@ def test_guess_state_is_the_order2_state_of_the_problem():
     prob = SteadyProblem(DEFAULT, 1.1, xi, 0, 0.0, state_order=2)
     assert np.array_equal(guess_state(DEFAULT, 1.1, xi, np.exp(y), beta),
                           prob.state(np.exp(y), beta, False)[0])
+
+
+def test_fused_jacobian_sweep_equals_the_dense_state_jacobian(params):
+    """radau_jacobian_into fills H cv − fphi P − diag(dv) row by row from one row of P: the same
+    numbers, bit for bit, as forming the dense P of integrate_state_radau first."""
+    from slippulse.steady.equations import radau_jacobian_into
+    xi, y, beta = default_guess(params, 1.1, 90)
+    rng = np.random.default_rng(3)
+    n = xi.size
+    y = y + 0.01 * rng.standard_normal(n)
+    H = hilbert_matrix(xi)
+    cv, fphi, dv = rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n)
+    c = beta * params.c_s
+    phi, P, dphi_dc, G = integrate_state_radau(xi, y, c, 2.0, params.v_star, params.D, RADAU_A,
+                                               RADAU_C)
+    dense = H * cv - fphi[:, None] * P
+    dense[np.diag_indices(n)] -= dv
+    J = np.full((n + 1, n + 2), np.nan)
+    dc, g = radau_jacobian_into(xi, y, c, 2.0, params.v_star, params.D, (RADAU_A, RADAU_C), H,
+                                (cv, fphi, dv), J)
+    assert np.array_equal(J[:n, :n], dense)
+    assert np.array_equal(dc, dphi_dc) and np.array_equal(g, G)
+    assert np.isnan(J[n:, :]).all() and np.isnan(J[:, n:]).all()    # nothing outside the block

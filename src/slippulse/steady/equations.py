@@ -167,6 +167,54 @@ def integrate_state_radau(xi, y, beta_cs, phi_end, v_star, D, A, c, with_jacobia
     return phi, P, dphi_dc, G
 
 
+@njit(cache=True)
+def radau_jacobian_into(xi, y, beta_cs, phi_end, v_star, D, table, H, terms, J):
+    """The y-block of the steady Jacobian, written into J[:n, :n] in one sweep without the
+    dense state Jacobian P = ∂φ/∂y (:func:`integrate_state_radau`, order 4; ``table`` = (A, c),
+    its Radau table; ``terms`` = (cv, fphi, dv)):
+
+        J_ij = H_ij cv_j − fphi_i P_ij − δ_ij dv_i.
+
+    Row i of P is a · (row i + 1) plus the cell's local terms (the recursion of
+    :func:`integrate_state_radau`), so one row of P is kept and each row of J is filled as soon
+    as its row of P is known: one pass over J instead of filling P (N² zeros, then the band),
+    H·cv and fphi·P as separate N² temporaries (the same operations in the same order, so the
+    same numbers). Returns (∂φ/∂(β c_s), ∂φ/∂φ_N), as :func:`integrate_state_radau`.
+    """
+    A, c = table
+    cv, fphi, dv = terms
+    n = xi.size
+    phi = np.empty(n)
+    row = np.zeros(n)                                   # row i + 1 of P (row n − 1: zero)
+    dphi_dc = np.zeros(n)
+    G = np.empty(n)
+    G[n - 1] = 1.0
+    phi[n - 1] = phi_end
+    m = 4 if n >= 4 else n
+    work = _radau_workspace()
+    lw = work[0]
+    dwk = work[2]
+    fi = fphi[n - 1]
+    for j in range(n):
+        J[n - 1, j] = H[n - 1, j] * cv[j] - fi * row[j]
+    J[n - 1, n - 1] -= dv[n - 1]
+    for i in range(n - 2, -1, -1):
+        phi[i], a, dw0, dw1, dw2, dh, h, j0 = _radau_cell(xi, y, i, beta_cs, phi[i + 1], v_star,
+                                                          D, A, c, m, work)
+        dphi_dc[i] = a * dphi_dc[i + 1] - h * dh / beta_cs
+        G[i] = a * G[i + 1]
+        for j in range(max(i - 2, 0), n):
+            row[j] = a * row[j]
+        for l in range(m):
+            row[j0 + l] += (dw0 * dwk[0] * lw[0, l] + dw1 * dwk[1] * lw[1, l])
+        row[i] += dw2 * dwk[2]
+        fi = fphi[i]
+        for j in range(n):
+            J[i, j] = H[i, j] * cv[j] - fi * row[j]
+        J[i, i] -= dv[i]
+    return dphi_dc, G
+
+
 @njit(cache=True, inline="always")
 def adjugate3(M, Mi):
     """Mi = adj(M) of a 3×3 M (real or complex); returns det M (so M⁻¹ = Mi/det)."""
@@ -401,7 +449,12 @@ class SteadyProblem:
         p = self.params
         v, beta = self.split(x)
         n = self.n
-        phi, P, dphi_dc, G = self.state(v, beta)
+        fused = self.state_order == 4
+        if fused:
+            # φ first (no Jacobian); the y-block below in one sweep (radau_jacobian_into)
+            phi = self.state(v, beta, False)[0]
+        else:
+            phi, P, dphi_dc, G = self.state(v, beta)
         u = v - self.v_stick
         hu = self.H @ u
         F = float(p.F3(beta))
@@ -413,10 +466,16 @@ class SteadyProblem:
         J = np.empty((n + 1, x.size))
         fphi = p.sigma * s * fr.df_dphi(v, phi, *la)
         # dΔ_i/dy_j = −(σ/τ_d)[f_v v_i δ_ij + f_φ,i P_ij] − (μF/τ_d) H_ij v_j
-        Jy = J[:-1, :n]
-        np.multiply(self.H, (-p.mu * F * s) * v, out=Jy)
-        Jy -= fphi[:, None] * P
-        Jy[np.diag_indices(n)] -= p.sigma * s * fr.df_dv(v, phi, *la) * v
+        dv = p.sigma * s * fr.df_dv(v, phi, *la) * v
+        if fused:
+            dphi_dc, G = radau_jacobian_into(self.xi, np.log(v), beta * p.c_s, self.phi_end,
+                                             p.v_star, p.D, (RADAU_A, RADAU_C), self.H,
+                                             ((-p.mu * F * s) * v, fphi, dv), J)
+        else:
+            Jy = J[:-1, :n]
+            np.multiply(self.H, (-p.mu * F * s) * v, out=Jy)
+            Jy -= fphi[:, None] * P
+            Jy[np.diag_indices(n)] -= dv
         if self.free in ("beta", "both"):
             # dΔ_i/dβ = −(σ/τ_d) f_φ,i c_s ∂φ_i/∂c − (μ F'(β)/τ_d) (H u)_i
             jb = -1 if self.free == "beta" else -2

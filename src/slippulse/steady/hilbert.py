@@ -19,6 +19,8 @@ so H = A + B T⁻¹ R; B T⁻¹ is obtained with one banded solve, making the as
 """
 from __future__ import annotations
 
+from collections import OrderedDict
+
 import numpy as np
 from numba import njit
 from scipy.linalg import solve_banded
@@ -246,20 +248,28 @@ def hilbert_matrix(xi, kind: str = "cubic", tails: bool = True, center: float | 
         raise ValueError(f"kind={kind!r}: must be one of {sorted(HILBERT_KINDS)}")
     c = 0.5 * (xi[0] + xi[-1]) if center is None else float(center)     # as _add_tails
     key = (xi.tobytes(), kind, bool(tails), c)
-    if _LAST_H.get("key") == key:
-        return _LAST_H["H"]
+    H = _CACHE.get(key)
+    if H is not None:
+        _CACHE.move_to_end(key)
+        return H
     H = _hilbert_matrix(xi, kind, tails, center)
     H.flags.writeable = False
-    _LAST_H.clear()
-    _LAST_H.update(key=key, H=H)
+    _CACHE[key] = H
+    while len(_CACHE) > 1 and sum(m.nbytes for m in _CACHE.values()) > CACHE_BYTES:
+        _CACHE.popitem(last=False)
     return H
 
 
-#: The last matrix of :func:`hilbert_matrix` and its arguments, returned (read-only) when the
-#: same grid comes again: the spectrum's ladder solves the steady pulse on a mapped grid
-#: (:class:`~slippulse.steady.equations.SteadyProblem`) and then builds the stability operator
-#: on the same grid (0.9 s at N = 5009).
-_LAST_H = {}
+#: The latest matrices of :func:`hilbert_matrix`, by their arguments, returned (read-only) when
+#: the same grid comes again, least recently used dropped first beyond :data:`CACHE_BYTES` (the
+#: last one always kept). The spectrum's ladder solves the steady pulse on a mapped grid and
+#: then builds the stability operator on the same grid (0.9 s at N = 5009); a family keeps
+#: its grid for several pulses, and each pulse's grid check (the nested 2N − 1 grid) and test
+#: functions (its own grid) come back to the same two grids: 145 assemblies for the 57 pulses of
+#: the shallow family with one matrix kept, 60 with this cache (29 grids).
+_CACHE = OrderedDict()
+#: The most bytes :data:`_CACHE` keeps beyond its last matrix (four 2N − 1 = 2499 matrices).
+CACHE_BYTES = 256 * 2 ** 20
 
 
 def _hilbert_matrix(xi, kind, tails, center):

@@ -1,8 +1,8 @@
 """Continuation of the pulse family in τ_d, one module per concept.
 
 * :mod:`.tolerance` — the tolerances, in one place (grid criterion, Newton tolerance);
-* :mod:`.strategy` — the driver's strategies (predictor, corrector, step control, grid policy)
-  and their combinations :class:`Strategy`: the deep :data:`AUTO`, the shallow
+* :mod:`.strategy` — the driver's strategies (predictor, corrector, step control, grid policy,
+  grid check) and their combinations :class:`Strategy`: the deep :data:`AUTO`, the shallow
   :data:`NATURAL` (τ_d steps) and :data:`BETA_STEPS`, and :data:`FROM_PULSE`;
 * :mod:`.driver` — :class:`Continuation`, the driver (``step()``, status, counters,
   ``on_accept``) of natural and pseudo-arclength steps alike;
@@ -25,7 +25,7 @@ from .natural import PulseOnGrid, judge_pulse, round_targets, solve_at_beta, tan
 from .report import FamilyReport
 from .strategy import (AUTO, BETA_STEPS, FAMILY_POINTS, FAMILY_POINTS_BETA, FROM_PULSE, NATURAL,
                        REGRID, STRATEGIES, AdaptGrid, FreeSteps, HeldSteps, LengthPredictor,
-                       NaturalPredictor, NewtonCorrector, SecantPredictor, ShrinkSteps, Strategy,
+                       NaturalPredictor, NestedCheck, NewtonCorrector, SecantPredictor, ShrinkSteps, Strategy,
                        StrategyError, StretchGrid, TangentPredictor, TargetSteps)
 from .stretch import stretch_grid, stretch_profile
 from .tolerance import GRID_TOLERANCE, NEWTON_TOL, GridTolerance
@@ -33,7 +33,7 @@ from .tolerance import GRID_TOLERANCE, NEWTON_TOL, GridTolerance
 __all__ = ["AUTO", "Accepted", "FamilyRun", "AdaptGrid", "ArclengthProblem", "BETA_STEPS", "Continuation",
            "FAMILY_POINTS", "FAMILY_POINTS_BETA", "FROM_PULSE", "FamilyReport", "FreeSteps", "GRID_TOLERANCE",
            "GridTolerance", "HeldSteps", "LengthPredictor", "NATURAL", "NEWTON_TOL",
-           "NaturalPredictor", "NewtonCorrector", "PulseOnGrid", "REGRID", "STRATEGIES",
+           "NaturalPredictor", "NestedCheck", "NewtonCorrector", "PulseOnGrid", "REGRID", "STRATEGIES",
            "SecantPredictor", "ShrinkSteps", "Strategy", "StrategyError", "StretchGrid", "as_both",
            "TangentPredictor", "TargetSteps", "check_grid_2n", "family_tangent", "grid_change",
            "judge_pulse", "round_targets", "run_family", "solve_at_beta", "solve_robust",

@@ -120,7 +120,7 @@ class _Runner:
         self.rep = FamilyReport()
         self.rep.strategy = str(run.strategy)
         self.write = (_CheckedWriter if run.check else _PlainWriter)(
-            params, out, self.rep, run.tolerance, run.n_max, log, monitor)
+            params, out, self.rep, run.tolerance, run.n_max, log, monitor, run.strategy.check)
         self.n_tau, self.n_deep = (FAMILY_POINTS if run.n_points is None
                                    else (run.n_points, run.n_points))
 
@@ -383,10 +383,11 @@ class _CheckedWriter:
     overwritten: the new pulse gets a longer label (:func:`unique_label`). Returns the
     :class:`GridCheck`."""
 
-    def __init__(self, params, out, rep, tol, n_max, log, monitor=None):
+    def __init__(self, params, out, rep, tol, n_max, log, monitor=None, method=None):
         self.params, self.out, self.rep, self.tol, self.n_max, self.log = \
             params, out, rep, tol, n_max, log
         self.monitor = monitor
+        self.method = AUTO.check if method is None else method      # the grid check
         self.taken = {}
         self.homotopy_first = 0
         # the last deep check's (x, x_fine, LU): the next check's warm start (check_pulse)
@@ -401,7 +402,8 @@ class _CheckedWriter:
         deep = method == "arclength"
         res = check_pulse(self.params, sol, self.tol, self.n_max, log=self.log,
                           body_levels=2 if deep else 0, locate=deep,
-                          plain=self.homotopy_first == 0, warm=self.warm if deep else None)
+                          plain=self.homotopy_first == 0, warm=self.warm if deep else None,
+                          method=self.method)
         self.warm = res.warm if res.warm is not None else ()
         if self.homotopy_first:
             self.homotopy_first -= 1

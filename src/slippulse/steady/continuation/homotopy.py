@@ -29,7 +29,7 @@ CREEP = 3
 
 
 def solve_robust(problem, x0, stages=8, max_iter=15, tol=NEWTON_TOL, reuse=False, creep=None,
-                 plain=True):
+                 plain=True, precision="double"):
     """Newton from x0; if it fails, the residual homotopy F(x) = s F(x0), s = 1 − k/stages.
 
     Notes
@@ -48,12 +48,14 @@ def solve_robust(problem, x0, stages=8, max_iter=15, tol=NEWTON_TOL, reuse=False
     at the call. ``plain=False``: no plain solve, the homotopy from the start (for a caller that
     has just seen a similar problem need it: the grid checks of a deep march, where beyond
     5.3 km every check's plain solve crept for 5 iterations of a 7085-point LU, 39 s, before the
-    homotopy took over). ``stats.homotopy`` says whether the homotopy ran.
+    homotopy took over). ``precision``: of every Newton solve's LU (:func:`newton`).
+    ``stats.homotopy`` says whether the homotopy ran.
     """
     creep = CREEP if creep is None else int(creep)
     total = 0
     if plain:
-        x, st = newton(problem, x0, tol=tol, max_iter=max_iter, reuse=reuse, creep=creep)
+        x, st = newton(problem, x0, tol=tol, max_iter=max_iter, reuse=reuse, creep=creep,
+                       precision=precision)
         if st.converged:
             return x, st
         total = st.iterations
@@ -62,7 +64,7 @@ def solve_robust(problem, x0, stages=8, max_iter=15, tol=NEWTON_TOL, reuse=False
     for k in range(1, stages + 1):
         s_k = 1.0 - k / stages
         x, st = newton(_Shifted(problem, r0, s_k), x, tol=tol if k == stages else 1e-10,
-                       max_iter=4 * max_iter, reuse=reuse)
+                       max_iter=4 * max_iter, reuse=reuse, precision=precision)
         total += st.iterations
         if not st.converged:
             st.message = f"homotopy stage {k}/{stages} failed: {st.message}"

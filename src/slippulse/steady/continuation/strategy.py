@@ -10,7 +10,8 @@ refused when built if its parts cannot work together.
 * step control — how the step changes: the arclength step ds, :class:`FreeSteps`,
   :class:`HeldSteps`; τ_d to round targets, :class:`TargetSteps`; β toward 1,
   :class:`ShrinkSteps`;
-* grid policy — which grid carries the next pulse: :class:`AdaptGrid`, :class:`StretchGrid`.
+* grid policy — which grid carries the next pulse: :class:`AdaptGrid`, :class:`StretchGrid`;
+* grid check — how every written pulse is checked against a refined grid: :class:`NestedCheck`.
 
 :data:`AUTO` is the product's deep combination; :data:`NATURAL` and :data:`BETA_STEPS` the
 shallow ones that ``slippulse steady family`` runs first (:data:`STRATEGIES` names them).
@@ -21,7 +22,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-from ..newton import LINE_SEARCHES, SOLVERS
+from ..newton import LINE_SEARCHES, PRECISIONS, SOLVERS
 from .tolerance import NEWTON_TOL
 
 
@@ -29,13 +30,13 @@ class StrategyError(ValueError):
     """A strategy, or a combination of strategies, that cannot work (refused when built)."""
 
 
-def _describe(obj) -> str:
+def describe(obj) -> str:
     """``name(field=value, ...)`` of a strategy: its name and the fields that set it."""
     parts = []
     for f in dataclasses.fields(obj):
         v = getattr(obj, f.name)
         parts.append(f"{f.name}={v}" if not dataclasses.is_dataclass(v) else
-                     f"{f.name}={_describe(v)}")
+                     f"{f.name}={describe(v)}")
     return f"{obj.name}({', '.join(parts)})"
 
 
@@ -371,11 +372,36 @@ class StretchGrid:
                                 f"relay_levels >= 1, recentre >= 0")
 
 
+# ------------------------------------------------------------------------------ grid check
+@dataclass(frozen=True)
+class NestedCheck:
+    """Every written pulse re-solved on its own grid with the midpoints inserted (2N − 1), on the
+    line normal to the family tangent, by Newton to :data:`~.tolerance.NEWTON_TOL`, and its change
+    of β and L at fixed τ_d held to the :class:`~.tolerance.GridTolerance`
+    (:func:`~.gridcheck.check_pulse`).
+
+    lu : precision of the 2N − 1 LU (:data:`~slippulse.steady.newton.PRECISIONS`). "single":
+        LAPACK sgetrf, half the time of "double" (0.15 against 0.28 s CPU at 2499 points); the
+        residual, the iterates and the convergence test stay in double, so the re-solve meets
+        the same tolerance and the check's (Δβ, ΔL/L) are those of "double" to round-off
+        (measured on the 57 checks of the shallow family and the 2550 m and 4892 m seeds:
+        BENCHMARKS.md "Family"); Newton and its chord iterations contract as fast as with the
+        double LU (the Jacobian's change along the iteration limits them, not the LU's 6e−8).
+    """
+
+    lu: str = "single"
+    name = "nested"
+
+    def __post_init__(self):
+        if self.lu not in PRECISIONS:
+            raise StrategyError(f"nested: lu={self.lu!r} is invalid: must be one of {PRECISIONS}")
+
+
 # ------------------------------------------------------------------------------ combination
 @dataclass(frozen=True)
 class Strategy:
-    """A combination of a predictor, a corrector, a step control and a grid policy. Refused when
-    built (:class:`StrategyError`) if they cannot work together:
+    """A combination of a predictor, a corrector, a step control, a grid policy and a grid check.
+    Refused when built (:class:`StrategyError`) if they cannot work together:
 
     * the length and secant predictors move the healing-front zone of a stretched grid: they need
       :class:`StretchGrid`;
@@ -390,13 +416,15 @@ class Strategy:
     corrector: NewtonCorrector = field(default_factory=NewtonCorrector)
     steps: FreeSteps = field(default_factory=FreeSteps)
     grid: object = field(default_factory=AdaptGrid)
+    check: NestedCheck = field(default_factory=NestedCheck)
 
     def __post_init__(self):
         kinds = ((self.predictor, (TangentPredictor, LengthPredictor, NaturalPredictor),
                   "predictor"),
                  (self.corrector, (NewtonCorrector,), "corrector"),
                  (self.steps, (FreeSteps, TargetSteps, ShrinkSteps), "steps"),
-                 (self.grid, (AdaptGrid, StretchGrid), "grid"))
+                 (self.grid, (AdaptGrid, StretchGrid), "grid"),
+                 (self.check, (NestedCheck,), "check"))
         for obj, cls, what in kinds:
             if not isinstance(obj, cls):
                 raise StrategyError(f"{what}={obj!r} is invalid: must be one of "
@@ -453,14 +481,15 @@ class Strategy:
         return dataclasses.replace(self, **parts)
 
     def __str__(self):
-        return " + ".join(_describe(p) for p in (self.predictor, self.corrector, self.steps,
-                                                 self.grid))
+        return " + ".join(describe(p) for p in (self.predictor, self.corrector, self.steps,
+                                                 self.grid, self.check))
 
 
 #: The product's combination: the deep family from β ≈ 0.99 toward τ̃*, on a grid deformed with
 #: the pulse, with the secant predictor below ds = 0.002, the step held there once the tangent's
 #: larger steps fail (down to ds_min = 0.0002, a tenth of that cap, before the healing front is
-#: refined), and the held corrector's chord start, natural line search and creep stop.
+#: refined), and the held corrector's chord start, natural line search and creep stop; every
+#: written pulse (the natural steps' too) checked at 2N − 1 with a single-precision LU.
 AUTO = Strategy(predictor=SecantPredictor(ds_max=0.002),
                 corrector=NewtonCorrector(max_iter=25),
                 steps=HeldSteps(ds=0.1, ds_min=0.0002, ds_max=0.4, cap_shrink=0.8,
@@ -468,7 +497,8 @@ AUTO = Strategy(predictor=SecantPredictor(ds_max=0.002),
                                 corrector=NewtonCorrector(max_iter=25, line_search="natural",
                                                           creep=4, chord=True)),
                 grid=StretchGrid(front_zone=0.01, back_zone=0.05, relay=20, relay_levels=2,
-                                 recentre=0.001))
+                                 recentre=0.001),
+                check=NestedCheck(lu="single"))
 
 #: The natural steps re-lay the grid once L differs from the L it was laid out for by more than
 #: this fraction.
