@@ -243,18 +243,24 @@ def _as_tuple(p: PulseOnGrid):
     return p.xi, p.y, p.beta, p.q
 
 
+def check_ratio(params, name, val) -> None:
+    """A τ_d/τ_min option ``name`` that is not finite or outside (τ_min, τ_peak) as
+    ParameterError naming it and the valid range."""
+    if not math.isfinite(val):
+        raise ParameterError(f"{name}={val!r} is invalid: must be a finite tau_d/tau_min")
+    try:
+        params.check_tau_d(val * params.tau_min)
+    except ParameterError as exc:
+        raise ParameterError(f"{name}={val:g} is invalid: {exc}") from None
+
+
 def check_origin(params, origin, stop, out) -> None:
     """Bad input of :func:`run_family` from ``origin`` as ParameterError: a pulse that did not
     converge, a ``stop`` at its own τ_d or outside (τ_min, τ_peak), an ``out`` that already holds
     pulses."""
     if not origin.converged:
         raise ParameterError(f"from-pulse={origin.label} is invalid: the pulse did not converge")
-    if not math.isfinite(stop):
-        raise ParameterError(f"to={stop!r} is invalid: must be a finite tau_d/tau_min")
-    try:
-        params.check_tau_d(stop * params.tau_min)
-    except ParameterError as exc:
-        raise ParameterError(f"to={stop:g} is invalid: {exc}") from None
+    check_ratio(params, "to", stop)
     if abs(stop - origin.tau_d_ratio) < 1e-9:
         raise ParameterError(f"to={stop:g} is invalid: it is the pulse's own tau_d/tau_min")
     if os.path.exists(out) and list_pulses(out):
@@ -265,12 +271,7 @@ def check_origin(params, origin, stop, out) -> None:
 def check_family_args(params, start, stop, step) -> None:
     """Bad input of :func:`run_family` as ParameterError naming the argument and its valid range."""
     for name, val in (("from", start), ("to", stop)):
-        if not math.isfinite(val):
-            raise ParameterError(f"{name}={val!r} is invalid: must be a finite tau_d/tau_min")
-        try:
-            params.check_tau_d(val * params.tau_min)
-        except ParameterError as exc:
-            raise ParameterError(f"{name}={val:g} is invalid: {exc}") from None
+        check_ratio(params, name, val)
     if not (stop < start):
         raise ParameterError(f"to={stop} is invalid: must be < from={start} (continuation goes down)")
     if not (0 < step <= start - stop + 1e-12) or not math.isfinite(step):
