@@ -112,6 +112,18 @@ def _lagrange(xi, j0, m, x, out):
         out[k] = lk
 
 
+@njit(cache=True, inline="always")
+def _radau_start(n, phi_end):
+    """The sweep's arrays from the tail node: φ (φ_N set), ∂φ/∂(β c_s), ∂φ/∂φ_N (G_N = 1), the
+    stencil width and the cell workspace."""
+    phi = np.empty(n)
+    dphi_dc = np.zeros(n)
+    G = np.empty(n)
+    G[n - 1] = 1.0
+    phi[n - 1] = phi_end
+    return phi, dphi_dc, G, (4 if n >= 4 else n), _radau_workspace()
+
+
 @njit(cache=True)
 def integrate_state_radau(xi, y, beta_cs, phi_end, v_star, D, A, c, with_jacobian=True):
     """State φ_i of order 4: φ_i = φ_{i+1} e^{−Ω} + (1 − e^{−Ω})/w_i + ψ_i (see Notes).
@@ -143,14 +155,8 @@ def integrate_state_radau(xi, y, beta_cs, phi_end, v_star, D, A, c, with_jacobia
     ∂ψ/∂w_3 = (μ_1 w_1 + μ_2 w_2)/w_3² − μ_3 Ψ_3, ∂ψ/∂h = Σ_j μ_j (f_j − w_j Ψ_j)/h.
     """
     n = xi.size
-    phi = np.empty(n)
     P = np.zeros((n, n) if with_jacobian else (1, 1))
-    dphi_dc = np.zeros(n)
-    G = np.empty(n)
-    G[n - 1] = 1.0
-    phi[n - 1] = phi_end
-    m = 4 if n >= 4 else n
-    work = _radau_workspace()
+    phi, dphi_dc, G, m, work = _radau_start(n, phi_end)
     lw = work[0]
     dwk = work[2]
     for i in range(n - 2, -1, -1):
@@ -184,14 +190,8 @@ def radau_jacobian_into(xi, y, beta_cs, phi_end, v_star, D, table, H, terms, J):
     A, c = table
     cv, fphi, dv = terms
     n = xi.size
-    phi = np.empty(n)
     row = np.zeros(n)                                   # row i + 1 of P (row n − 1: zero)
-    dphi_dc = np.zeros(n)
-    G = np.empty(n)
-    G[n - 1] = 1.0
-    phi[n - 1] = phi_end
-    m = 4 if n >= 4 else n
-    work = _radau_workspace()
+    phi, dphi_dc, G, m, work = _radau_start(n, phi_end)
     lw = work[0]
     dwk = work[2]
     fi = fphi[n - 1]
