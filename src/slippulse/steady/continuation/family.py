@@ -29,8 +29,9 @@ def _hint_first(first, n_points):
 
 @dataclasses.dataclass(frozen=True)
 class FamilyRun:
-    """The options of one family run (:func:`run_family`), one value: printed with the report and
-    checked before any solve (:meth:`check`).
+    """The options of one family run (:func:`run_family`), one value, checked by
+    :func:`run_family` before any solve (:func:`check_family_args` or :func:`check_origin`, and the
+    grid-check limits); its ``strategy`` is printed in the report and stored with every deep pulse.
 
     start, stop, step : the natural τ_d targets (τ_d/τ_min), from the built-in guess's pulse down.
     n_points : grid points of the natural steps; None: :data:`~.strategy.FAMILY_POINTS`.
