@@ -7,7 +7,8 @@ slippulse``), the file readers of :mod:`slippulse.core.h5io`, the steady solver 
 stepper. Its wall times are taken inside the process, after a warm-up that fills the numba caches.
 
 Groups: steady (one pulse solved), family (the continuation 1.2 → 1.1 or → 1.015), deep (the
-deep march resumed from a committed seed), continuation (the family's pulses against the
+deep march resumed from a committed seed), reach (the family from scratch to L = 300 m or
+1.5 km), continuation (the family's pulses against the
 committed deep tables), spectrum (the leading growth rate with its error), sbi
 (the time step of the SBI stepper on the host, its errors on exact solutions, the cost of a
 checkpoint), gpu (the same step on the device engine)."""
@@ -151,6 +152,23 @@ def deep_march(quick, work):
     L1 = max((p.L for p in new), default=L0)
     return {"wall s": wall, "seed L m": L0, "pulses written": len(new), "last L m": L1,
             "m of L per min": (L1 - L0) / (wall / 60.0)}
+
+
+def family_reach(quick, work):
+    """``slippulse steady family --from 1.2 --to 1.008 --max-length L`` from an empty file, the
+    default strategy, every pulse grid-checked: the time to reach L = 300 m (quick) or 1500 m
+    (full) from scratch. Figures: wall, CPU, the L reached, pulses written."""
+    from slippulse.core.h5io import list_pulses, read_pulse
+    _warm_steady()
+    out_file = os.path.join(work, "reach.h5")
+    target = 300.0 if quick else 1500.0
+    cpu0 = _child_cpu()
+    wall = _cli("steady", "family", "--from", "1.2", "--to", "1.008", "--max-length",
+                f"{target:g}", "--out", out_file, "-q", timeout=7200)
+    cpu = _child_cpu() - cpu0
+    pulses = [read_pulse(out_file, lab)[0] for lab in list_pulses(out_file)]
+    return {"wall s": wall, "cpu s": cpu, "target L m": target,
+            "L m reached": max(p.L for p in pulses if p.converged), "pulses": len(pulses)}
 
 
 # ---------------------------------------------------------------- continuation against the tables
@@ -387,6 +405,7 @@ GROUPS = {
     "steady": [("steady.solve", steady_solve)],
     "family": [("family.continuation", family_continuation)],
     "deep": [("deep.march", deep_march)],
+    "reach": [("family.reach", family_reach)],
     "continuation": [("continuation.tables", continuation_tables)],
     "spectrum": [("spectrum.rate", spectrum_rate)],
     "sbi": [("sbi.step", sbi_step), ("sbi.exact", sbi_exact),

@@ -257,8 +257,8 @@ class _ToyFold:
     def residual(self, x):
         return np.array([x[0] - x[1], x[2] - 1.0 - (x[1] - 0.5) ** 2])
 
-    def residual_and_jacobian(self, x):
-        J = np.array([[1.0, -1.0, 0.0], [0.0, -2.0 * (x[1] - 0.5), 1.0]])
+    def residual_and_jacobian(self, x, extra_rows=0):
+        J = np.array([[1.0, -1.0, 0.0], [0.0, -2.0 * (x[1] - 0.5), 1.0]] + [[0.0] * 3] * extra_rows)
         return self.residual(x), J
 
 
@@ -328,43 +328,45 @@ def test_grid_check_reusing_the_lu_gives_the_same_check_with_fewer_factorisation
 
 
 def test_grid_check_with_a_single_precision_lu_gives_the_double_check(params):
-    """NestedCheck(lu="single"): the 2N − 1 re-solve factors the Jacobian in float32, keeps the
+    """NestedCheck(DirectLU("single")): the 2N − 1 re-solve factors the Jacobian in float32, keeps the
     residual and the iterates in double, and converges to the same tolerance: the same fine
     pulse and the same Δβ, ΔL/L as the double LU, in as many LUs; the check's attributes name
     the method; a precision that does not exist is refused."""
     from slippulse.steady.continuation.gridcheck import as_both, check_pulse, grid_change
     from slippulse.steady.continuation.strategy import NestedCheck
-    from slippulse.steady.newton import newton
+    from slippulse.steady.newton import DirectLU, newton
     from slippulse.steady.solver import solve_pulse
     sol = as_both(params, solve_pulse(params, 1.2, n_points=400))
     dbl, db0, dl0 = grid_change(params, sol, 400, nested=True, stages=4, max_iter=15,
-                                precision="double")
+                                linear="double")
     sgl, db1, dl1 = grid_change(params, sol, 400, nested=True, stages=4, max_iter=15,
-                                precision="single")
+                                linear="single")
     assert dbl.stats.converged and sgl.stats.converged
     assert sgl.stats.iterations == dbl.stats.iterations
     assert np.max(np.abs(sgl.x - dbl.x)) < 1e-9
     assert abs(db1 - db0) < 1e-6 * abs(db0) and abs(dl1 - dl0) < 1e-6 * abs(dl0)
     assert abs(dl0) > 1e-6                                   # a change the grids make
-    res = check_pulse(params, sol, method=NestedCheck(lu="single"), body_levels=0,
+    res = check_pulse(params, sol, method=NestedCheck(DirectLU("single")), body_levels=0,
                       n_max=2 * 400 - 1)                  # one level: the re-solve above
-    assert res.attrs(GRID_TOLERANCE)["grid_check_method"] == "nested(lu=single)"
+    assert res.attrs(GRID_TOLERANCE)["grid_check_method"] == \
+        "nested(linear=lu(precision=single))"
     assert (res.dbeta, res.dL_rel) == pytest.approx((abs(db1), abs(dl1)), rel=1e-12)
     with pytest.raises(ValueError, match="precision"):
-        newton(sol.problem, sol.x, precision="half")
+        newton(sol.problem, sol.x, linear="half")
 
 
-def test_tangent_step_converges_by_chord_iterations_to_the_direct_solution(params):
+def test_tangent_step_converges_on_the_tangents_lu_to_the_direct_solution(params):
     """A τ_d step of the family from 1.2 to 1.195 τ_min on the 1.2 pulse's grid: the tangent
-    predictor lands close enough for chord iterations with the tangent's LU alone, and the result
-    is the solution of a fresh Newton solve on the same grid."""
+    predictor lands close enough for the corrector to converge on the tangent's LU alone (no LU
+    of its own), and the result is the solution of a fresh Newton solve on the same grid."""
     from slippulse.steady.continuation import PulseOnGrid, tangent_step
     from slippulse.steady.equations import SteadyProblem
     from slippulse.steady.newton import newton
     from slippulse.steady.solver import solve_pulse
     a = solve_pulse(params, 1.2, n_points=500)
     sol, base = tangent_step(params, PulseOnGrid.of(a, a.to_pulse().L), 1.195, "tau_d", 500)
-    assert sol.stats.converged and sol.stats.iterations == 0 and sol.stats.chord_iterations > 0
+    assert sol.stats.converged and sol.stats.factorizations == 0
+    assert sol.stats.krylov_iterations > 0
     assert sol.xi is a.xi and base.q == 1.195 and base.H is a.problem.H
     # the same equations solved by plain Newton from the 1.2 pulse
     prob = SteadyProblem(params, 1.195, a.xi, a.problem.pin_index, a.problem.y_pin, H=a.problem.H)

@@ -20,6 +20,7 @@ from slippulse.steady.continuation import (AUTO, GRID_TOLERANCE, NEWTON_TOL, Ada
                                            SecantPredictor,
                                            Strategy, StrategyError, StretchGrid,
                                            TangentPredictor, FamilyRun, run_family)
+from slippulse.steady.newton import DirectLU, KrylovLU
 
 
 def _strategy(ds=0.1, ds_max=0.4, ds_min=0.004, max_iter=15, stretch=False, predictor="tangent",
@@ -316,12 +317,15 @@ def test_a_strategy_is_a_value_refused_when_it_cannot_work():
     parameters of a part."""
     text = str(AUTO)
     for word in ("secant(ds_max=0.002)", "newton(max_iter=25", "held(", "line_search=natural",
-                 "stretch(", "recentre=0.001", "nested(lu=single)"):
+                 "stretch(", "recentre=0.001",
+                 "nested(linear=krylov(precision=single"):
         assert word in text
     assert AUTO == Strategy(SecantPredictor(), NewtonCorrector(), HeldSteps(), StretchGrid())
-    assert AUTO.replace(check=NestedCheck(lu="double")) != AUTO
-    with pytest.raises(StrategyError, match="lu='half'"):
-        NestedCheck(lu="half")
+    assert AUTO.replace(check=NestedCheck(DirectLU("single"))) != AUTO
+    with pytest.raises(StrategyError, match="linear='half'"):
+        NestedCheck(linear="half")
+    with pytest.raises(ValueError, match="precision='half'"):
+        KrylovLU("half")
     with pytest.raises(StrategyError, match="check="):
         AUTO.replace(check="nested")
     assert AUTO.replace(grid=StretchGrid(relay=0)) != AUTO

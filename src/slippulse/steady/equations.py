@@ -444,8 +444,9 @@ class SteadyProblem:
         r[-1] = x[self.pin_index] - self.y_pin
         return r
 
-    def residual_and_jacobian(self, x):
-        """Residual and its exact Jacobian ∂(Δ, pin)/∂(y, β or q), (N+1)×(N+1)."""
+    def residual_and_jacobian(self, x, extra_rows=0):
+        """Residual and its exact Jacobian ∂(Δ, pin)/∂(y, β or q), (N+1)×(N+1); with
+        ``extra_rows`` zero rows below it, for a caller that borders it (no copy of J)."""
         p = self.params
         v, beta = self.split(x)
         n = self.n
@@ -463,7 +464,7 @@ class SteadyProblem:
         r = np.empty(n + 1)
         r[:-1] = (self.tau_d - p.sigma * fr.f(v, phi, *la) - p.mu * F * hu) * s
         r[-1] = x[self.pin_index] - self.y_pin
-        J = np.empty((n + 1, x.size))
+        J = np.empty((n + 1 + extra_rows, x.size))
         fphi = p.sigma * s * fr.df_dphi(v, phi, *la)
         # dΔ_i/dy_j = −(σ/τ_d)[f_v v_i δ_ij + f_φ,i P_ij] − (μF/τ_d) H_ij v_j
         dv = p.sigma * s * fr.df_dv(v, phi, *la) * v
@@ -472,14 +473,14 @@ class SteadyProblem:
                                              p.v_star, p.D, (RADAU_A, RADAU_C), self.H,
                                              ((-p.mu * F * s) * v, fphi, dv), J)
         else:
-            Jy = J[:-1, :n]
+            Jy = J[:n, :n]
             np.multiply(self.H, (-p.mu * F * s) * v, out=Jy)
             Jy -= fphi[:, None] * P
             Jy[np.diag_indices(n)] -= dv
         if self.free in ("beta", "both"):
             # dΔ_i/dβ = −(σ/τ_d) f_φ,i c_s ∂φ_i/∂c − (μ F'(β)/τ_d) (H u)_i
             jb = -1 if self.free == "beta" else -2
-            J[:-1, jb] = -fphi * dphi_dc * p.c_s - p.mu * float(p.dF3_dbeta(beta)) * s * hu
+            J[:n, jb] = -fphi * dphi_dc * p.c_s - p.mu * float(p.dF3_dbeta(beta)) * s * hu
         if self.free in ("tau_d", "both"):
             # Δ_i = N_i/τ_d: dΔ_i/dτ_d = [1 − σ f_φ,i G_i dφ_N/dτ_d + μF (H·1)_i dv_st/dτ_d]/τ_d − Δ_i/τ_d
             vs = self.v_stick
@@ -488,7 +489,7 @@ class SteadyProblem:
             if self._H1 is None:
                 self._H1 = self.H.sum(axis=1)
             dN = 1.0 - fphi * self.tau_d * G * dphiN + p.mu * F * self._H1 * dvs
-            J[:-1, -1] = (dN * s - r[:-1] * s) * p.tau_min
-        J[-1, :] = 0.0
-        J[-1, self.pin_index] = 1.0
+            J[:n, -1] = (dN * s - r[:-1] * s) * p.tau_min
+        J[n:, :] = 0.0
+        J[n, self.pin_index] = 1.0
         return r, J

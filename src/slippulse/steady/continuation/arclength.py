@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import math
 import numpy as np
-import scipy.linalg as sla
 
 from ..equations import SteadyProblem
+from ..newton import gmres_on_lu, lu_solve
 
 
 class ArclengthProblem:
@@ -17,7 +17,9 @@ class ArclengthProblem:
 
     (t_a, t_Q) the unit tangent of the family at the last pulse (a_0, q_0). Unknowns (y, β, q);
     the Jacobian is the (N+1)×(N+2) one of ``SteadyProblem(free="both")`` with the row
-    (0…0, −t_a/(1 − β), t_Q/κ) appended. Square, so :func:`newton` drives it.
+    (0…0, −t_a/(1 − β), t_Q/κ) appended (written into the row ``base`` leaves for it,
+    ``residual_and_jacobian(x, extra_rows=1)``: no copy of J). Square, so :func:`newton` drives
+    it.
     """
 
     def __init__(self, base: SteadyProblem, a0, q0, t_a, t_Q, kappa, ds):
@@ -37,11 +39,10 @@ class ArclengthProblem:
         return np.concatenate([self.base.residual(x), [self._arc(x)]])
 
     def residual_and_jacobian(self, x):
-        r, J = self.base.residual_and_jacobian(x)
-        row = np.zeros(x.size)
-        row[-2] = -self.t_a / (1.0 - x[-2])
-        row[-1] = self.t_Q / self.kappa
-        return np.concatenate([r, [self._arc(x)]]), np.vstack([J, row])
+        r, J = self.base.residual_and_jacobian(x, extra_rows=1)
+        J[-1, -2] = -self.t_a / (1.0 - x[-2])
+        J[-1, -1] = self.t_Q / self.kappa
+        return np.concatenate([r, [self._arc(x)]]), J
 
 
 def family_tangent(prob: SteadyProblem, x, orient):
@@ -71,8 +72,10 @@ def unit_tangent(n, beta, kappa):
 
 def tangent_by_refinement(A, lu, max_iter=30, rtol=1e-11):
     """The solution n of A n = (0…0, 1) by iterative refinement with the LU of a nearby matrix
-    (scipy ``lu_factor``): n ← n + LU⁻¹ (e − A n). None when a correction grows, or when they do
-    not fall below ``rtol`` ‖n‖ within ``max_iter`` refinements (then solve A directly).
+    (:func:`~slippulse.steady.newton.lu_factor`): n ← n + LU⁻¹ (e − A n); where a correction
+    grows, or they do not fall below ``rtol`` ‖n‖ within ``max_iter`` refinements, GMRES on the
+    LU (:func:`~slippulse.steady.newton.gmres_on_lu`); None when that fails too (then solve A
+    directly).
 
     With A = [J; c], J the (N+1)×(N+2) Jacobian at a converged pulse and c any row with c·n ≠ 0,
     n spans J's null space: the family tangent (:func:`family_tangent` with c = orient). The
@@ -85,15 +88,18 @@ def tangent_by_refinement(A, lu, max_iter=30, rtol=1e-11):
     """
     e = np.zeros(A.shape[0])
     e[-1] = 1.0
-    n = sla.lu_solve(lu, e, check_finite=False)
+    n = lu_solve(lu, e)
     last = math.inf
     for _ in range(max_iter):
-        dn = sla.lu_solve(lu, e - A @ n, check_finite=False)
+        dn = lu_solve(lu, e - A @ n)
         n = n + dn
         size = np.linalg.norm(dn) / np.linalg.norm(n)
         if not (np.isfinite(size) and size < last):
-            return None
+            break
         if size <= rtol:
             return n
         last = size
-    return None
+    # an LU too far from A for refinement (one of a Krylov corrector, several steps old):
+    # GMRES on it, to the same relative residual
+    n, _ = gmres_on_lu(A, e, lu, rtol, max_iter)
+    return n

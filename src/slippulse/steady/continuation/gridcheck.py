@@ -26,16 +26,16 @@ REUSE_LU = True
 
 def check_grid_2n(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
                   nested=False, stages=0, cells=None, reuse=None, plain=True, warm=None,
-                  precision="double"):
+                  linear="double"):
     """:func:`grid_change` as the family's criterion reads it: (fine, |Δβ|, |ΔL|/L)."""
     fine, dbeta, dL_rel = grid_change(params, sol, n_points, spec, max_iter, nested, stages, cells,
-                                      reuse, plain, warm, precision)
+                                      reuse, plain, warm, linear)
     return fine, abs(dbeta), abs(dL_rel)
 
 
 def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter=30,
                 nested=False, stages=0, cells=None, reuse=None, plain=True, warm=None,
-                precision="double"):
+                linear="double"):
     """Grid check of an arclength pulse (x = (y, β, q)): re-solve on a grid of 2N adapted to it,
     on the line through it normal to the family tangent, and express the change at fixed τ_d.
 
@@ -61,8 +61,8 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
     their midpoints are inserted (one region refined: :func:`locate_error`). ``stages`` > 0: when Newton fails, :func:`solve_robust` with that
     many homotopy stages. ``reuse``: Newton reuses each full step's LU for chord iterations
     (the same tolerance); None: :data:`REUSE_LU`, read at the call. ``plain=False`` (with
-    ``stages``): the homotopy from the start (:func:`solve_robust`). ``precision``: of the
-    re-solve's LU (:func:`~slippulse.steady.newton.newton`, :class:`~.strategy.NestedCheck`).
+    ``stages``): the homotopy from the start (:func:`solve_robust`). ``linear``: the re-solve's
+    linear solve (:func:`~slippulse.steady.newton.newton`, :class:`~.strategy.NestedCheck`).
     """
     q, beta = float(sol.x[-1]), sol.beta
     reuse = REUSE_LU if reuse is None else bool(reuse)
@@ -80,16 +80,16 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
         y_pin = float(yn[k])
     n, base, arc = normal_line(params, sol, xn, k, y_pin)
     x_start = np.concatenate([yn, [beta, q]])
-    xs, st = _warm_solve(arc, sol.x, x_start, warm, max_iter, reuse, precision) \
+    xs, st = _warm_solve(arc, sol.x, x_start, warm, max_iter, reuse, linear) \
         if nested and cells is None and warm else (None, None)
     if st is None or not st.converged:
         lu_warm = st.lu if st is not None else None
         if stages > 0:
             xs, st = solve_robust(arc, x_start, stages=stages, max_iter=max_iter, reuse=reuse,
-                                  plain=plain, precision=precision)
+                                  plain=plain, linear=linear, lu0=lu_warm)
         else:
             xs, st = newton(arc, x_start, tol=NEWTON_TOL, max_iter=max_iter, reuse=reuse,
-                            keep=warm is not None, precision=precision)
+                            keep=warm is not None, linear=linear)
         if st.lu is None:               # the homotopy keeps none: the warm attempt's, if any
             st.lu = lu_warm
     fine = SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
@@ -127,7 +127,7 @@ def change_at_fixed_tau_d(params, sol: SteadySolution, n, fine: SteadySolution):
     return dbeta, dL / p0.L
 
 
-def _warm_solve(arc, x, x_start, warm, max_iter, reuse, precision="double"):
+def _warm_solve(arc, x, x_start, warm, max_iter, reuse, linear="double"):
     """The warm re-solve of :func:`grid_change`: (x_fine, stats) from the transported start with
     the earlier check's LU, or (None, None) when ``warm`` does not fit this grid or its start is
     no better than ``x_start``. The stats carry the last LU (``keep``)."""
@@ -146,7 +146,7 @@ def _warm_solve(arc, x, x_start, warm, max_iter, reuse, precision="double"):
     if lu is not None and lu[0].shape[0] != xw.size:
         lu = None
     return newton(arc, xw, tol=NEWTON_TOL, max_iter=max_iter, lu=lu, reuse=reuse, creep=2, keep=True,
-                  precision=precision)
+                  linear=linear)
 
 
 def _as_both(params, sol: SteadySolution) -> SteadySolution:
@@ -205,7 +205,7 @@ def regions(sol: SteadySolution, L: float) -> dict:
             TAIL: mid <= xf - 1.1 * L}
 
 
-def refine_regions(params, sol: SteadySolution, names, max_iter=20, stages=0, precision="double"):
+def refine_regions(params, sol: SteadySolution, names, max_iter=20, stages=0, linear="double"):
     """``sol`` (x = (y, β, q)) re-solved with the midpoints of the cells of the named regions
     (:func:`regions`) inserted, on the line normal to the family tangent. Returns (refined
     SteadySolution, cells added)."""
@@ -214,7 +214,7 @@ def refine_regions(params, sol: SteadySolution, names, max_iter=20, stages=0, pr
     for name in names:
         sel |= masks[name]
     fine, _, _ = check_grid_2n(params, sol, sol.xi.size, nested=True, cells=sel,
-                               max_iter=max_iter, stages=stages, precision=precision)
+                               max_iter=max_iter, stages=stages, linear=linear)
     return fine, int(sel.sum())
 
 
@@ -224,7 +224,7 @@ def refine_body(params, sol: SteadySolution, max_iter=20, stages=0):
 
 
 def locate_error(params, sol: SteadySolution, names=INNER, max_iter=15, stages=0,
-                 precision="double"):
+                 linear="double"):
     """Where the N-dependence of a pulse sits: each named region refined alone (its cells'
     midpoints inserted), the pulse re-solved, the change at fixed τ_d.
 
@@ -238,7 +238,7 @@ def locate_error(params, sol: SteadySolution, names=INNER, max_iter=15, stages=0
     out = {}
     for name in names:
         fine, db, dl = grid_change(params, sol, sol.xi.size, nested=True, cells=masks[name],
-                                   max_iter=max_iter, stages=stages, precision=precision)
+                                   max_iter=max_iter, stages=stages, linear=linear)
         ok = bool(fine.stats.converged) and math.isfinite(db)
         out[name] = (db if ok else math.inf, dl if ok else math.inf, int(masks[name].sum()), fine)
     return out
@@ -337,7 +337,7 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
         ``plain=False``; a caller whose last check needed it, :attr:`GridCheck.homotopy`).
     warm : :attr:`GridCheck.warm` of the last pulse's check: the first re-solve starts from its
         fine pulse, transported (:func:`grid_change`); ignored when it does not fit.
-    method : :class:`~.strategy.NestedCheck`, the precision of every re-solve's LU.
+    method : :class:`~.strategy.NestedCheck`, the linear solve of every re-solve.
 
     Notes
     -----
@@ -351,7 +351,7 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
     t0 = time.perf_counter()
     if not isinstance(method, NestedCheck):
         raise TypeError(f"method={method!r}: must be a NestedCheck")
-    precision = method.lu
+    linear = method.linear
     cur = as_both(params, sol)
     levels = doublings = 0
     steps = []
@@ -360,7 +360,7 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
         n = cur.xi.size
         fine, db, dl = check_grid_2n(params, cur, n, nested=True, stages=stages,
                                      max_iter=max_iter, plain=plain,
-                                     warm=warm if not steps else None, precision=precision)
+                                     warm=warm if not steps else None, linear=linear)
         lu, fine.stats.lu = fine.stats.lu, None
         if homotopy is None:
             homotopy, plain = bool(fine.stats.homotopy), True   # later checks: plain first
@@ -381,7 +381,7 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
             shares = {}
             if locate:
                 shares = locate_error(params, cur, max_iter=max_iter, stages=stages,
-                                      precision=precision)
+                                      linear=linear)
                 names = tuple(_to_refine(shares, tol, cells={k: v[2] for k, v in shares.items()},
                                          budget=(n_max + 1) // 2 - n))
                 where = "+".join(name.split(" (")[0] for name in names)
@@ -396,7 +396,7 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
                 _, _, added, nxt = shares[names[0]]
             else:
                 nxt, added = refine_regions(params, cur, names, max_iter=max_iter + 5,
-                                            stages=stages, precision=precision)
+                                            stages=stages, linear=linear)
             if nxt.stats.converged and 2 * nxt.xi.size - 1 <= n_max:
                 cur, levels = nxt, levels + 1
                 steps.append(f"{where} +{added}")

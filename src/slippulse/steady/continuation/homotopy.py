@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..newton import NEWTON_TOL, newton
+from ..newton import NEWTON_TOL, KrylovLU, as_linear, newton
 
 
 class _Shifted:
@@ -29,7 +29,7 @@ CREEP = 3
 
 
 def solve_robust(problem, x0, stages=8, max_iter=15, tol=NEWTON_TOL, reuse=False, creep=None,
-                 plain=True, precision="double"):
+                 plain=True, linear="double", lu0=None):
     """Newton from x0; if it fails, the residual homotopy F(x) = s F(x0), s = 1 − k/stages.
 
     Notes
@@ -48,28 +48,38 @@ def solve_robust(problem, x0, stages=8, max_iter=15, tol=NEWTON_TOL, reuse=False
     at the call. ``plain=False``: no plain solve, the homotopy from the start (for a caller that
     has just seen a similar problem need it: the grid checks of a deep march, where beyond
     5.3 km every check's plain solve crept for 5 iterations of a 7085-point LU, 39 s, before the
-    homotopy took over). ``precision``: of every Newton solve's LU (:func:`newton`).
+    homotopy took over). ``linear``: every Newton solve's linear solve (:func:`newton`); one
+    that solves on an earlier LU (:class:`~slippulse.steady.newton.KrylovLU`) is handed the
+    LU of the solve before (each stage's Jacobian is the last one's at a nearby x).
+    ``lu0``: an LU at a nearby point for the first solve of such a ``linear``.
     ``stats.homotopy`` says whether the homotopy ran.
     """
     creep = CREEP if creep is None else int(creep)
-    total = 0
+    linear = as_linear(linear)
+    handed = isinstance(linear, KrylovLU)
+    total = factorizations = krylov = 0
+    lu = lu0 if handed and lu0 is not None and lu0[0].shape[0] == np.size(x0) else None
     if plain:
         x, st = newton(problem, x0, tol=tol, max_iter=max_iter, reuse=reuse, creep=creep,
-                       precision=precision)
+                       linear=linear, lu=lu, keep=handed)
         if st.converged:
             return x, st
-        total = st.iterations
+        total, factorizations, krylov = st.iterations, st.factorizations, st.krylov_iterations
+        lu = st.lu if handed else None
     r0 = problem.residual(np.asarray(x0, float))
     x = np.array(x0, float)
     for k in range(1, stages + 1):
         s_k = 1.0 - k / stages
         x, st = newton(_Shifted(problem, r0, s_k), x, tol=tol if k == stages else 1e-10,
-                       max_iter=4 * max_iter, reuse=reuse, precision=precision)
+                       max_iter=4 * max_iter, reuse=reuse, linear=linear, lu=lu, keep=handed)
         total += st.iterations
+        factorizations += st.factorizations
+        krylov += st.krylov_iterations
+        lu = st.lu if handed else None
         if not st.converged:
             st.message = f"homotopy stage {k}/{stages} failed: {st.message}"
             break
-    st.iterations = total
+    st.iterations, st.factorizations, st.krylov_iterations = total, factorizations, krylov
     st.homotopy = True
     return x, st
 

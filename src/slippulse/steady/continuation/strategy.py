@@ -22,7 +22,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-from ..newton import LINE_SEARCHES, PRECISIONS, SOLVERS
+from ..newton import LINE_SEARCHES, SOLVERS, DirectLU, KrylovLU
 from .tolerance import NEWTON_TOL
 
 
@@ -132,11 +132,16 @@ class NewtonCorrector:
         > 0: fail as soon as max|r| has not halved over that many iterations (a step too long
         for Newton's basin fails in a few iterations instead of ``max_iter``); 0: never.
     chord : bool
-        Start with chord iterations on the LU of the last accepted corrector (the Jacobian is
-        then formed only when they stop contracting).
+        Hand the LU of the last accepted corrector to this one (with :class:`DirectLU`: chord
+        iterations on it first, the Jacobian formed only when they stop contracting).
     reuse_lu : bool
         Find the next tangent by iterative refinement with the last corrector's LU
         (back-substitutions instead of a factorisation; the same tangent to ~1e−11).
+    linear : how each step solves J δ = −r: :class:`~slippulse.steady.newton.KrylovLU`
+        (default: GMRES on the LU in hand, which is then always handed to the corrector, ``chord``
+        or not; an LU only where GMRES does not converge), or
+        :class:`~slippulse.steady.newton.DirectLU` (an LU per step; ``chord``: chord iterations
+        on the LU handed in first).
     """
 
     max_iter: int = 25
@@ -144,6 +149,7 @@ class NewtonCorrector:
     creep: int = 0
     chord: bool = False
     reuse_lu: bool = True
+    linear: DirectLU = field(default_factory=KrylovLU)
     name = "newton"
 
     def __post_init__(self):
@@ -156,6 +162,9 @@ class NewtonCorrector:
         if not (isinstance(self.creep, int) and self.creep >= 0):
             raise StrategyError(f"newton: creep={self.creep!r} is invalid: must be an integer "
                                 f">= 0")
+        if not isinstance(self.linear, DirectLU):
+            raise StrategyError(f"newton: linear={self.linear!r} is invalid: must be DirectLU or "
+                                f"KrylovLU")
 
     @property
     def tol(self) -> float:
@@ -167,10 +176,11 @@ class NewtonCorrector:
         ``chord``); ``creep``: this attempt's creep stop when it differs from ``self.creep``.
         Returns (x, SolveStats) with the LU (and the Jacobian) kept for the next tangent. Newton
         is the solver registered as "newton" (:data:`~slippulse.steady.newton.SOLVERS`)."""
+        krylov = isinstance(self.linear, KrylovLU)
         return SOLVERS["newton"](problem, x0, tol=NEWTON_TOL, max_iter=self.max_iter,
-                      lu=lu if self.chord else None, keep=self.reuse_lu,
+                      lu=lu if self.chord or krylov else None, keep=self.reuse_lu or krylov,
                       creep=self.creep if creep is None else creep,
-                      line_search=self.line_search)
+                      line_search=self.line_search, linear=self.linear)
 
 
 # ------------------------------------------------------------------------------ step control
@@ -380,21 +390,22 @@ class NestedCheck:
     of β and L at fixed τ_d held to the :class:`~.tolerance.GridTolerance`
     (:func:`~.gridcheck.check_pulse`).
 
-    lu : precision of the 2N − 1 LU (:data:`~slippulse.steady.newton.PRECISIONS`). "single":
-        LAPACK sgetrf, half the time of "double" (0.15 against 0.28 s CPU at 2499 points); the
-        residual, the iterates and the convergence test stay in double, so the re-solve meets
-        the same tolerance and the check's (Δβ, ΔL/L) are those of "double" to round-off
-        (measured on the 57 checks of the shallow family and the 2550 m and 4892 m seeds:
-        BENCHMARKS.md "Family"); Newton and its chord iterations contract as fast as with the
-        double LU (the Jacobian's change along the iteration limits them, not the LU's 6e−8).
+    linear : the re-solves' linear solve (:class:`~slippulse.steady.newton.DirectLU` or
+        :class:`~slippulse.steady.newton.KrylovLU`). The LU is in single precision: LAPACK
+        sgetrf, half the time of dgetrf (7.5 against 14 s at 10123 points on one core); the
+        residual, the iterates and the convergence test stay in double, so the re-solve meets the
+        same tolerance and the check's (Δβ, ΔL/L) are those of a double LU to round-off
+        (BENCHMARKS.md "Family"). With Krylov steps the next pulse's check solves on the last
+        check's LU (the deep march's checks, same N, :func:`~.gridcheck.grid_change` ``warm``).
     """
 
-    lu: str = "single"
+    linear: DirectLU = field(default_factory=lambda: KrylovLU("single"))
     name = "nested"
 
     def __post_init__(self):
-        if self.lu not in PRECISIONS:
-            raise StrategyError(f"nested: lu={self.lu!r} is invalid: must be one of {PRECISIONS}")
+        if not isinstance(self.linear, DirectLU):
+            raise StrategyError(f"nested: linear={self.linear!r} is invalid: must be DirectLU or "
+                                f"KrylovLU")
 
 
 # ------------------------------------------------------------------------------ combination
@@ -498,7 +509,7 @@ AUTO = Strategy(predictor=SecantPredictor(ds_max=0.002),
                                                           creep=4, chord=True)),
                 grid=StretchGrid(front_zone=0.01, back_zone=0.05, relay=20, relay_levels=2,
                                  recentre=0.001),
-                check=NestedCheck(lu="single"))
+                check=NestedCheck(KrylovLU("single")))
 
 #: The natural steps re-lay the grid once L differs from the L it was laid out for by more than
 #: this fraction.
