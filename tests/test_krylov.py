@@ -95,3 +95,24 @@ def test_a_linear_solve_is_a_value_refused_when_invalid():
             KrylovLU(**bad)
     with pytest.raises(ValueError, match="precision"):
         DirectLU("quad")
+
+
+def test_a_krylov_march_keeps_its_lu_across_a_replace(params, pulse12):
+    """A march whose pulse is replaced (as by a grid check or a recentring) keeps, with a Krylov
+    corrector, the last LU as its preconditioner: the next step factors nothing and lands on the
+    pulse of the march that was not interrupted; with an LU per step it factors again."""
+    def march(linear, replace):
+        m = Continuation(params, (pulse12.xi, pulse12.x[:-1], pulse12.beta, 1.2), Strategy(
+            SecantPredictor(), NewtonCorrector(max_iter=20, linear=linear),
+            FreeSteps(ds=0.001, ds_max=0.001, ds_min=0.00025),
+            StretchGrid(relay=0, recentre=0.0)))
+        for k in range(3):
+            if replace and k == 2:
+                m.replace(m.sol)
+            m.ds = 0.001
+            assert m.step() is None
+        return m
+    plain, kept = march(KrylovLU(), False), march(KrylovLU(), True)
+    assert kept.sol.stats.factorizations == 0
+    assert np.max(np.abs(kept.sol.x - plain.sol.x)) < 1e-8
+    assert march(DirectLU(), True).sol.stats.factorizations > 0

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..equations import SteadyProblem
 from ..measures import pulse_length
-from ..newton import SolveStats
+from ..newton import KrylovLU, SolveStats
 from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess
 from .arclength import ArclengthProblem, family_tangent, tangent_by_refinement, unit_tangent
 from .natural import PulseOnGrid, judge_pulse, solve_between, tangent_step
@@ -460,9 +460,18 @@ class Continuation:
         return True
 
     # ---------------------------------------------------------------- one accepted pulse
-    def _forget(self):
-        """Drop what was kept of the last corrector (the pulse changed grid or was replaced)."""
-        self._lu = self._jac = self._arc = self._n = None
+    def _krylov(self) -> bool:
+        """Whether the corrector of the next step solves on an earlier LU (KrylovLU)."""
+        return isinstance(self.strategy.corrector_for(self.held).linear, KrylovLU)
+
+    def _forget(self, keep_lu=False):
+        """Drop what was kept of the last corrector (the pulse changed grid or was replaced);
+        ``keep_lu``: keep its LU, of a nearby pulse on a nearby grid, for the Krylov solves of
+        the next tangent and corrector (they test their own residual; a size that no longer
+        fits is never used)."""
+        self._jac = self._arc = self._n = None
+        if not keep_lu:
+            self._lu = None
 
     def _tangent(self):
         """The unit family tangent at the current pulse (:func:`family_tangent`), once per pulse;
@@ -472,7 +481,13 @@ class Continuation:
             return self._n
         base, x, n = self._base, self._x, None
         if self._lu is not None and self._lu[0].shape[0] == x.size:
-            A = self._jac if self._jac is not None else self._arc.residual_and_jacobian(x)[1]
+            if self._jac is not None:
+                A = self._jac
+            elif self._arc is not None:
+                A = self._arc.residual_and_jacobian(x)[1]
+            else:                 # the pulse was replaced: [J; c] with c the orientation
+                _, A = base.residual_and_jacobian(x, extra_rows=1)
+                A[-1, -2], A[-1, -1] = self._orient[0], self._orient[1]
             n = tangent_by_refinement(A, self._lu)
             if n is not None:
                 c_b, c_q, _ = self._orient
@@ -653,9 +668,9 @@ class Continuation:
     def replace(self, sol: SteadySolution) -> None:
         """Continue from ``sol`` (x = (y, β, q); e.g. the refined pulse of a grid check) instead of
         the current pulse: its grid becomes the march's (the nodal secant starts afresh; dL/ds of
-        the last step is kept)."""
+        the last step is kept; a Krylov corrector keeps the last LU as its preconditioner)."""
         self._prev = None
-        self._forget()
+        self._forget(keep_lu=self._krylov())
         self._accept(sol)
         self._L_grid = self.L
         if self.status in ("finished", "stopped"):
@@ -665,9 +680,10 @@ class Continuation:
     def restart(self, sol: SteadySolution, ds: float) -> None:
         """Continue (a failed march too) from ``sol`` (x = (y, β, q)) with the step ``ds``: its
         grid becomes the march's, the status "running" (or "finished"/"stopped" if ``sol`` is
-        already there); the tangent's orientation, κ and dL/ds of the last step are kept."""
+        already there); the tangent's orientation, κ and dL/ds of the last step are kept (and,
+        with a Krylov corrector, the last LU as its preconditioner)."""
         self._prev = None
-        self._forget()
+        self._forget(keep_lu=self._krylov())
         self._accept(sol)
         self._L_grid = self.L
         self.ds = float(ds)
