@@ -116,3 +116,25 @@ def test_a_krylov_march_keeps_its_lu_across_a_replace(params, pulse12):
     assert kept.sol.stats.factorizations == 0
     assert np.max(np.abs(kept.sol.x - plain.sol.x)) < 1e-8
     assert march(DirectLU(), True).sol.stats.factorizations > 0
+
+
+def test_a_failed_checks_region_solves_share_one_tangent(params, monkeypatch):
+    """The grid check's normal line needs the pulse's family tangent (a dense solve at N): the
+    region re-solves of ``locate_error`` and the check itself on one pulse solve for it once; a
+    pulse with other unknowns solves again."""
+    from slippulse.steady.continuation import gridcheck
+    sol = as_both(params, solve_pulse(params, 1.2, n_points=300))
+    calls = []
+    real = gridcheck.family_tangent
+
+    def counted(*a):
+        calls.append(1)
+        return real(*a)
+
+    monkeypatch.setattr(gridcheck, "family_tangent", counted)
+    shares = gridcheck.locate_error(params, sol)
+    _, db, dl = grid_change(params, sol, 300, nested=True, stages=4, max_iter=15)
+    assert len(shares) == 4 and np.isfinite(db) and len(calls) == 1
+    other = as_both(params, solve_pulse(params, 1.19, n_points=300))
+    grid_change(params, other, 300, nested=True, stages=4, max_iter=15)
+    assert len(calls) == 2
