@@ -18,10 +18,7 @@ import numpy as np
 
 from .app import UsageError
 from .paramargs import add_params_args, check_config_params, config_sets, params_for_input
-from ..dynamics.config import RESUME_MUTABLE, build_stepper, diff_keys, load_config
 from ..core.h5io import check_writable
-from ..dynamics.runfile import RunFile
-from ..dynamics.stepper import MAX_GRID_POINTS
 from .checks import check_distinct, check_figure, finite
 
 #: Fewest points of a seeded grid (as --points of verify).
@@ -159,6 +156,10 @@ def _eigenmode(args, pulse, params, required: bool):
 
 
 def cmd_run(args) -> int:
+    """``slippulse dynamic run``: the SBI run of a config (the dynamics package is imported here,
+    not when the CLI starts: pyfftw and dask cost every other command ≈ 0.7 s)."""
+    from ..dynamics.config import RESUME_MUTABLE, build_stepper, diff_keys, load_config
+    from ..dynamics.runfile import RunFile
     cfg = load_config(args.config, config_sets(args, args.sets))
     check_config_params(cfg)
     if args.out is not None:
@@ -318,6 +319,7 @@ def _mark_interrupted(out: RunFile) -> None:
 def _check_grid(dx: float, ahead: float, behind: float, L: float) -> None:
     """Refuse a seeded grid that is not finite or has more than MAX_GRID_POINTS points, before
     anything is allocated (``seeding.DomainSpec`` checks the signs)."""
+    from ..dynamics.stepper import MAX_GRID_POINTS
     for name, val in (("dx", dx), ("ahead", ahead), ("behind", behind)):
         if not (math.isfinite(val) and val > 0):
             raise UsageError(f"--{name}={val!r} must be a finite number > 0")
@@ -336,6 +338,7 @@ def cmd_verify(args) -> int:
     from ..core.params import ParameterError
     from ..plotting.stability import plot_verify_result
     from ..timedomain.verify import VerifySettings, summary, verify_pulse, write_result
+    from ..dynamics.stepper import MAX_GRID_POINTS
     from ..timedomain.seeding import DomainSpec
     from ..dynamics.stepper import TimeStepRule
 
