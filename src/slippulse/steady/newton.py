@@ -64,15 +64,14 @@ def lu_solve(lu, r, trans=0):
 
 
 def gmres_on_lu(J, b, lu, rtol, max_iter):
-    """δ with ‖b − J δ‖₂ ≤ rtol ‖b‖₂ by GMRES right-preconditioned by ``lu``, the LU of a nearby
-    matrix (J M⁻¹ u = b, δ = M⁻¹ u; Arnoldi by classical Gram–Schmidt applied twice); (δ,
-    iterations), or (None, max_iter) when it does not get there within ``max_iter`` iterations.
+    """δ with ‖b − J δ‖₂ ≤ rtol ‖b‖₂ by GMRES right-preconditioned by ``lu``, the LU of a
+    nearby matrix (J M⁻¹ u = b, δ = M⁻¹ u; Arnoldi by classical Gram–Schmidt applied twice),
+    started from zero, so the first iterate is the chord step; (δ, iterations), or
+    (None, max_iter) when it does not get there within ``max_iter`` iterations.
 
-    Right preconditioning minimises the residual b − J δ itself, so the test is on the true
-    residual whatever the LU's precision (scipy's ``gmres`` preconditions on the left and
-    stops on the preconditioned residual: with a float32 LU its true residual stayed at 2e−6
-    when the preconditioned one read 5e−8, measured on a 7325-point grid check). The first
-    iterate is the chord step LU⁻¹ b."""
+    Right preconditioning minimises the true residual b − J δ, whatever the LU's precision;
+    scipy's ``gmres`` preconditions on the left and tests the preconditioned residual, which a
+    float32 LU leaves far below the true one."""
     n = b.size
     nb = float(np.linalg.norm(b))
     if not (nb > 0 and np.isfinite(nb)):
@@ -129,17 +128,14 @@ class DirectLU:
 @dataclass(frozen=True)
 class KrylovLU(DirectLU):
     """A Newton step solves J δ = r by GMRES preconditioned by the LU in hand (of an earlier
-    iteration, step, homotopy stage or grid check) to ‖r − J δ‖₂ ≤ ``rtol`` ‖r‖₂; only where
-    that takes more than ``max_iter`` iterations is J factored (:class:`DirectLU`). One
-    iteration is a product with J and a back-substitution, N² each, against the LU's N³: at
-    N = 10123 on one core 0.09 s against 7.5 s (single) or 14 s (double). An inexact step of
-    relative error rtol leaves Newton's convergence quadratic down to rtol times the residual,
-    and the converged tolerance is the same.
+    iteration, step, homotopy stage or grid check) to ‖r − J δ‖₂ ≤ ``rtol`` ‖r‖₂, and factors J
+    (:class:`DirectLU`) only where that takes more than ``max_iter`` iterations. Why: an
+    iteration is two N² operations against the LU's N³ (docs/steady.md "Linear solves"); an
+    inexact step of relative error rtol keeps Newton converging to the same tolerance.
 
-    The LU in hand preconditions; it drives no chord iterations, neither at the start nor after a
-    step solved on it: chord steps on an LU several steps old can leave the iterate where the
-    damped Newton steps then creep (measured on a 5 km grid check, N = 10123: two chord steps
-    to max|r| = 9.3e−5, then stuck at 9.5e−5; without them, Newton converged in 3 steps)."""
+    The LU in hand preconditions and drives no chord iterations (neither at the start nor after
+    a step solved on it): chord steps on an LU several steps old can leave the iterate where the
+    damped Newton steps then creep."""
 
     max_iter: int = 30
     rtol: float = 1e-9
