@@ -278,3 +278,23 @@ def test_null_vector_from_the_lu_of_A_is_the_qr_one_even_at_a_fold(
     v = indicators(S)
     assert abs(v.t_param) < 1e-12                 # the fold shows as t_λ = 0
     assert np.linalg.norm(S @ v.tangent) < 1e-12 and abs(v.tangent @ null_vector(S)) > 1 - 1e-12
+
+
+def test_bordered_test_functions_are_those_of_the_factored_bordered_matrix(params, monkeypatch):
+    """The test functions of a pulse (1.05 τ_min, above the dense-SVD size, columns scaled as
+    along a family): det B by Cramer from the LU of A and B⁻¹ by bordering give the sign,
+    ln|det| and two smallest singular values of B factored itself (BORDER_MIN above |t_λ|)."""
+    from slippulse.steady import bifurcation as bf
+    pulse = _pulse(params, 1.05)
+    bordered, _ = bf.pulse_tests(pulse, params)
+    assert abs(bordered.t_param) >= bf.BORDER_MIN and pulse.xi.size > bf.DENSE_SVD_MAX
+    monkeypatch.setattr(bf, "BORDER_MIN", 2.0)
+    factored, _ = bf.pulse_tests(pulse, params)
+    assert bordered.bordered_sign == factored.bordered_sign != 0
+    assert bordered.bordered_logdet == pytest.approx(factored.bordered_logdet, abs=1e-8)
+    assert bordered.sigma == pytest.approx(factored.sigma, rel=1e-9)
+
+
+def _pulse(params, q):
+    from slippulse.steady.solver import solve_pulse
+    return solve_pulse(params, q, n_points=700).to_pulse()

@@ -104,19 +104,23 @@ def null_vector_from_lu(J, lu):
     return t
 
 
-def smallest_singular_values(M, lu=None, k=2):
+def smallest_singular_values(M, lu=None, k=2, solve=None):
     """The k smallest singular values of a square M, ascending (dense SVD for small M; else
-    ARPACK on M⁻¹M⁻ᵀ with the LU of M, ``lu`` if given)."""
+    ARPACK on M⁻¹M⁻ᵀ with the LU of M, ``lu`` if given, or ``solve(r, trans)`` = M⁻¹ r
+    (M⁻ᵀ r with trans=1) if given)."""
     m = M.shape[0]
     if m <= DENSE_SVD_MAX:
         return np.sort(sla.svdvals(M, check_finite=False))[:k]
     from scipy.sparse.linalg import LinearOperator, eigsh
-    if lu is None:
-        lu = sla.lu_factor(M, check_finite=False)
+    if solve is None:
+        if lu is None:
+            lu = sla.lu_factor(M, check_finite=False)
+
+        def solve(r, trans=0):
+            return sla.lu_solve(lu, r, trans=trans, check_finite=False)
 
     def mv(x):
-        return sla.lu_solve(lu, sla.lu_solve(lu, np.ravel(x), trans=1, check_finite=False),
-                            check_finite=False)
+        return solve(solve(np.ravel(x), 1))
 
     op = LinearOperator((m, m), matvec=mv, dtype=float)
     lam = eigsh(op, k=k, which="LM", return_eigenvectors=False, tol=1e-10,
@@ -154,6 +158,35 @@ class Indicators:
         return abs(self.fold_sign - rhs)
 
 
+#: The test functions of B = [J; tᵀ] come from the LU of A = J[:, :n] (which the fold test
+#: factors) where |t_λ| ≥ this: det B = det A / t_λ (Cramer) and B⁻¹, B⁻ᵀ by bordering with
+#: A⁻¹; nearer a fold, where A⁻¹ grows like 1/t_λ, B is factored itself. One LU per pulse
+#: instead of two; the same sign, ln|det| and σ₁, σ₂ as B's own LU to 2e−12 down to
+#: t_λ = 3.7e−8 (BENCHMARKS.md "Deep family"); at t_λ = 1.2e−9 ln|det| differed by 2e−4.
+BORDER_MIN = 1e-8
+
+
+def _bordered_solve(lu_a, J, t):
+    """``solve(r, trans)`` = B⁻¹ r or B⁻ᵀ r for B = [J; tᵀ] = [[A, c], [t_Aᵀ, t_λ]], J t = 0,
+    |t| = 1, with the LU of A: w = A⁻¹c, t = (−w, 1)/ν, so both Schur complements equal ν."""
+    n = J.shape[0]
+    c, tA, tl = J[:, n], t[:n], t[n]
+    w = sla.lu_solve(lu_a, c, check_finite=False)
+    s_fw = tl - tA @ w                      # Schur complement of A in B
+    s_tr = tl - w @ tA                      # ... in Bᵀ (the same number)
+
+    def solve(r, trans=0):
+        r = np.asarray(r, float)
+        if trans == 0:
+            a = sla.lu_solve(lu_a, r[:n], check_finite=False)
+            zl = (r[n] - tA @ a) / s_fw
+            return np.concatenate([a - w * zl, [zl]])
+        zl = (r[n] - w @ r[:n]) / s_tr
+        za = sla.lu_solve(lu_a, r[:n] - tA * zl, trans=1, check_finite=False)
+        return np.concatenate([za, [zl]])
+    return solve
+
+
 def indicators(J, scale=None, orient=None, singular_values=True) -> Indicators:
     """Fold and branch-point test functions of a solution with extended Jacobian J (n × (n+1)).
 
@@ -175,8 +208,15 @@ def indicators(J, scale=None, orient=None, singular_values=True) -> Indicators:
     if orient is not None and float(np.dot(t, orient)) < 0:
         t = -t
     B = np.vstack([J, t[None, :]])
-    bs, bl, lu = lu_det(B)
-    sig = tuple(float(s) for s in smallest_singular_values(B, lu)) if singular_values else ()
+    if fs != 0 and abs(t[-1]) >= BORDER_MIN:
+        bs = fs * (1 if t[-1] > 0 else -1)
+        bl = fl - math.log(abs(t[-1]))
+        solve = _bordered_solve(lu_a, J, t)
+        sig = (tuple(float(s) for s in smallest_singular_values(B, solve=solve))
+               if singular_values else ())
+    else:
+        bs, bl, lu = lu_det(B)
+        sig = tuple(float(s) for s in smallest_singular_values(B, lu)) if singular_values else ()
     return Indicators(fs, fl, bs, bl, t, float(t[-1]), sig, n)
 
 
