@@ -172,16 +172,15 @@ def _bordered_solve(lu_a, J, t):
     n = J.shape[0]
     c, tA, tl = J[:, n], t[:n], t[n]
     w = sla.lu_solve(lu_a, c, check_finite=False)
-    s_fw = tl - tA @ w                      # Schur complement of A in B
-    s_tr = tl - w @ tA                      # ... in Bᵀ (the same number)
+    schur = tl - tA @ w                     # of A in B, and in Bᵀ
 
     def solve(r, trans=0):
         r = np.asarray(r, float)
         if trans == 0:
             a = sla.lu_solve(lu_a, r[:n], check_finite=False)
-            zl = (r[n] - tA @ a) / s_fw
+            zl = (r[n] - tA @ a) / schur
             return np.concatenate([a - w * zl, [zl]])
-        zl = (r[n] - w @ r[:n]) / s_tr
+        zl = (r[n] - w @ r[:n]) / schur
         za = sla.lu_solve(lu_a, r[:n] - tA * zl, trans=1, check_finite=False)
         return np.concatenate([za, [zl]])
     return solve

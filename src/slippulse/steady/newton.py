@@ -156,10 +156,6 @@ class KrylovLU(DirectLU):
         return super().solve(J, r, None)
 
 
-#: The linear solves of :func:`newton` by name.
-LINEAR = {c.name: c for c in (DirectLU, KrylovLU)}
-
-
 def as_linear(linear):
     """A linear-solve strategy from a precision name ('double' → ``DirectLU('double')``) or
     itself."""

@@ -56,13 +56,17 @@ def family_tangent(prob: SteadyProblem, x, orient):
     n_a = −n_β/(1 − β). Returns n (full vector, in (y, β, q)) scaled so that n_a² + n_Q² = 1 with
     n_Q = n_q/κ, where κ is passed through ``orient = (c_β, c_q, κ)``.
     """
-    c_b, c_q, kappa = orient
-    _, J = prob.residual_and_jacobian(x)
-    A = np.vstack([J, np.zeros(x.size)])
-    A[-1, -2], A[-1, -1] = c_b, c_q
     rhs = np.zeros(x.size)
     rhs[-1] = 1.0
-    return unit_tangent(np.linalg.solve(A, rhs), x[-2], kappa)
+    return unit_tangent(np.linalg.solve(tangent_matrix(prob, x, orient), rhs), x[-2], orient[2])
+
+
+def tangent_matrix(prob, x, orient):
+    """[J; c] of :func:`family_tangent`: the (N+1)×(N+2) Jacobian of ``prob`` at x bordered by
+    c = (0…0, c_β, c_q) from ``orient`` = (c_β, c_q, κ), written into the row J leaves for it."""
+    _, A = prob.residual_and_jacobian(x, extra_rows=1)
+    A[-1, -2], A[-1, -1] = orient[0], orient[1]
+    return A
 
 
 def unit_tangent(n, beta, kappa):

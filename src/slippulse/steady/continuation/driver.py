@@ -16,7 +16,8 @@ from ..equations import SteadyProblem
 from ..measures import pulse_length
 from ..newton import KrylovLU, SolveStats
 from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess
-from .arclength import ArclengthProblem, family_tangent, tangent_by_refinement, unit_tangent
+from .arclength import (ArclengthProblem, family_tangent, tangent_by_refinement, tangent_matrix,
+                        unit_tangent)
 from .natural import PulseOnGrid, judge_pulse, solve_between, tangent_step
 from .relay import recentre, refine_front, zone_offset
 from .strategy import AUTO, ShrinkSteps, Strategy, TargetSteps
@@ -486,8 +487,7 @@ class Continuation:
             elif self._arc is not None:
                 A = self._arc.residual_and_jacobian(x)[1]
             else:                 # the pulse was replaced: [J; c] with c the orientation
-                _, A = base.residual_and_jacobian(x, extra_rows=1)
-                A[-1, -2], A[-1, -1] = self._orient[0], self._orient[1]
+                A = tangent_matrix(base, x, self._orient)
             n = tangent_by_refinement(A, self._lu)
             if n is not None:
                 c_b, c_q, _ = self._orient

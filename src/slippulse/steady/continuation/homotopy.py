@@ -58,7 +58,7 @@ def solve_robust(problem, x0, stages=8, max_iter=15, tol=NEWTON_TOL, reuse=False
     linear = as_linear(linear)
     handed = isinstance(linear, KrylovLU)
     total = factorizations = krylov = 0
-    lu = lu0 if handed and lu0 is not None and lu0[0].shape[0] == np.size(x0) else None
+    lu = lu0 if handed else None        # one of another size is never used (KrylovLU.solve)
     if plain:
         x, st = newton(problem, x0, tol=tol, max_iter=max_iter, reuse=reuse, creep=creep,
                        linear=linear, lu=lu, keep=handed)
