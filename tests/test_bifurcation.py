@@ -298,3 +298,18 @@ def test_bordered_test_functions_are_those_of_the_factored_bordered_matrix(param
 def _pulse(params, q):
     from slippulse.steady.solver import solve_pulse
     return solve_pulse(params, q, n_points=700).to_pulse()
+
+
+def test_a_sign_change_across_a_grid_change_is_decided_on_one_grid(params):
+    """Neighbours on grids of 500 and 601 points: their own det B signs differ (the sign is a
+    property of one discrete system), yet re-solved on one grid they agree: no branch point."""
+    from slippulse.steady.bifurcation import across_grid_change
+    from slippulse.steady.solver import solve_pulse
+    pa = solve_pulse(params, 1.2, n_points=500).to_pulse()
+    pb = solve_pulse(params, 1.198, n_points=601).to_pulse()
+    orient = (math.log(pb.beta / pa.beta), pb.tau_d_ratio - pa.tau_d_ratio)
+    sa = pulse_tests(pa, params, (orient[0] * pa.beta, orient[1]), False)[0].bordered_sign
+    sb = pulse_tests(pb, params, (orient[0] * pb.beta, orient[1]), False)[0].bordered_sign
+    assert sa * sb < 0
+    assert across_grid_change(pa, pb, params) is None
+    assert across_grid_change(pb, pa, params) is None

@@ -60,13 +60,32 @@ def event_lines(path, params, rows, evs, locate=True) -> list[str]:
     its two pulses when ``locate``, and the count line (folds, branch points, sign changes of
     det B across a change of N, σ₁/σ₂ minima, the smallest σ₁)."""
     from ..core.h5io import read_pulse
-    from ..steady.bifurcation import LocateError, locate_between_pulses
+    from ..steady.bifurcation import LocateError, across_grid_change, locate_between_pulses
     lines = [f"event: {e.kind} between {e.between[0]} and {e.between[1]}: {e.detail}" for e in evs]
+    decided = 0
     for e in evs:
-        if not locate or e.kind not in ("fold", "branch point"):
+        if locate and e.kind == "not comparable":
+            pa, _ = read_pulse(path, e.between[0])
+            pb, _ = read_pulse(path, e.between[1])
+            try:
+                found = across_grid_change(pa, pb, params)
+            except LocateError as exc:
+                lines.append(f"across the grid change {e.between}: not decided ({exc})")
+                continue
+            decided += 1
+            lines.append(f"across the grid change {e.between}: " + (
+                f"BRANCH POINT ({found.detail})" if found else
+                "the same sign of det B on one grid: no branch point between them"))
+            if not found:
+                continue
+            evs = evs + [found]
+        elif not locate or e.kind not in ("fold", "branch point"):
             continue
-        pa, _ = read_pulse(path, e.between[0])
-        pb, _ = read_pulse(path, e.between[1])
+        else:
+            pa, _ = read_pulse(path, e.between[0])
+            pb, _ = read_pulse(path, e.between[1])
+        if pa.n_points < pb.n_points:              # locate on the finer grid
+            pa, pb = pb, pa
         try:
             b = locate_between_pulses(pa, pb, params)
             lines.append(f"located: {b.kind} at tau_d/tau_min={b.extra['tau_d_ratio']:.9f} "
@@ -81,8 +100,8 @@ def event_lines(path, params, rows, evs, locate=True) -> list[str]:
     smin = f"{min(sig):.3e}" if sig else "not computed"
     lines.append(f"{len(rows)} pulses: {count['fold']} folds (t_q sign changes), "
                  f"{count['branch point']} branch points (det B sign changes at equal N), "
-                 f"{count['not comparable']} det B sign changes across a change of N (not "
-                 f"comparable), {count['sigma minimum']} sigma1/sigma2 minima; smallest sigma1 = "
+                 f"{count['not comparable']} det B sign changes across a change of N "
+                 f"({decided} decided on one grid), {count['sigma minimum']} sigma1/sigma2 minima; smallest sigma1 = "
                  f"{smin}; the test functions have no uncertainty estimate (their signs are exact "
                  "for the discrete system)")
     return lines

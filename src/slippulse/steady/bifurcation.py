@@ -515,31 +515,71 @@ def events(rows):
     return out
 
 
-def locate_between_pulses(pa, pb, params, **kw) -> Bifurcation:
-    """Locate a fold or branch point between two pulses: pulse b is re-solved on a's grid and
-    pin at its own τ_d (so both are solutions of one system), then :func:`locate`. The result's
-    ``extra`` holds τ_d/τ_min, β and L (FWHM) there."""
-    from .measures import pulse_length
+#: The re-solves of a pulse on a neighbour's grid, in order: the ‖r‖₂ line search, given up
+#: once it creeps, then the natural monotonicity test, which a front a few cells off the new
+#: grid's fine zone does not hold back (:func:`~slippulse.steady.newton.newton`).
+RESOLVE_ATTEMPTS = (("residual", 6), ("natural", 0))
+
+
+def on_one_grid(pa, pb, params):
+    """Pulses a and b as two solutions of one discrete system: a's extended system (its grid and
+    pin, :func:`pulse_system`) and b re-solved on it at its own τ_d (β free; the interpolated
+    guess is re-pinned by Newton). Returns (system, x_a, x_b, scale); raises
+    :class:`LocateError` when b does not re-solve there."""
     from .solver import interpolate
     from .newton import newton
     from .equations import SteadyProblem
 
     prob, xa, scale = pulse_system(pa, params)
-    # b on a's grid: fixed q_b, free β, a's pin (the interpolated guess is re-pinned by Newton)
     yb = interpolate(np.asarray(pb.xi, float), np.log(np.asarray(pb.v, float)), prob.xi,
                      pb.v_stick)
     fixed = SteadyProblem(params, pb.tau_d_ratio, prob.xi, prob.pin_index, prob.y_pin,
                           hilbert=prob.hilbert, H=prob.H, state_order=prob.state_order)
-    xb0, stats = newton(fixed, np.concatenate([yb, [pb.beta]]))
-    if not stats.converged:
-        raise LocateError(f"pulse {pb.label} did not re-solve on {pa.label}'s grid: "
-                          f"{stats.message}")
-    xb = np.concatenate([xb0, [pb.tau_d_ratio]])
+    for search, creep in RESOLVE_ATTEMPTS:
+        xb0, stats = newton(fixed, np.concatenate([yb, [pb.beta]]), creep=creep,
+                            line_search=search)
+        if stats.converged:
+            return prob, xa, np.concatenate([xb0, [pb.tau_d_ratio]]), scale
+    raise LocateError(f"pulse {pb.label} did not re-solve on {pa.label}'s grid: "
+                      f"{stats.message}")
+
+
+def locate_between_pulses(pa, pb, params, **kw) -> Bifurcation:
+    """Locate a fold or branch point between two pulses (:func:`on_one_grid`, then
+    :func:`locate`). The result's ``extra`` holds τ_d/τ_min, β and L (FWHM) there."""
+    from .measures import pulse_length
+
+    prob, xa, xb, scale = on_one_grid(pa, pb, params)
     bif = locate(prob, xa, xb, scale=scale, **kw)
     v = np.exp(bif.x[:-2])
     bif.extra = {"tau_d_ratio": float(bif.x[-1]), "beta": float(bif.x[-2]),
                  "L": float(pulse_length(prob.xi, v, params.v_star, crossings=False))}
     return bif
+
+
+def across_grid_change(pa, pb, params) -> Event | None:
+    """Decide a 'not comparable' pair (neighbours on grids of different N): the coarser pulse is
+    re-solved on the finer one's grid (:func:`on_one_grid`; the other way round where that
+    fails) and sign det B = [J; tᵀ] of both is compared there, t oriented from a to b as in
+    :func:`scan`. The sign of a determinant is a property of one discrete system, so only on
+    one grid does its change mean a branch point. Returns the 'branch point' event, or None
+    where the signs agree; raises :class:`LocateError` where neither re-solves."""
+    fine, coarse = (pa, pb) if pa.n_points >= pb.n_points else (pb, pa)
+    try:
+        prob, xf, xc, scale = on_one_grid(fine, coarse, params)
+    except LocateError:                   # both grids hold their pulses: try the other one
+        fine, coarse = coarse, fine
+        prob, xf, xc, scale = on_one_grid(fine, coarse, params)
+    xa, xb = (xf, xc) if fine is pa else (xc, xf)
+    orient = np.zeros(xa.size)
+    orient[-2] = math.log(pb.beta / pa.beta)       # scaled unknowns: d ln β, dq
+    orient[-1] = pb.tau_d_ratio - pa.tau_d_ratio
+    sa = indicators(prob.residual_and_jacobian(xa)[1], scale, orient, False).bordered_sign
+    sb = indicators(prob.residual_and_jacobian(xb)[1], scale, orient, False).bordered_sign
+    if sa * sb < 0:
+        return Event("branch point", (pa.label, pb.label),
+                     f"sign det B {sa:+d} -> {sb:+d} on {fine.label}'s grid (N {fine.n_points})")
+    return None
 
 
 def indicator_attrs(v: Indicators) -> dict:
