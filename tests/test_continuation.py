@@ -536,7 +536,7 @@ def test_solve_robust_starts_with_the_homotopy_when_told():
 
 
 def test_checks_start_with_the_homotopy_after_one_needed_it(monkeypatch):
-    """_CheckedWriter: after a check whose plain re-solve needed the homotopy, the next
+    """Checker: after a check whose plain re-solve needed the homotopy, the next
     HOMOTOPY_FIRST checks are asked to start with it (plain=False), then plain Newton again."""
     from types import SimpleNamespace
     from slippulse.steady.continuation import family
@@ -551,14 +551,12 @@ def test_checks_start_with_the_homotopy_after_one_needed_it(monkeypatch):
                                attrs=lambda tol: {}, warm=None)
 
     monkeypatch.setattr(family, "check_pulse", check)
-    monkeypatch.setattr(family, "write_pulse", lambda *a, **k: None)
-    rep = SimpleNamespace(checks=0, failed_checks=[], wrote=lambda p: None)
-    w = family._CheckedWriter(None, "/nonexistent/never.h5", rep, None, 4000, None)
+    w = family.Checker(None, None, 4000)
     pulse = SimpleNamespace(extra={}, label="td1.0085", tau_d_ratio=1.0085, name="",
                             converged=True)
     sol = SimpleNamespace(to_pulse=lambda: pulse)
     for _ in range(3 + family.HOMOTOPY_FIRST):
-        w(sol, pulse, "arclength")
+        w(sol, "arclength")
     k = family.HOMOTOPY_FIRST
     assert asked == [True, True] + [False] * k + [True]
 

@@ -255,7 +255,7 @@ def test_family_kill9_then_rerun_resumes_with_file_intact(tmp_path):
 FAMILY_OPTIONS = {
     "--from": ["1.19"], "--to": ["1.009"], "--step": ["0.0025"], "--points": ["1500"],
     "--max-points": ["9000"], "--ds-min": ["0.0005"], "--spacing": ["0.0"],
-    "--max-length": ["5000"], "--from-pulse": ["{pulse}"],
+    "--max-length": ["5000"], "--from-pulse": ["{pulse}"], "--checks": ["{other_checks}"],
 }
 NOT_THE_RUN = {"-h", "--help", "--out", "-q", "--quiet", "--params", "--set"}
 
@@ -286,7 +286,9 @@ def test_every_family_option_changes_the_run_or_is_refused(tmp_path, params, pul
     write_pulse(stored, pulse12.to_pulse(), params)
     pulse = f"{stored}:td1.2000"
     for opt, (val,) in FAMILY_OPTIONS.items():
-        got = family_run_args(parser.parse_args([opt, val.format(pulse=pulse)]), params)
+        other = "inline" if base["checks"] == "beside" else "beside"
+        got = family_run_args(parser.parse_args([opt, val.format(pulse=pulse,
+                                                                 other_checks=other)]), params)
         changed = {k for k in base if got[k] != base[k]}
         assert changed, f"{opt} {val} changes nothing"
         if opt == "--ds-min":
@@ -296,7 +298,7 @@ def test_every_family_option_changes_the_run_or_is_refused(tmp_path, params, pul
             assert got["origin"].label == "td1.2000" and got["start"] == got["origin"].tau_d_ratio
     bad = {"--step": "0", "--points": "10", "--max-points": "100", "--ds-min": "0.004",
            "--spacing": "0.9", "--max-length": "0", "--from": "2", "--to": "0.5",
-           "--from-pulse": str(tmp_path / "none.h5:td1.2000")}
+           "--from-pulse": str(tmp_path / "none.h5:td1.2000"), "--checks": "aside"}
     assert set(bad) == set(FAMILY_OPTIONS)
     for opt, val in bad.items():
         with pytest.raises(ParameterError, match=opt.lstrip("-").split("-")[0]):

@@ -19,6 +19,9 @@ from .paramargs import add_params_args, check_files, params_for_output
 from ..steady.solver import MAX_POINTS, check_points, solve_pulse
 from ..core.executor import add_executor_options
 from ..steady.continuation.family import SPACING
+
+#: steady family's --checks default: beside the march where a second core is there to run them.
+DEFAULT_CHECKS = "beside" if (os.cpu_count() or 1) >= 2 else "inline"
 from ..steady.continuation.strategy import AUTO
 
 
@@ -284,7 +287,16 @@ def family_run_args(args, params) -> dict:
         raise ParameterError(f"ds-min={args.ds_min} is invalid: {exc}") from None
     return dict(start=start, stop=stop, step=args.step, n_points=args.points,
                 strategy=strategy, n_max=args.max_points, max_length=args.max_length,
-                spacing=args.spacing, origin=None)
+                spacing=args.spacing, origin=None, checks=_checks(args))
+
+
+def _checks(args) -> str:
+    """--checks, checked: where the grid checks run (FamilyRun.checks)."""
+    from ..steady.continuation.family import CHECKS
+    if args.checks not in CHECKS:
+        raise ParameterError(f"checks={args.checks!r} is invalid: must be one of "
+                             f"{', '.join(CHECKS)}")
+    return args.checks
 
 
 def from_pulse_run_args(args, params) -> dict:
@@ -332,7 +344,7 @@ def from_pulse_run_args(args, params) -> dict:
         raise ParameterError(f"ds-min={args.ds_min} is invalid: {exc}") from None
     return dict(start=origin.tau_d_ratio, stop=stop, step=args.step, n_points=None,
                 strategy=strategy, n_max=args.max_points, max_length=args.max_length,
-                spacing=args.spacing, origin=origin)
+                spacing=args.spacing, origin=origin, checks=_checks(args))
 
 
 def cmd_family(args) -> int:
@@ -628,6 +640,11 @@ def _add_family(ss) -> None:
                    help="continue this stored pulse (e.g. of another branch) instead, on its own "
                         "grid, by the deep march's pseudo-arclength steps toward --to (above or "
                         "below its tau_d, through folds), into a new --out")
+    p.add_argument("--checks", default=DEFAULT_CHECKS, metavar="{inline,beside}",
+                   help="where the grid checks and test functions run: 'beside', in a second "
+                        "process while the march goes on (the march goes back where a check "
+                        "refines the grid; the same pulses), or 'inline', each before the next "
+                        f"step (default here: {DEFAULT_CHECKS}, 'beside' on two or more cores)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_family)

@@ -71,7 +71,10 @@ class Continuation:
     on_accept : callable(solution, extra) → :class:`Accepted` or None, optional: the place where
         each accepted pulse is written (and grid-checked, or monitored); ``extra`` holds the
         driver's attributes for the pulse (strategy, step control state, relay figures). The
-        march goes on from the returned pulse when it passed.
+        march goes on from the returned pulse when it passed. A pending result (with ``done``,
+        ``result`` and ``discard``, :class:`~.beside.Pending`: the check runs beside the march)
+        is collected in order, up to ``lead`` pulses behind the march; where it brings a refined
+        pulse the march goes back to it.
     log : callable(str), optional; one line per relay or recentring.
 
     Attributes
@@ -94,7 +97,7 @@ class Continuation:
 
     def __init__(self, params, start, strategy: Strategy = AUTO, spec=GridSpec(),
                  stop=-math.inf, max_length=math.inf, spacing=0.0, on_attempt=None,
-                 on_accept=None, log=None, targets=(), beta_cap=math.inf):
+                 on_accept=None, log=None, targets=(), beta_cap=math.inf, lead=2):
         if not isinstance(strategy, Strategy):
             raise TypeError(f"strategy={strategy!r}: must be a Strategy")
         self.params, self.spec, self.strategy = params, spec, strategy
@@ -103,6 +106,10 @@ class Continuation:
         self.status, self.message = "running", ""
         self.n_steps = self.n_attempts = self.n_failed = self.n_iterations = 0
         self.n_relays = self.n_recentred = self.n_written = 0
+        # pulses handed to checks beside the march, not yet written: (Pending, the pulse handed
+        # or None for natural steps, which never go back); lead: how many the march may run ahead
+        self._pending = []
+        self.lead = lead
         if strategy.parameter != "arclength":
             self._start_natural(start, targets, beta_cap)
             return
@@ -202,6 +209,8 @@ class Continuation:
         if not self._started:
             self._started = True
             self.recentre_front()
+        if self._collect(upto=self.lead - 1):
+            return None                    # a check refined the grid: on from its pulse
         if self.advance() is not None:
             # the corrector stalled at ds_min: refine the healing front and go on from there
             if not self._relay():
@@ -210,17 +219,56 @@ class Continuation:
         if self.status == "running" and self.L < self._last_written_L * (1.0 + self.spacing):
             return None                    # a continuation step, not written (spacing)
         res = self._hand(self.sol, {})
-        if res is not None and res.passed:
+        if hasattr(res, "discard"):        # checked beside the march: on as if it passed
+            self._pending.append((res, self.sol, self._step_state()))
+            self.recentre_front()
+        elif res is not None and res.passed:
             if res.sol is not self.sol:
                 self.replace(res.sol)
             self.recentre_front()
         return None
 
     def run(self) -> str:
-        """Step until the march is no longer running; returns the status."""
-        while self.status == "running":
-            self.step()
-        return self.status
+        """Step until the march is no longer running and every pulse handed is written;
+        returns the status."""
+        while True:
+            while self.status == "running":
+                self.step()
+            if not self._collect():
+                return self.status
+
+    #: What the step control has learnt by a pulse (:meth:`_collect` restores it when the march
+    #: goes back to that pulse, so that the march goes on as if it had waited for its check).
+    STEP_STATE = ("ds", "_rate", "tangent", "fold", "held", "cap", "_at_cap", "_tangent_failed",
+                  "last_predictor")
+
+    def _step_state(self) -> dict:
+        return {k: getattr(self, k) for k in self.STEP_STATE}
+
+    def _collect(self, upto: int = 0) -> bool:
+        """Write the pulses whose checks beside the march are done, in order, waiting while more
+        than ``upto`` are pending. Where a check refined the grid (its pulse is not the one handed), the march goes
+        back to that pulse and the pulses handed after it are dropped unwritten. Returns whether
+        the march went back."""
+        while self._pending:
+            pend, handed, state = self._pending[0]
+            if len(self._pending) <= upto and not pend.done():
+                return False
+            self._pending.pop(0)
+            res = pend.result()
+            if handed is None or not res.passed or res.sol is handed:
+                continue
+            for later, _, _ in self._pending:
+                later.discard()
+            self._pending.clear()
+            self.status, self.message = "running", ""
+            self.replace(res.sol)
+            self.__dict__.update(state)        # the step control as it was at that pulse
+            self._update_status()
+            self._last_written_L = self.L
+            self.recentre_front()
+            return True
+        return False
 
     # ---------------------------------------------------------------- natural steps
     def _start_natural(self, start, targets, beta_cap):
@@ -261,7 +309,10 @@ class Continuation:
             accepted = self._step_in_beta()
         if accepted:
             self.n_steps += 1
-            self._hand(self.sol, {})
+            res = self._hand(self.sol, {})
+            if hasattr(res, "discard"):
+                self._pending.append((res, None, None))
+                self._collect(upto=self.lead - 1)
         return self.message if self.status == "failed" else None
 
     def _points(self):
@@ -418,6 +469,8 @@ class Continuation:
         if not (self.strategy.stretch and self.n_relays < g.relay
                 and self._relaid_at != self.n_steps):
             return False
+        if self._collect():
+            return True                    # a check refined the grid: on from its pulse
         self.n_relays += 1
         self._relaid_at = self.n_steps
         q = float(self.sol.x[-1])
@@ -428,6 +481,8 @@ class Continuation:
             return False
         res = self._hand(new, {"relaid": True, "relay_dbeta": float(dbeta),
                                "relay_dL_rel": float(dL_rel)})
+        if hasattr(res, "discard"):
+            res = res.result()
         if res is not None and not res.passed:
             self.message += (f"; then {msg}, but the refined pulse failed its grid check "
                              f"({res.message})")

@@ -45,6 +45,9 @@ class FamilyRun:
     the last written one (0: every one; the last always); default :data:`SPACING`.
     check : False: write the pulses unchecked (for a walk whose pulses only guide a solve, as
     ``steady solve`` below 1.2; such a file is refused on resume by a checked run).
+    checks : where the grid checks and the monitor run: "inline" (in the march's process, each
+    before the next step) or "beside" (a second process while the march goes on,
+    :mod:`~.beside`; the same pulses, to the solver's tolerance).
     """
     start: float = 1.2
     stop: float = 1.015
@@ -61,6 +64,7 @@ class FamilyRun:
     deep_points: int | None = None
     spacing: float | None = None
     check: bool = True
+    checks: str = "inline"
 
     def replace(self, **changes) -> "FamilyRun":
         return dataclasses.replace(self, **changes)
@@ -100,11 +104,17 @@ def run_family(params: Parameters, out: str, run: FamilyRun = FamilyRun(), *, or
         check_family_args(params, run.start, run.stop, run.step)
     _check_args(params, out, run.tolerance, run.n_max, run.deep_points, run.max_length,
                 run.spacing, run.check)
+    if run.checks not in CHECKS or (run.checks == "beside" and not run.check):
+        raise ParameterError(f"checks={run.checks!r} is invalid: must be one of {CHECKS}"
+                             + ("" if run.check else "; 'beside' needs the grid checks on"))
     runner = _Runner(params, out, run, progress, log, monitor)
-    if origin is not None:
-        runner.from_origin(origin)
-    else:
-        runner.family()
+    try:
+        if origin is not None:
+            runner.from_origin(origin)
+        else:
+            runner.family()
+    finally:
+        runner.write.close()
     runner.rep.wall_time = time.perf_counter() - runner.t0
     return runner.rep
 
@@ -122,6 +132,9 @@ class _Runner:
         self.rep.strategy = str(run.strategy)
         self.write = (_CheckedWriter if run.check else _PlainWriter)(
             params, out, self.rep, run.tolerance, run.n_max, log, monitor, run.strategy.check)
+        if run.checks == "beside":
+            from .beside import BesideWriter
+            self.write = BesideWriter(self.write)
         self.n_tau, self.n_deep = (FAMILY_POINTS if run.n_points is None
                                    else (run.n_points, run.n_points))
 
@@ -160,7 +173,9 @@ class _Runner:
                 rep.stop(f"the first pulse, at tau_d/tau_min={first:.4f}, from the built-in "
                          f"guess failed ({msg})", _hint_first(first, self.n_tau))
                 return
-            self.write(sol, pulse, "tau_d")
+            res = self.write(sol, pulse, "tau_d")
+            if hasattr(res, "discard"):        # checked beside: written once its check is back
+                res.result()
             base = PulseOnGrid.of(sol, pulse.L)
         self.natural(base, targets)
 
@@ -372,33 +387,30 @@ def _check_args(params, out, tol, n_max, deep_points, max_length, spacing, check
                                  f"another --out")
 
 
+#: Where the grid checks and the monitor run (:attr:`FamilyRun.checks`).
+CHECKS = ("inline", "beside")
+
 #: After a grid check whose plain Newton re-solve crept (and the homotopy finished it), this many
 #: checks start with the homotopy before plain Newton is tried again (beyond ≈ 5 km every plain
 #: re-solve crept: 5 iterations of a 2N − 1 LU wasted per check).
 HOMOTOPY_FIRST = 4
 
 
-class _CheckedWriter:
-    """Write a pulse after :func:`check_pulse`: the checked pulse with the check's figures (and
-    the ``monitor``'s), or, when it cannot pass, the pulse marked failed with the reason. A label
-    already taken by a pulse at another τ_d (closer than the label's six decimals) is never
-    overwritten: the new pulse gets a longer label (:func:`unique_label`). Returns the
-    :class:`GridCheck`."""
+class Checker:
+    """The grid check of one pulse and its monitor's attributes (:func:`check_pulse`), with the
+    state one check hands the next: the last deep check's fine pulse and LU (its warm start)
+    and whether the homotopy was needed lately. Returns (:class:`GridCheck`, the
+    :class:`~slippulse.core.h5io.Pulse` to write, its attributes set)."""
 
-    def __init__(self, params, out, rep, tol, n_max, log, monitor=None, method=None):
-        self.params, self.out, self.rep, self.tol, self.n_max, self.log = \
-            params, out, rep, tol, n_max, log
+    def __init__(self, params, tol, n_max, log=None, monitor=None, method=None):
+        self.params, self.tol, self.n_max, self.log = params, tol, n_max, log
         self.monitor = monitor
         self.method = AUTO.check if method is None else method      # the grid check
-        self.taken = {}
         self.homotopy_first = 0
         # the last deep check's (x, x_fine, LU): the next check's warm start (check_pulse)
         self.warm = ()
-        if os.path.exists(out):
-            for label in list_pulses(out):
-                self.taken[label] = read_pulse(out, label)[0].tau_d_ratio
 
-    def __call__(self, sol, pulse, method, extra=None):
+    def __call__(self, sol, method, extra=None):
         # the deformed grids of the deep driver are refined where the error sits (located
         # first); adapted grids everywhere (N doubled)
         deep = method == "arclength"
@@ -418,21 +430,49 @@ class _CheckedWriter:
             p.extra.update(extra)
         if self.monitor is not None:
             p.extra.update(self.monitor(res.sol, p) or {})
-        self.rep.checks += 1
         if not res.passed:
             p.converged = False
             p.extra["status"] = "failed"
             p.extra["message"] = f"grid check failed: {res.message}"
-            self.rep.failed_checks.append((p.tau_d_ratio, res.message))
+        return res, p
+
+
+class _CheckedWriter:
+    """Write a pulse after its :class:`Checker`: the checked pulse with the check's figures (and
+    the ``monitor``'s), or, when it cannot pass, the pulse marked failed with the reason. A label
+    already taken by a pulse at another τ_d (closer than the label's six decimals) is never
+    overwritten: the new pulse gets a longer label (:func:`unique_label`). Returns the
+    :class:`GridCheck`."""
+
+    def __init__(self, params, out, rep, tol, n_max, log, monitor=None, method=None):
+        self.params, self.out, self.rep, self.log = params, out, rep, log
+        self.check = Checker(params, tol, n_max, log, monitor, method)
+        self.taken = {}
+        if os.path.exists(out):
+            for label in list_pulses(out):
+                self.taken[label] = read_pulse(out, label)[0].tau_d_ratio
+
+    def __call__(self, sol, pulse, method, extra=None):
+        res, p = self.check(sol, method, extra)
+        self.put(p, res.message)
+        return res
+
+    def put(self, p, message=""):
+        """Write the checked pulse ``p`` under a free label and count it in the report."""
+        self.rep.checks += 1
+        if not p.converged:
+            self.rep.failed_checks.append((p.tau_d_ratio, message))
         base = p.label
         p.name = unique_label(p.tau_d_ratio, self.taken)
         if p.name != base and self.log:
             self.log(f"{base}: taken by the pulse at {self.taken[base]:.9f}; written as {p.name}")
         write_pulse(self.out, p, self.params)
         self.taken[p.label] = p.tau_d_ratio
-        if res.passed:
+        if p.converged:
             self.rep.wrote(p)
-        return res
+
+    def close(self):
+        """Nothing to release (:class:`~.beside.BesideWriter` stops its process)."""
 
 
 class _PlainWriter(_CheckedWriter):
@@ -442,8 +482,8 @@ class _PlainWriter(_CheckedWriter):
         p = as_both(self.params, sol).to_pulse() if method == "arclength" else pulse
         p.extra["continuation"] = method
         p.extra.update(extra or {})
-        if self.monitor is not None:
-            p.extra.update(self.monitor(sol, p) or {})
+        if self.check.monitor is not None:
+            p.extra.update(self.check.monitor(sol, p) or {})
         p.name = unique_label(p.tau_d_ratio, self.taken)
         write_pulse(self.out, p, self.params)
         self.taken[p.label] = p.tau_d_ratio

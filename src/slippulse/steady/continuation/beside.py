@@ -1,0 +1,141 @@
+"""Grid checks beside the march: the checks and test functions of a family run in a second
+process while the march goes on; the pulses are written in the march's process, in order.
+
+Why: beyond 2 km a written pulse's check at 2N − 1 points and its test functions take about
+60 % of a one-core march (BENCHMARKS.md "Deep family"), and the march needs nothing from a check
+unless the check refines the grid. Then the march goes back to the refined pulse and its steps
+beyond are dropped unwritten (:meth:`~.driver.Continuation.step`). One worker process keeps the
+checks in order and holds the last check's LU (about 1 GB at 2N − 1 = 15 293) for the next
+one's warm start. A single stateful worker fed in order is a pipeline stage, not a parallel map,
+so it is a ``concurrent.futures`` process pool of one rather than the Dask executor of the
+commands that map over pulses. ``threadpoolctl`` gives each process an equal share of the BLAS
+threads at run time (an environment variable acts only before numpy loads).
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing
+import os
+import threading
+import time
+from dataclasses import replace as dc_replace
+
+import numpy as np
+
+from ..equations import SteadyProblem
+from ..solver import SteadySolution
+from .driver import Accepted
+
+def pack(sol: SteadySolution) -> tuple:
+    """A solution without its N × N Hilbert matrix and LU (rebuilt by :func:`unpack`: 1.6 s at
+    N = 7647, against 470 MB to send)."""
+    pb = sol.problem
+    return (pb.tau_d_ratio, np.asarray(pb.xi), pb.pin_index, pb.y_pin, pb.hilbert, pb.free,
+            pb.beta_fixed, pb.state_order, np.asarray(sol.x),
+            dc_replace(sol.stats, lu=None, jacobian=None), sol.wall_time, sol.passes)
+
+
+def unpack(params, packed) -> SteadySolution:
+    q, xi, k, ypin, hil, free, beta, order, x, stats, wall, passes = packed
+    prob = SteadyProblem(params, q, xi, k, ypin, hilbert=hil, free=free, beta=beta,
+                         state_order=order)
+    return SteadySolution(prob, x, stats, wall, passes)
+
+
+# ------------------------------------------------------------------ the worker process
+#: How the worker starts: forked where the platform can (it starts at once, with the parent's
+#: modules and compiled kernels, and a caller's script needs no ``__main__`` guard), else spawned.
+START = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+
+_CHECKER = None
+
+
+def _start_worker(checker, threads, parent):
+    """The worker's initializer: its checker, its BLAS threads, and an exit when the march's
+    process is gone (a killed run leaves no checker behind)."""
+    global _CHECKER
+    _CHECKER = checker
+    from threadpoolctl import threadpool_limits
+    threadpool_limits(threads)
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(0)
+    threading.Thread(target=watch, daemon=True).start()
+
+
+def _check(packed, method, extra, previous):
+    """One check in the worker: (passed, message, pulse to write, the refined solution packed
+    or None, the log lines)."""
+    lines = []
+    ch = _CHECKER
+    ch.log = lines.append
+    if ch.monitor is not None and hasattr(ch.monitor, "previous"):
+        ch.monitor.previous = previous
+    sol = unpack(ch.params, packed)
+    res, p = ch(sol, method, extra)
+    # a deep pulse comes back only when the check replaced it (the march goes back to it);
+    # natural steps go on from their own pulse whatever the check returns
+    refined = pack(res.sol) if method == "arclength" and res.sol is not sol else None
+    return res.passed, res.message, p, refined, lines
+
+
+# ------------------------------------------------------------------ the march's side
+class Pending:
+    """A pulse handed to the checks, not yet written. :meth:`result` waits for its check,
+    writes it and returns :class:`~.driver.Accepted`; :meth:`discard` drops it unwritten (the
+    march went back before it)."""
+
+    def __init__(self, writer, future, sol, previous):
+        self.writer, self.future, self.sol, self.previous = writer, future, sol, previous
+
+    def done(self) -> bool:
+        return self.future.done()
+
+    def result(self) -> Accepted:
+        passed, message, p, refined, lines = self.future.result()
+        w = self.writer
+        for line in lines:
+            if w.log:
+                w.log(line)
+        w.put(p, message)
+        sol = self.sol if refined is None else unpack(w.params, refined)
+        w.previous = (float(p.beta), float(p.tau_d_ratio))
+        return Accepted(bool(passed), sol, message)
+
+    def discard(self) -> None:
+        self.future.cancel()
+
+
+class BesideWriter:
+    """The checked writer of a family run with its :class:`~.family.Checker` in a second
+    process: a call hands the pulse over and returns a :class:`Pending` at once."""
+
+    def __init__(self, writer, threads=None):
+        self.base = writer
+        self.params, self.log = writer.params, writer.log
+        self.previous = None
+        cpus = os.cpu_count() or 1
+        share = max(1, cpus // 2) if threads is None else int(threads)
+        from threadpoolctl import threadpool_limits
+        self._limits = threadpool_limits(share)
+        checker = writer.check
+        checker.log = None
+        self.pool = cf.ProcessPoolExecutor(
+            max_workers=1, mp_context=multiprocessing.get_context(START),
+            initializer=_start_worker, initargs=(checker, share, os.getpid()))
+
+    def put(self, p, message=""):
+        self.base.put(p, message)
+
+    def __call__(self, sol, pulse, method, extra=None) -> Pending:
+        fut = self.pool.submit(_check, pack(sol), method, extra, self.previous)
+        pend = Pending(self, fut, sol, self.previous)
+        self.previous = (float(pulse.beta), float(pulse.tau_d_ratio))
+        return pend
+
+    def close(self) -> None:
+        """Stop the worker (queued checks are dropped) and give the BLAS threads back."""
+        self.pool.shutdown(wait=True, cancel_futures=True)
+        self._limits.restore_original_limits()
