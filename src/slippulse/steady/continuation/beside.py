@@ -16,6 +16,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing
 import os
+import signal
 import threading
 import time
 from dataclasses import replace as dc_replace
@@ -52,9 +53,11 @@ _CHECKER = None
 
 def _start_worker(checker, threads, parent):
     """The worker's initializer: its checker, its BLAS threads, and an exit when the march's
-    process is gone (a killed run leaves no checker behind)."""
+    process is gone (a killed run leaves no checker behind). Ctrl-C is the march's to handle
+    (it stops the worker): the worker ignores SIGINT and prints no traceback of its own."""
     global _CHECKER
     _CHECKER = checker
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     from threadpoolctl import threadpool_limits
     threadpool_limits(threads)
 
