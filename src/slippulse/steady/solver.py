@@ -51,13 +51,16 @@ class GridSpec:
 
 @dataclass
 class SteadySolution:
-    """A solved (or failed) pulse: unknowns, grid, problem and solver statistics."""
+    """A solved (or failed) pulse: unknowns, grid, problem and solver statistics; ``tangent``:
+    the family tangent at x (``free="both"``), where the continuation has it (its grid check
+    then solves none of its own)."""
 
     problem: SteadyProblem
     x: np.ndarray
     stats: SolveStats
     wall_time: float
     passes: int
+    tangent: np.ndarray | None = None
 
     @property
     def xi(self):

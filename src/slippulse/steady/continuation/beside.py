@@ -33,14 +33,15 @@ def pack(sol: SteadySolution) -> tuple:
     pb = sol.problem
     return (pb.tau_d_ratio, np.asarray(pb.xi), pb.pin_index, pb.y_pin, pb.hilbert, pb.free,
             pb.beta_fixed, pb.state_order, np.asarray(sol.x),
-            dc_replace(sol.stats, lu=None, jacobian=None), sol.wall_time, sol.passes)
+            dc_replace(sol.stats, lu=None, jacobian=None), sol.wall_time, sol.passes,
+            sol.tangent)
 
 
 def unpack(params, packed) -> SteadySolution:
-    q, xi, k, ypin, hil, free, beta, order, x, stats, wall, passes = packed
+    q, xi, k, ypin, hil, free, beta, order, x, stats, wall, passes, tangent = packed
     prob = SteadyProblem(params, q, xi, k, ypin, hilbert=hil, free=free, beta=beta,
                          state_order=order)
-    return SteadySolution(prob, x, stats, wall, passes)
+    return SteadySolution(prob, x, stats, wall, passes, tangent)
 
 
 # ------------------------------------------------------------------ the worker process

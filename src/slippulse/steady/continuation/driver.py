@@ -218,6 +218,7 @@ class Continuation:
             return None
         if self.status == "running" and self.L < self._last_written_L * (1.0 + self.spacing):
             return None                    # a continuation step, not written (spacing)
+        self.sol.tangent = self._tangent()     # the next step's, and the check's normal line
         res = self._hand(self.sol, {})
         if hasattr(res, "discard"):        # checked beside the march: on as if it passed
             self._pending.append((res, self.sol, self._step_state()))
