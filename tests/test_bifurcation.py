@@ -313,3 +313,15 @@ def test_a_sign_change_across_a_grid_change_is_decided_on_one_grid(params):
     assert sa * sb < 0
     assert across_grid_change(pa, pb, params) is None
     assert across_grid_change(pb, pa, params) is None
+    # a family run decides it when it writes the second pulse, and the report reads it
+    from slippulse.steady.bifurcation import FamilyMonitor
+    mon = FamilyMonitor(params)
+    attrs = [mon(None, p) for p in (pa, pb)]
+    assert "bif_across_grid" not in attrs[0] and attrs[1]["bif_across_grid"] == "kept"
+    rows = [ScanRow(p.label, p.tau_d_ratio, p.beta, p.L, p.n_points, 0.0,
+                    pulse_tests(p, params, (1.0, -1.0), False)[0], across=a.get("bif_across_grid"))
+            for p, a in zip((pa, pb), attrs)]
+    assert rows[0].values.bordered_sign * rows[1].values.bordered_sign < 0
+    assert not events(rows)
+    rows[1].across = None
+    assert [e.kind for e in events(rows)] == ["not comparable"]

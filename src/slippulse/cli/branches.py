@@ -54,25 +54,30 @@ def cmd_bifurcations(args) -> int:
     return 0
 
 
-def event_lines(path, params, rows, evs, locate=True) -> list[str]:
+def event_lines(path, params, rows, evs, locate=True, bridge=True) -> list[str]:
     """The lines that report the test functions' events along the pulses ``rows`` of ``path``
     (:func:`~slippulse.steady.bifurcation.events`), each fold and branch point located between
-    its two pulses when ``locate``, and the count line (folds, branch points, sign changes of
-    det B across a change of N, σ₁/σ₂ minima, the smallest σ₁)."""
+    its two pulses when ``locate``, each sign change of det B across a change of N that the
+    family run did not decide decided on one grid when ``locate`` and ``bridge``, and the count
+    line (folds, branch points, those sign changes, σ₁/σ₂ minima, the smallest σ₁)."""
     from ..core.h5io import read_pulse
     from ..steady.bifurcation import LocateError, across_grid_change, locate_between_pulses
     lines = [f"event: {e.kind} between {e.between[0]} and {e.between[1]}: {e.detail}" for e in evs]
-    decided = 0
+    kept = sum(r.across == "kept" for r in rows)     # decided when the family wrote them
+    undecided = 0
     for e in evs:
-        if locate and e.kind == "not comparable":
+        if e.kind == "not comparable" and not (locate and bridge):
+            undecided += 1
+        if locate and bridge and e.kind == "not comparable":
             pa, _ = read_pulse(path, e.between[0])
             pb, _ = read_pulse(path, e.between[1])
             try:
                 found = across_grid_change(pa, pb, params)
             except LocateError as exc:
                 lines.append(f"across the grid change {e.between}: not decided ({exc})")
+                undecided += 1
                 continue
-            decided += 1
+            kept += found is None
             lines.append(f"across the grid change {e.between}: " + (
                 f"BRANCH POINT ({found.detail})" if found else
                 "the same sign of det B on one grid: no branch point between them"))
@@ -99,9 +104,12 @@ def event_lines(path, params, rows, evs, locate=True) -> list[str]:
     sig = [r.values.sigma[0] for r in rows if r.values.sigma]
     smin = f"{min(sig):.3e}" if sig else "not computed"
     lines.append(f"{len(rows)} pulses: {count['fold']} folds (t_q sign changes), "
-                 f"{count['branch point']} branch points (det B sign changes at equal N), "
-                 f"{count['not comparable']} det B sign changes across a change of N "
-                 f"({decided} decided on one grid), {count['sigma minimum']} sigma1/sigma2 minima; smallest sigma1 = "
+                 f"{count['branch point']} branch points (det B sign changes on one grid), "
+                 f"{kept} det B sign changes across a change of N that keep the sign on one "
+                 f"grid, {undecided} not decided"
+                 + ("" if not undecided or (locate and bridge) else
+                    f" (slippulse steady bifurcations {path} --locate)")
+                 + f", {count['sigma minimum']} sigma1/sigma2 minima; smallest sigma1 = "
                  f"{smin}; the test functions have no uncertainty estimate (their signs are exact "
                  "for the discrete system)")
     return lines

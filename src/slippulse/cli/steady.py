@@ -379,7 +379,7 @@ def cmd_family(args) -> int:
     print(final_status(rep, start, stop, out))
     if os.path.exists(out):
         rows = stored_rows(out)
-        for line in event_lines(out, params, rows, events(rows)):
+        for line in event_lines(out, params, rows, events(rows), bridge=False):
             print(f"test functions: {line}")
     return 1 if rep.stopped_early else 0
 

@@ -423,6 +423,8 @@ class ScanRow:
     max_residual: float
     values: Indicators
     unstable_count: object = None   # count of real eigenvalues in (0, ∞), where a spectrum is stored
+    across: str | None = None       # a sign change of det B from the row before across a change
+                                    # of N, decided on one grid ('kept', 'changed', or why not)
 
 
 @dataclass
@@ -502,6 +504,11 @@ def events(rows):
             if a.n_points == b.n_points:
                 out.append(Event("branch point", pair,
                                  f"sign det B {va.bordered_sign:+d} -> {vb.bordered_sign:+d}"))
+            elif b.across == "kept":
+                continue                     # the same sign on one grid (FamilyMonitor)
+            elif b.across == "changed":
+                out.append(Event("branch point", pair, "sign det B changes on one grid, across "
+                                                       f"N {a.n_points} -> {b.n_points}"))
             else:
                 out.append(Event("not comparable", pair,
                                  f"sign det B {va.bordered_sign:+d} -> {vb.bordered_sign:+d} "
@@ -611,21 +618,34 @@ class FamilyMonitor:
     The tangent is oriented along the march, by the step from the previous written pulse (the
     first one: toward lower τ_d, the direction a family is continued), so that between two
     neighbours a sign change of t_q is a fold and of det B a branch point, not a flipped tangent.
-    :func:`stored_rows` reads the attributes back for :func:`events`."""
+    Where N changed since the previous pulse and sign det B with it, the pair is decided on one
+    grid at once (:func:`across_grid_change`, stored as ``bif_across_grid``: 'kept', 'changed'
+    or why it was not decided), so that no later report re-solves it. :func:`stored_rows` reads
+    the attributes back for :func:`events`."""
 
     def __init__(self, params):
         self.params = params
-        self.previous = None                  # (β, τ_d/τ_min) of the last pulse seen
+        self.previous = None                  # the last pulse seen (its bif_* attributes set)
 
     def __call__(self, sol, pulse) -> dict:
-        if self.previous is None:
+        prev = self.previous
+        if prev is None:
             orient = (0.0, -1.0)
         else:
-            b0, q0 = self.previous
-            orient = (math.log(pulse.beta / b0) * pulse.beta, pulse.tau_d_ratio - q0)
+            orient = (math.log(pulse.beta / prev.beta) * pulse.beta,
+                      pulse.tau_d_ratio - prev.tau_d_ratio)
         vals, _ = pulse_tests(pulse, self.params, orient)
-        self.previous = (float(pulse.beta), float(pulse.tau_d_ratio))
-        return indicator_attrs(vals)
+        out = indicator_attrs(vals)
+        if (prev is not None and prev.n_points != pulse.n_points
+                and int(prev.extra.get("bif_bordered_sign", 0)) * vals.bordered_sign < 0):
+            try:
+                out["bif_across_grid"] = ("changed" if across_grid_change(prev, pulse, self.params)
+                                          else "kept")
+            except LocateError as exc:
+                out["bif_across_grid"] = f"not decided: {exc}"
+        pulse.extra.update(out)
+        self.previous = pulse
+        return out
 
 
 def stored_rows(path):
@@ -645,6 +665,7 @@ def stored_rows(path):
                           float(e.get("bif_bordered_logdet", math.nan)), np.empty(0),
                           float(e["bif_t_q"]), sig, int(p.n_points))
         rows.append(ScanRow(lab, float(p.tau_d_ratio), float(p.beta), float(p.L),
-                            int(p.n_points), float(p.max_residual), vals))
+                            int(p.n_points), float(p.max_residual), vals,
+                            across=e.get("bif_across_grid")))
     rows.sort(key=lambda r: r.beta)
     return rows

@@ -71,11 +71,12 @@ def _start_worker(checker, threads, parent):
 
 def _check(packed, method, extra, previous):
     """One check in the worker: (passed, message, pulse to write, the refined solution packed
-    or None, the log lines)."""
+    or None, the log lines). ``previous``: the pulse written before this one where the march
+    went back (the worker's monitor has checked pulses since that were dropped), else None."""
     lines = []
     ch = _CHECKER
     ch.log = lines.append
-    if ch.monitor is not None and hasattr(ch.monitor, "previous"):
+    if previous is not None and ch.monitor is not None and hasattr(ch.monitor, "previous"):
         ch.monitor.previous = previous
     sol = unpack(ch.params, packed)
     res, p = ch(sol, method, extra)
@@ -91,8 +92,8 @@ class Pending:
     writes it and returns :class:`~.driver.Accepted`; :meth:`discard` drops it unwritten (the
     march went back before it)."""
 
-    def __init__(self, writer, future, sol, previous):
-        self.writer, self.future, self.sol, self.previous = writer, future, sol, previous
+    def __init__(self, writer, future, sol):
+        self.writer, self.future, self.sol = writer, future, sol
 
     def done(self) -> bool:
         return self.future.done()
@@ -104,9 +105,10 @@ class Pending:
             if w.log:
                 w.log(line)
         w.put(p, message)
-        sol = self.sol if refined is None else unpack(w.params, refined)
-        w.previous = (float(p.beta), float(p.tau_d_ratio))
-        return Accepted(bool(passed), sol, message)
+        if refined is None:
+            return Accepted(bool(passed), self.sol, message)
+        w.previous = p                 # the march goes back to it: the monitor's next neighbour
+        return Accepted(bool(passed), unpack(w.params, refined), message)
 
     def discard(self) -> None:
         self.future.cancel()
@@ -135,9 +137,8 @@ class BesideWriter:
 
     def __call__(self, sol, pulse, method, extra=None) -> Pending:
         fut = self.pool.submit(_check, pack(sol), method, extra, self.previous)
-        pend = Pending(self, fut, sol, self.previous)
-        self.previous = (float(pulse.beta), float(pulse.tau_d_ratio))
-        return pend
+        self.previous = None
+        return Pending(self, fut, sol)
 
     def close(self) -> None:
         """Stop the worker (queued checks are dropped) and give the BLAS threads back."""
