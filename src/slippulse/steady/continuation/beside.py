@@ -1,9 +1,9 @@
-"""Grid checks beside the march: the checks and test functions of a family run in a second
-process while the march goes on; the pulses are written in the march's process, in order.
+"""Grid checks beside the march: the grid checks of a family run in a second process while the
+march goes on; the test functions and the writes stay in the march's process, in order.
 
-Why: beyond 2 km a written pulse's check at 2N − 1 points and its test functions take about
-60 % of a one-core march (BENCHMARKS.md "Deep family"), and the march needs nothing from a check
-unless the check refines the grid. Then the march goes back to the refined pulse and its steps
+Why: beyond 2 km a written pulse's check at 2N − 1 points takes more than half of a one-core
+march (about 50 s of a pulse's 85 s at N = 7647, docs/steady.md "Cost"), and the march needs
+nothing from a check unless the check refines the grid. Then the march goes back to the refined pulse and its steps
 beyond are dropped unwritten (:meth:`~.driver.Continuation.step`). One worker process keeps the
 checks in order and holds the last check's LU (about 1 GB at 2N − 1 = 15 293) for the next
 one's warm start. A single stateful worker fed in order is a pipeline stage, not a parallel map,
@@ -26,6 +26,7 @@ import numpy as np
 from ..equations import SteadyProblem
 from ..solver import SteadySolution
 from .driver import Accepted
+
 
 def pack(sol: SteadySolution) -> tuple:
     """A solution without its N × N Hilbert matrix and LU (rebuilt by :func:`unpack`: 1.6 s at
@@ -120,9 +121,9 @@ class Pending:
 class BesideWriter:
     """The checked writer of a family run with its :class:`~.family.Checker` in a second
     process: a call hands the pulse over and returns a :class:`Pending` at once. The monitor
-    (the test functions) stays in the march's process, on the pulse handed: a check and the
-    march each take about half of a written pulse's work that way (at N = 7647 about 25 s of
-    checking against 18 s of steps and 15 s of test functions per pulse)."""
+    (the test functions) stays in the march's process, on the pulse handed, to share a written
+    pulse's work more evenly (at N = 7647, one core each: 34–73 s of checking against two
+    steps of 8–9 s and 15 s of test functions)."""
 
     def __init__(self, writer, threads=None):
         self.base = writer
