@@ -14,7 +14,7 @@ import numpy as np
 
 from ..equations import SteadyProblem
 from ..measures import pulse_length
-from ..newton import KrylovLU, SolveStats, lu_factor, lu_solve
+from ..newton import KrylovLU, SolveStats
 from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess
 from .arclength import (ArclengthProblem, family_tangent, tangent_by_refinement, tangent_matrix,
                         unit_tangent)
@@ -551,14 +551,7 @@ class Continuation:
                                  self.kappa)
         self._jac = None
         if n is None:
-            # [J; c] factored here: with a Krylov corrector its LU, of this very pulse, is the
-            # one the next step's corrector starts from
-            lu = lu_factor(tangent_matrix(base, x, self._orient), overwrite_a=True)
-            e = np.zeros(x.size)
-            e[-1] = 1.0
-            n = unit_tangent(lu_solve(lu, e), self.beta, self.kappa)
-            if self._krylov():
-                self._lu = lu
+            n = family_tangent(base, x, self._orient)
         self._n = n
         return n
 
