@@ -123,7 +123,7 @@ class BesideWriter:
     process: a call hands the pulse over and returns a :class:`Pending` at once. The monitor
     (the test functions) stays in the march's process, on the pulse handed, to share a written
     pulse's work more evenly (at N = 7647, one core each: 34–73 s of checking against two
-    steps of 8–9 s and 15 s of test functions)."""
+    steps of 17 s and 15 s of test functions)."""
 
     def __init__(self, writer, threads=None):
         self.base = writer
