@@ -641,10 +641,10 @@ def _add_family(ss) -> None:
                         "grid, by the deep march's pseudo-arclength steps toward --to (above or "
                         "below its tau_d, through folds), into a new --out")
     p.add_argument("--checks", default=DEFAULT_CHECKS, metavar="{inline,beside}",
-                   help="where the grid checks and test functions run: 'beside', in a second "
-                        "process while the march goes on (the march goes back where a check "
-                        "refines the grid; the same pulses), or 'inline', each before the next "
-                        f"step (default here: {DEFAULT_CHECKS}, 'beside' on two or more cores)")
+                   help="where the grid checks run: 'beside', in a second process while the "
+                        "march goes on (the march goes back where a check refines the grid; "
+                        "the same pulses), or 'inline', each before the next step (default "
+                        f"here: {DEFAULT_CHECKS}; 'beside' on two or more cores)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_family)

@@ -45,9 +45,9 @@ class FamilyRun:
     the last written one (0: every one; the last always); default :data:`SPACING`.
     check : False: write the pulses unchecked (for a walk whose pulses only guide a solve, as
     ``steady solve`` below 1.2; such a file is refused on resume by a checked run).
-    checks : where the grid checks and the monitor run: "inline" (in the march's process, each
-    before the next step) or "beside" (a second process while the march goes on,
-    :mod:`~.beside`; the same pulses, to the solver's tolerance).
+    checks : where the grid checks run: "inline" (in the march's process, each before the next
+    step) or "beside" (a second process while the march goes on, :mod:`~.beside`; the monitor
+    stays with the march; the same pulses, to the solver's tolerance).
     """
     start: float = 1.2
     stop: float = 1.015
@@ -387,7 +387,7 @@ def _check_args(params, out, tol, n_max, deep_points, max_length, spacing, check
                                  f"another --out")
 
 
-#: Where the grid checks and the monitor run (:attr:`FamilyRun.checks`).
+#: Where the grid checks run (:attr:`FamilyRun.checks`).
 CHECKS = ("inline", "beside")
 
 #: After a grid check whose plain Newton re-solve crept (and the homotopy finished it), this many
