@@ -238,10 +238,12 @@ class Continuation:
             if not self._collect():
                 return self.status
 
-    #: What the step control has learnt by a pulse (:meth:`_collect` restores it when the march
-    #: goes back to that pulse, so that the march goes on as if it had waited for its check).
+    #: What the march has learnt by a pulse (:meth:`_collect` restores it when the march goes back
+    #: to that pulse, so that it goes on as if it had waited for its check): the step control,
+    #: the tangent's orientation and the LU in hand (a Krylov corrector's next steps, and so the
+    #: step control, depend on which LU preconditions them).
     STEP_STATE = ("ds", "_rate", "tangent", "fold", "held", "cap", "_at_cap", "_tangent_failed",
-                  "last_predictor")
+                  "last_predictor", "_orient", "_lu")
 
     def _step_state(self) -> dict:
         return {k: getattr(self, k) for k in self.STEP_STATE}
