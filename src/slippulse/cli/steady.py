@@ -20,8 +20,11 @@ from ..steady.solver import MAX_POINTS, check_points, solve_pulse
 from ..core.executor import add_executor_options
 from ..steady.continuation.family import SPACING
 
-#: steady family's --checks default: beside the march where a second core is there to run them.
-DEFAULT_CHECKS = "beside" if (os.cpu_count() or 1) >= 2 else "inline"
+#: steady family's --checks default: inline. Beside the march the checks give the inline march's
+#: pulses on the tests' families and to 2.5 km, but from scratch past 2.5 km the march took
+#: another path (held and recentred on a step that a check then replaced; then never held, and
+#: its checks failed from 2.96 km), not yet understood (docs/steady.md "Checks beside the march").
+DEFAULT_CHECKS = "inline"
 from ..steady.continuation.strategy import AUTO
 
 
@@ -642,9 +645,10 @@ def _add_family(ss) -> None:
                         "below its tau_d, through folds), into a new --out")
     p.add_argument("--checks", default=DEFAULT_CHECKS, metavar="{inline,beside}",
                    help="where the grid checks run: 'beside', in a second process while the "
-                        "march goes on (the march goes back where a check refines the grid; "
-                        "the same pulses), or 'inline', each before the next step (default "
-                        f"here: {DEFAULT_CHECKS}; 'beside' on two or more cores)")
+                        "march goes on (the march goes back where a check refines the grid), "
+                        "or 'inline', each before the next step (default "
+                        f"{DEFAULT_CHECKS}; 'beside' is faster on two cores but, from scratch, "
+                        "its march has gone another way than inline past 2.5 km)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_family)
