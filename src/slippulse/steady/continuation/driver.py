@@ -24,6 +24,12 @@ from .strategy import AUTO, ShrinkSteps, Strategy, TargetSteps
 from .stretch import stretch_grid, stretch_profile
 
 
+#: The march runs at most this many written pulses ahead of checks beside it: beyond, it waits
+#: for the oldest (the checks are the slower stage; a longer lead is only lost where a check
+#: replaces its pulse).
+LEAD = 2
+
+
 @dataclass
 class Accepted:
     """What ``on_accept`` returns for a pulse it wrote: whether it passed (its grid check), and
@@ -73,8 +79,8 @@ class Continuation:
         driver's attributes for the pulse (strategy, step control state, relay figures). The
         march goes on from the returned pulse when it passed. A pending result (with ``done``,
         ``result`` and ``discard``, :class:`~.beside.Pending`: the check runs beside the march)
-        is collected in order, up to ``lead`` pulses behind the march; where it brings a refined
-        pulse the march goes back to it.
+        is collected in order, up to :data:`LEAD` pulses behind the march; where it brings a
+        refined pulse the march goes back to it.
     log : callable(str), optional; one line per relay or recentring.
 
     Attributes
@@ -97,7 +103,7 @@ class Continuation:
 
     def __init__(self, params, start, strategy: Strategy = AUTO, spec=GridSpec(),
                  stop=-math.inf, max_length=math.inf, spacing=0.0, on_attempt=None,
-                 on_accept=None, log=None, targets=(), beta_cap=math.inf, lead=2):
+                 on_accept=None, log=None, targets=(), beta_cap=math.inf):
         if not isinstance(strategy, Strategy):
             raise TypeError(f"strategy={strategy!r}: must be a Strategy")
         self.params, self.spec, self.strategy = params, spec, strategy
@@ -107,9 +113,9 @@ class Continuation:
         self.n_steps = self.n_attempts = self.n_failed = self.n_iterations = 0
         self.n_relays = self.n_recentred = self.n_written = 0
         # pulses handed to checks beside the march, not yet written: (Pending, the pulse handed
-        # or None for natural steps, which never go back); lead: how many the march may run ahead
+        # or None for natural steps, which never go back, what the march had learnt by it)
         self._pending = []
-        self.lead = lead
+        self.lead = LEAD
         if strategy.parameter != "arclength":
             self._start_natural(start, targets, beta_cap)
             return
