@@ -21,9 +21,9 @@ from ..core.executor import add_executor_options
 from ..steady.continuation.family import SPACING
 
 #: steady family's --checks default: inline. Beside the march the checks give the inline march's
-#: pulses on the tests' families and to 2.5 km, but from scratch past 2.5 km the march took
-#: another path (held and recentred on a step that a check then replaced; then never held, and
-#: its checks failed from 2.96 km), not yet understood (docs/steady.md "Checks beside the march").
+#: pulses (tests; from scratch to 2.71 km), but its one long run from scratch failed its checks
+#: from 2.96 km, where the continuous inline march was not run (the inline record was resumed at
+#: 2.71 km): docs/steady.md "Checks beside the march".
 DEFAULT_CHECKS = "inline"
 from ..steady.continuation.strategy import AUTO
 
@@ -647,8 +647,8 @@ def _add_family(ss) -> None:
                    help="where the grid checks run: 'beside', in a second process while the "
                         "march goes on (the march goes back where a check refines the grid), "
                         "or 'inline', each before the next step (default "
-                        f"{DEFAULT_CHECKS}; 'beside' is faster on two cores but, from scratch, "
-                        "its march has gone another way than inline past 2.5 km)")
+                        f"{DEFAULT_CHECKS}; 'beside' is faster on two cores, but its one long "
+                        "run from scratch failed its checks from 2.96 km)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_family)
