@@ -300,7 +300,7 @@ def _pulse(params, q):
     return solve_pulse(params, q, n_points=700).to_pulse()
 
 
-def test_a_sign_change_across_a_grid_change_is_decided_on_one_grid(params):
+def test_a_sign_change_across_a_grid_change_is_decided_on_one_grid(params, tmp_path):
     """Neighbours on grids of 500 and 601 points: their own det B signs differ (the sign is a
     property of one discrete system), yet re-solved on one grid they agree: no branch point."""
     from slippulse.steady.bifurcation import across_grid_change
@@ -325,3 +325,16 @@ def test_a_sign_change_across_a_grid_change_is_decided_on_one_grid(params):
     assert not events(rows)
     rows[1].across = None
     assert [e.kind for e in events(rows)] == ["not comparable"]
+    # the command: a file written without the family's decision leaves the pair undecided and
+    # names --locate, which decides it
+    import cli_inproc
+    from slippulse.core.h5io import write_pulse
+    path = str(tmp_path / "two.h5")
+    for p in (pa, pb):
+        p.extra.pop("bif_across_grid", None)
+        write_pulse(path, p, params)
+    r = cli_inproc.run(["steady", "bifurcations", path, "-q"])
+    assert r.returncode == 0 and "1 not decided" in r.stdout and "--locate" in r.stdout
+    r = cli_inproc.run(["steady", "bifurcations", path, "--locate", "-q"])
+    assert r.returncode == 0 and "0 not decided" in r.stdout
+    assert "1 det B sign changes across a change of N that keep the sign" in r.stdout

@@ -65,30 +65,30 @@ def event_lines(path, params, rows, evs, locate=True, bridge=True) -> list[str]:
     lines = [f"event: {e.kind} between {e.between[0]} and {e.between[1]}: {e.detail}" for e in evs]
     kept = sum(r.across == "kept" for r in rows)     # decided when the family wrote them
     undecided = 0
+    found = []                                       # branch points found across a grid change
     for e in evs:
-        if e.kind == "not comparable" and not (locate and bridge):
-            undecided += 1
-        if locate and bridge and e.kind == "not comparable":
-            pa, _ = read_pulse(path, e.between[0])
-            pb, _ = read_pulse(path, e.between[1])
+        if e.kind == "not comparable":
+            if not (locate and bridge):
+                undecided += 1
+                continue
+        elif not locate or e.kind not in ("fold", "branch point"):
+            continue
+        pa, _ = read_pulse(path, e.between[0])
+        pb, _ = read_pulse(path, e.between[1])
+        if e.kind == "not comparable":
             try:
-                found = across_grid_change(pa, pb, params)
+                bp = across_grid_change(pa, pb, params)
             except LocateError as exc:
                 lines.append(f"across the grid change {e.between}: not decided ({exc})")
                 undecided += 1
                 continue
-            kept += found is None
             lines.append(f"across the grid change {e.between}: " + (
-                f"BRANCH POINT ({found.detail})" if found else
+                f"BRANCH POINT ({bp.detail})" if bp else
                 "the same sign of det B on one grid: no branch point between them"))
-            if not found:
+            if bp is None:
+                kept += 1
                 continue
-            evs = evs + [found]
-        elif not locate or e.kind not in ("fold", "branch point"):
-            continue
-        else:
-            pa, _ = read_pulse(path, e.between[0])
-            pb, _ = read_pulse(path, e.between[1])
+            found.append(bp)
         if pa.n_points < pb.n_points:              # locate on the finer grid
             pa, pb = pb, pa
         try:
@@ -99,7 +99,7 @@ def event_lines(path, params, rows, evs, locate=True, bridge=True) -> list[str]:
                          f"{'' if b.converged else ', NOT CONVERGED: bracket still open, best point shown'})")
         except LocateError as exc:
             lines.append(f"located: {e.kind} between {e.between}: not located ({exc})")
-    count = {k: sum(e.kind == k for e in evs)
+    count = {k: sum(e.kind == k for e in evs + found)
              for k in ("fold", "branch point", "not comparable", "sigma minimum")}
     sig = [r.values.sigma[0] for r in rows if r.values.sigma]
     smin = f"{min(sig):.3e}" if sig else "not computed"

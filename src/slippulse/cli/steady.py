@@ -19,13 +19,13 @@ from .paramargs import add_params_args, check_files, params_for_output
 from ..steady.solver import MAX_POINTS, check_points, solve_pulse
 from ..core.executor import add_executor_options
 from ..steady.continuation.family import SPACING
+from ..steady.continuation.strategy import AUTO
 
 #: steady family's --checks default: inline. Beside the march the checks give the inline march's
 #: pulses (tests; from scratch to 2.71 km), but its one long run from scratch failed its checks
 #: from 2.96 km, where the continuous inline march was not run (the inline record was resumed at
 #: 2.71 km): docs/steady.md "Checks beside the march".
 DEFAULT_CHECKS = "inline"
-from ..steady.continuation.strategy import AUTO
 
 
 def summary_line(pulse, params) -> str:
@@ -295,10 +295,8 @@ def family_run_args(args, params) -> dict:
 
 def _checks(args) -> str:
     """--checks, checked: where the grid checks run (FamilyRun.checks)."""
-    from ..steady.continuation.family import CHECKS
-    if args.checks not in CHECKS:
-        raise ParameterError(f"checks={args.checks!r} is invalid: must be one of "
-                             f"{', '.join(CHECKS)}")
+    from ..steady.continuation.family import check_checks
+    check_checks(args.checks)
     return args.checks
 
 

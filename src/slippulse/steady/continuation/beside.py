@@ -3,10 +3,10 @@ march goes on; the test functions and the writes stay in the march's process, in
 
 Why: beyond 2 km a written pulse's check at 2N − 1 points takes more than half of a one-core
 march (about 50 s of a pulse's 85 s at N = 7647, docs/steady.md "Cost"), and the march needs
-nothing from a check unless the check refines the grid. Then the march goes back to the refined pulse and its steps
-beyond are dropped unwritten (:meth:`~.driver.Continuation.step`). One worker process keeps the
-checks in order and holds the last check's LU (about 1 GB at 2N − 1 = 15 293) for the next
-one's warm start. A single stateful worker fed in order is a pipeline stage, not a parallel map,
+nothing from a check unless the check refines the grid. Then the march goes back to the refined
+pulse and its steps beyond are dropped unwritten (:meth:`~.driver.Continuation.step`). One
+worker process keeps the checks in order and holds the last check's LU (about 1 GB at
+2N − 1 = 15 293) for the next one's warm start. A single stateful worker fed in order is a pipeline stage, not a parallel map,
 so it is a ``concurrent.futures`` process pool of one rather than the Dask executor of the
 commands that map over pulses. ``threadpoolctl`` gives each process an equal share of the BLAS
 threads at run time (an environment variable acts only before numpy loads).

@@ -115,7 +115,6 @@ class Continuation:
         # pulses handed to checks beside the march, not yet written: (Pending, the pulse handed
         # or None for natural steps, which never go back, what the march had learnt by it)
         self._pending = []
-        self.lead = LEAD
         if strategy.parameter != "arclength":
             self._start_natural(start, targets, beta_cap)
             return
@@ -215,7 +214,7 @@ class Continuation:
         if not self._started:
             self._started = True
             self.recentre_front()
-        if self._collect(upto=self.lead - 1):
+        if self._collect(upto=LEAD - 1):
             return None                    # a check refined the grid: on from its pulse
         if self.advance() is not None:
             # the corrector stalled at ds_min: refine the healing front and go on from there
@@ -256,9 +255,9 @@ class Continuation:
 
     def _collect(self, upto: int = 0) -> bool:
         """Write the pulses whose checks beside the march are done, in order, waiting while more
-        than ``upto`` are pending. Where a check refined the grid (its pulse is not the one handed), the march goes
-        back to that pulse and the pulses handed after it are dropped unwritten. Returns whether
-        the march went back."""
+        than ``upto`` are pending. Where a check refined the grid (its pulse is not the one
+        handed), the march goes back to that pulse and the pulses handed after it are dropped
+        unwritten. Returns whether the march went back."""
         while self._pending:
             pend, handed, state = self._pending[0]
             if len(self._pending) <= upto and not pend.done():
@@ -321,7 +320,7 @@ class Continuation:
             res = self._hand(self.sol, {})
             if hasattr(res, "discard"):
                 self._pending.append((res, None, None))
-                self._collect(upto=self.lead - 1)
+                self._collect(upto=LEAD - 1)
         return self.message if self.status == "failed" else None
 
     def _points(self):

@@ -104,9 +104,7 @@ def run_family(params: Parameters, out: str, run: FamilyRun = FamilyRun(), *, or
         check_family_args(params, run.start, run.stop, run.step)
     _check_args(params, out, run.tolerance, run.n_max, run.deep_points, run.max_length,
                 run.spacing, run.check)
-    if run.checks not in CHECKS or (run.checks == "beside" and not run.check):
-        raise ParameterError(f"checks={run.checks!r} is invalid: must be one of {CHECKS}"
-                             + ("" if run.check else "; 'beside' needs the grid checks on"))
+    check_checks(run.checks, run.check)
     runner = _Runner(params, out, run, progress, log, monitor)
     try:
         if origin is not None:
@@ -389,6 +387,14 @@ def _check_args(params, out, tol, n_max, deep_points, max_length, spacing, check
 
 #: Where the grid checks run (:attr:`FamilyRun.checks`).
 CHECKS = ("inline", "beside")
+
+
+def check_checks(checks, check=True) -> None:
+    """Bad :attr:`FamilyRun.checks` as ParameterError: not one of :data:`CHECKS`, or 'beside'
+    without grid checks."""
+    if checks not in CHECKS or (checks == "beside" and not check):
+        raise ParameterError(f"checks={checks!r} is invalid: must be one of {', '.join(CHECKS)}"
+                             + ("" if check else "; 'beside' needs the grid checks on"))
 
 #: After a grid check whose plain Newton re-solve crept (and the homotopy finished it), this many
 #: checks start with the homotopy before plain Newton is tried again (beyond ≈ 5 km every plain

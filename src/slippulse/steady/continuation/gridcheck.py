@@ -123,7 +123,7 @@ def _coarse_tangent(sol: SteadySolution):
     """The unit tangent of :func:`normal_line` at ``sol``: the continuation's (``sol.tangent``,
     oriented and scaled here), else :func:`family_tangent`, solved once per pulse (the same
     problem object and the same unknowns, bit for bit). The continuation's comes from the LU it
-    keeps (to 1e−11), where a solve here is a dense LU at N (14 s at N = 7647 on one core)."""
+    keeps (to 1e−11), where a solve here is a dense LU at N (6.8 s at N = 7647 on one core)."""
     prob, x = sol.problem, np.asarray(sol.x)
     t = sol.tangent
     if t is not None and t.shape == x.shape:
