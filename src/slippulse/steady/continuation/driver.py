@@ -22,6 +22,7 @@ from .natural import PulseOnGrid, judge_pulse, solve_between, tangent_step
 from .relay import recentre, refine_front, zone_offset
 from .strategy import AUTO, ShrinkSteps, Strategy, TargetSteps
 from .stretch import stretch_grid, stretch_profile
+from .tolerance import GRID_TOLERANCE, RESOLVE_CHANGE
 
 
 #: The march runs at most this many written pulses ahead of checks beside it: beyond, it waits
@@ -500,13 +501,13 @@ class Continuation:
         return True
 
     def recentre_front(self) -> bool:
-        """Once held: where the finest cells of the healing-front zone lie more than
-        ``recentre`` · L from its steep drop, move the zone back onto it and go on from the
-        re-solved pulse (:func:`~.relay.recentre`); a re-solve that does not converge leaves the
-        march as it was. Returns whether the grid moved."""
+        """Where the finest cells of the healing-front zone lie more than ``recentre`` · L from
+        its steep drop, move the zone back onto it and go on from the re-solved pulse
+        (:func:`~.relay.recentre`). A re-solve that does not converge, or that moves β or L at
+        fixed τ_d by more than :data:`~.tolerance.RESOLVE_CHANGE` times the grid tolerance (it
+        found another solution), leaves the march as it was. Returns whether the grid moved."""
         g = self.strategy.grid
-        if not (self.strategy.stretch and g.recentre > 0 and self.held
-                and self.status == "running"):
+        if not (self.strategy.stretch and g.recentre > 0 and self.status == "running"):
             return False
         try:
             offset = zone_offset(self.params, self.sol, g.back_zone)
@@ -514,8 +515,11 @@ class Continuation:
             return False
         if not abs(offset[0]) > g.recentre * self.L:
             return False
-        new, _, _, _, msg = recentre(self.params, self.sol, g.front_zone, g.back_zone,
-                                     offset=offset)
+        new, dbeta, dL_rel, _, msg = recentre(self.params, self.sol, g.front_zone, g.back_zone,
+                                              offset=offset)
+        tol = RESOLVE_CHANGE * GRID_TOLERANCE.beta, RESOLVE_CHANGE * GRID_TOLERANCE.L
+        if new is not None and not (abs(dbeta) <= tol[0] and abs(dL_rel) <= tol[1]):
+            new, msg = None, f"{msg}: refused, more than {RESOLVE_CHANGE:g} x the grid tolerance"
         self._told(float(self.sol.x[-1]), new, msg)
         if new is None:
             return False

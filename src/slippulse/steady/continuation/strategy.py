@@ -359,10 +359,11 @@ class StretchGrid:
         cells of its healing front's steep drop split into 2**relay_levels
         (:func:`~.relay.refine_front`), check and write it, and go on from it; at most ``relay``
         times a run, never twice without an accepted step between (0: off).
-    recentre : once the steps are held, after every written pulse that passed its check, move the
-        healing-front zone back onto the steep drop when they lie more than ``recentre`` · L apart
+    recentre : after every written pulse that passed its check, move the healing-front zone back
+        onto the steep drop when they lie more than ``recentre`` · L apart
         (:func:`~.relay.recentre`): each step moves the zone by the predicted change of L, and the
-        drop wanders off the cells laid out for it (0: off).
+        drop wanders off the cells laid out for it, whatever the step control (measured without
+        it from scratch: 2 % of L ahead by 2.3 km, the checks failing from 2.96 km) (0: off).
     """
 
     front_zone: float = 0.01
@@ -418,7 +419,6 @@ class Strategy:
       :class:`StretchGrid`;
     * :class:`HeldSteps` caps ds where the length or secant predictor acts, on a stretched grid:
       it needs both, and a ds_min below that cap (the predictor's ds_max);
-    * ``recentre`` acts once the steps are held: it needs :class:`HeldSteps` (or 0);
     * the natural predictor steps τ_d to round targets (:class:`TargetSteps`) or β toward 1
       (:class:`ShrinkSteps`) on adapted grids (:class:`AdaptGrid`), and only it does.
     """
@@ -464,9 +464,6 @@ class Strategy:
                 raise StrategyError(f"steps=held: ds_min={self.steps.ds_min:g} must be below the "
                                     f"cap it holds ds at, the {self.predictor.name} predictor's "
                                     f"ds_max={self.predictor.ds_max:g}")
-        elif stretch and self.grid.recentre > 0:
-            raise StrategyError(f"stretch: recentre={self.grid.recentre} acts once the steps are "
-                                f"held: it needs steps=HeldSteps() (or recentre=0)")
 
     @property
     def parameter(self) -> str:

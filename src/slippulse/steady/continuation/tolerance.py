@@ -32,3 +32,9 @@ class GridTolerance:
 #: The family's criterion: β within 1e-5, L within 1e-4 between N and 2N − 1.
 GRID_TOLERANCE = GridTolerance()
 
+#: A pulse re-solved on its grid re-laid (the healing-front zone recentred) is the same pulse:
+#: it may move β and L at fixed τ_d by at most this many times :data:`GRID_TOLERANCE`. More
+#: means the re-solve found another solution (measured: a 46 m move at 2.50 km that changed L
+#: by 8 %), and the march keeps its pulse.
+RESOLVE_CHANGE = 10.0
+
