@@ -220,11 +220,14 @@ def test_auto_family_goes_deep_checks_every_pulse_and_stops_at_max_length(params
 
 
 @pytest.mark.slow
-def test_family_kill9_then_rerun_resumes_with_file_intact(tmp_path):
-    """kill -9 in the middle of the family command; the file stays readable, every pulse in it
-    grid-checked; the same command again resumes (does not redo the pulses) and finishes."""
+@pytest.mark.parametrize("checks", ["beside", "inline"])
+def test_family_kill9_then_rerun_resumes_with_file_intact(tmp_path, checks):
+    """kill -9 in the middle of the family command (checks beside the march, the default, or
+    inline); the file stays readable, every pulse in it grid-checked; the same command again
+    resumes (does not redo the pulses) and finishes."""
     out = str(tmp_path / "f.h5")
-    args = ["--from", "1.2", "--to", "1.185", "--points", "1000", "--out", out, "-q"]
+    args = ["--from", "1.2", "--to", "1.185", "--points", "1000", "--out", out, "-q",
+            "--checks", checks]
     proc = subprocess.Popen([sys.executable, "-m", "slippulse.cli", "steady", "family", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     t0 = time.time()
