@@ -1,6 +1,7 @@
 """Deflated Newton (steady/deflation.py), the search for every pulse at one τ_d
 (steady/branch_search.py) and its command ``slippulse steady branches``."""
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -172,3 +173,35 @@ def test_cli_branch_trace_writes_each_point_and_refuses_bad_input(tmp_path, para
                             "--out", o2, "-q"])
         assert r.returncode == 2 and name in r.stderr and not o2.exists(), r.stderr
         assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_another_branch_is_continued_at_its_own_hump_count(tmp_path, params):
+    """``steady family --from-pulse`` on the two-hump pulse: the march accepts the steps that keep
+    its two humps (the branch it continues, ``Continuation.humps``), where the main family's
+    one-hump rule refuses them."""
+    from slippulse.steady.branch_search import GUESS_SETS, search
+    rep = search(params, 1.2, GUESS_SETS["quick"](), n_points=500, check=False)
+    two = [f.pulse for f in rep.found if f.pulse.extra["n_humps"] == 2]
+    assert len(two) == 1
+    src, out = str(tmp_path / "two.h5"), tmp_path / "up.h5"
+    write_pulse(src, two[0], params)
+    r = cli_inproc.run(["steady", "family", "--from-pulse", f"{src}:{two[0].label}", "--to",
+                        "1.23", "--spacing", "0", "--checks", "inline", "--out", out, "-q"])
+    assert r.returncode == 0, r.stderr
+    pulses = [read_pulse(str(out), lab)[0] for lab in list_pulses(str(out))]
+    assert pulses
+    assert all(p.extra["n_humps"] == 2 and p.extra["grid_check_passed"] for p in pulses)
+    assert max(p.tau_d_ratio for p in pulses) >= 1.23
+    # along the two-hump branch upward β falls (0.00549 at 1.2; the family's 0.00724 there)
+    top = max(pulses, key=lambda p: p.tau_d_ratio)
+    assert top.beta < two[0].beta < 0.006
+    # the rule itself: a two-hump solve is refused where the branch has one hump
+
+    class Solved:                       # judge_pulse reads to_pulse() and stats.message
+        stats = SimpleNamespace(message="converged")
+
+        def to_pulse(self):
+            return two[0]
+    from slippulse.steady.continuation import judge_pulse
+    assert judge_pulse(Solved(), 2)[1] and not judge_pulse(Solved())[1]
+    assert "2-hump" in judge_pulse(Solved())[2]

@@ -15,7 +15,7 @@ import numpy as np
 from ..equations import SteadyProblem
 from ..measures import pulse_length
 from ..newton import KrylovLU, SolveStats
-from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess
+from ..solver import GridSpec, SteadySolution, count_humps, front_pin, regrid_guess
 from .arclength import (ArclengthProblem, family_tangent, tangent_by_refinement, tangent_matrix,
                         unit_tangent)
 from .natural import PulseOnGrid, judge_pulse, solve_between, tangent_step
@@ -97,6 +97,8 @@ class Continuation:
     n_steps, n_attempts, n_failed, n_iterations, n_relays, n_recentred, n_written : counters.
     last_predictor : "tangent", "length", "secant" or "natural", the predictor of the last
         attempt.
+    humps : the hump count of the start pulse: a step is accepted only at that count
+        (:func:`~.natural.judge_pulse`; the main family's one, another branch's its own).
     current, targets, h, shrink : natural steps: the current pulse on its grid, the targets not
         yet reached, the next τ_d step, the β steps' factor.
 
@@ -141,6 +143,7 @@ class Continuation:
         self.L = self._L_grid = pulse_length(base.xi, np.exp(x[:-2]), params.v_star,
                                              crossings=False)
         self.sol = SteadySolution(base, x, SolveStats(True, "start", 0, 0.0), 0.0, 0)
+        self.humps = max(1, count_humps(np.exp(x[:-2])))     # the branch's (judge_pulse)
         self.tangent = (math.nan, math.nan)
         self.fold = None
         self.last_predictor = "tangent"
@@ -290,6 +293,7 @@ class Continuation:
         else:
             xi, y, beta, q = start
             self.sol, current = None, PulseOnGrid(xi, np.asarray(y, float), beta, q)
+        self.humps = max(1, count_humps(np.exp(current.y)))    # the branch's (judge_pulse)
         self.targets = [float(t) for t in targets]
         if not self.targets:
             raise ValueError("natural steps need targets (tau_d/tau_min values to reach)")
@@ -356,7 +360,7 @@ class Continuation:
             sol, new = tangent_step(self.params, self.current, trial, "tau_d", self._points(),
                                     self.spec, regrid=grid.regrid,
                                     corrector=self.strategy.corrector)
-            pulse, ok, msg = judge_pulse(sol)
+            pulse, ok, msg = judge_pulse(sol, self.humps)
             self._tried_natural(trial, sol, pulse if ok else None, msg)
             if not ok:
                 self.h *= 0.5
@@ -430,12 +434,12 @@ class Continuation:
         n = self._points()
         sol, new = tangent_step(self.params, PulseOnGrid.of(below, math.inf), target, "tau_d", n,
                                 self.spec, regrid=math.inf, corrector=st.landing)
-        pulse, ok, msg = judge_pulse(sol)
+        pulse, ok, msg = judge_pulse(sol, self.humps)
         self._tried_natural(target, sol, pulse if ok else None, msg)
         if not ok:
             sol = solve_between(self.params, self.current, below, target, n, self.spec,
                                 max_iter=st.landing.max_iter)
-            pulse, ok, msg = judge_pulse(sol)
+            pulse, ok, msg = judge_pulse(sol, self.humps)
             self._tried_natural(target, sol, pulse if ok else None, msg)
             new = PulseOnGrid.of(sol, pulse.L)
         if not ok:
@@ -646,7 +650,7 @@ class Continuation:
             st.lu = st.jacobian = None
             ok, msg, its = st.converged, st.message, st.iterations
             self.n_iterations += its
-            if ok and not judge_pulse(new)[1]:
+            if ok and not judge_pulse(new, self.humps)[1]:
                 ok, msg = False, "converged to a multi-hump solution: rejected"
         msg = f"arclength step ds={ds:.3g} (N={n_cur}, {its} it.) to beta~{bp:.6f}: {msg}"
         return ok, new, msg, (t_a, t_Q), qp

@@ -131,11 +131,12 @@ def solve_at_beta(params, guess, q_guess, beta, n_points, spec=GridSpec(), max_i
     return SteadySolution(prob, x, st, time.perf_counter() - t0, 1)
 
 
-def judge_pulse(sol):
-    """(pulse, ok, message): a solve is accepted when it converged to a single-hump pulse (a
-    step can converge to a solution with ripples behind the peak, another branch)."""
+def judge_pulse(sol, humps=1):
+    """(pulse, ok, message): a solve is accepted when it converged to a pulse of ``humps``
+    humps, the count of the branch it continues (the main family's: one); a step can converge to
+    a solution with ripples behind the peak, another branch."""
     pulse = sol.to_pulse()
-    ok = pulse.converged and pulse.extra["n_humps"] == 1
+    ok = pulse.converged and pulse.extra["n_humps"] == humps
     msg = sol.stats.message
     if pulse.converged and not ok:
         msg = f"converged to a {pulse.extra['n_humps']}-hump solution: rejected"
