@@ -419,6 +419,32 @@ def test_solve_robust_falls_back_on_the_residual_homotopy():
     assert not st.converged and "homotopy stage" in st.message
 
 
+class _Banded:
+    """x − 2 = 0 with x in (0.2, 1.8) invalid: plain Newton from 0 jumps the band in one step;
+    the homotopy's first stage, x = 0.25, lies inside it and cannot be reached."""
+
+    def valid(self, x):
+        return not 0.2 < x[0] < 1.8
+
+    def residual(self, x):                  # (y, β, q)-shaped: two more unknowns, at 1
+        return np.array([x[0] - 2.0, x[1] - 1.0, x[2] - 1.0])
+
+    def residual_and_jacobian(self, x):
+        return self.residual(x), np.eye(3)
+
+
+def test_a_homotopy_tried_first_gives_way_to_plain_newton():
+    """``solve_robust(plain=False)`` (the homotopy first, as the deep checks do after one crept):
+    where the homotopy fails, plain Newton runs after it and its result is returned; where both
+    fail the message names both."""
+    from slippulse.steady.continuation import solve_robust
+    x, st = solve_robust(_Banded(), np.array([0.0, 1.0, 1.0]), stages=8, max_iter=3, plain=False)
+    assert st.converged and x[0] == 2.0 and st.homotopy
+    x, st = solve_robust(_Cubic(), np.array([0.0, 0.0]), stages=2, max_iter=1, plain=False)
+    assert not st.converged
+    assert "homotopy stage" in st.message and "then plain Newton" in st.message
+
+
 class _Slow(_Cubic):
     """The cubic with a Jacobian 10 times too large: every full Newton step is a tenth of the
     right one, so max|r| falls by ≈ 10 % per iteration (a creeping iteration)."""

@@ -48,7 +48,8 @@ def solve_robust(problem, x0, stages=8, max_iter=15, tol=NEWTON_TOL, reuse=False
     at the call. ``plain=False``: no plain solve, the homotopy from the start (for a caller that
     has just seen a similar problem need it: the grid checks of a deep march, where beyond
     5.3 km every check's plain solve crept for 5 iterations of a 7085-point LU, 39 s, before the
-    homotopy took over). ``linear``: every Newton solve's linear solve (:func:`newton`); one
+    homotopy took over); where that homotopy fails, plain Newton runs after it (to ``max_iter``).
+    ``linear``: every Newton solve's linear solve (:func:`newton`); one
     that solves on an earlier LU (:class:`~slippulse.steady.newton.KrylovLU`) is handed the
     LU of the solve before (each stage's Jacobian is the last one's at a nearby x).
     ``lu0``: an LU at a nearby point for the first solve of such a ``linear``.
@@ -57,29 +58,51 @@ def solve_robust(problem, x0, stages=8, max_iter=15, tol=NEWTON_TOL, reuse=False
     creep = CREEP if creep is None else int(creep)
     linear = as_linear(linear)
     handed = isinstance(linear, KrylovLU)
-    total = factorizations = krylov = 0
+    counts = [0, 0, 0]                  # iterations, factorizations, Krylov iterations
     lu = lu0 if handed else None        # one of another size is never used (KrylovLU.solve)
-    if plain:
-        x, st = newton(problem, x0, tol=tol, max_iter=max_iter, reuse=reuse, creep=creep,
+
+    def plain_solve(creep_stop):
+        x, st = newton(problem, x0, tol=tol, max_iter=max_iter, reuse=reuse, creep=creep_stop,
                        linear=linear, lu=lu, keep=handed)
+        _count(counts, st)
+        return x, st
+
+    if plain:
+        x, st = plain_solve(creep)
         if st.converged:
             return x, st
-        total, factorizations, krylov = st.iterations, st.factorizations, st.krylov_iterations
         lu = st.lu if handed else None
+    x, st = _homotopy(problem, x0, stages, max_iter, tol, reuse, linear, lu, handed, counts)
+    if not (st.converged or plain):
+        # the homotopy went first for speed and failed: plain Newton after all, to max_iter
+        failed = st.message
+        lu = st.lu if handed else None
+        x, st = plain_solve(0)
+        if not st.converged:
+            st.message = f"{failed}; then plain Newton: {st.message}"
+    st.iterations, st.factorizations, st.krylov_iterations = counts
+    st.homotopy = True
+    return x, st
+
+
+def _count(counts, st):
+    counts[0] += st.iterations
+    counts[1] += st.factorizations
+    counts[2] += st.krylov_iterations
+
+
+def _homotopy(problem, x0, stages, max_iter, tol, reuse, linear, lu, handed, counts):
+    """The stages s = 1 − k/stages of F(x) = s F(x0) from x0, each a Newton solve from the last
+    (1e-10 on the way, ``tol`` at s = 0); (x, stats) of the last solve run."""
     r0 = problem.residual(np.asarray(x0, float))
     x = np.array(x0, float)
     for k in range(1, stages + 1):
         s_k = 1.0 - k / stages
         x, st = newton(_Shifted(problem, r0, s_k), x, tol=tol if k == stages else 1e-10,
                        max_iter=4 * max_iter, reuse=reuse, linear=linear, lu=lu, keep=handed)
-        total += st.iterations
-        factorizations += st.factorizations
-        krylov += st.krylov_iterations
+        _count(counts, st)
         lu = st.lu if handed else None
         if not st.converged:
             st.message = f"homotopy stage {k}/{stages} failed: {st.message}"
             break
-    st.iterations, st.factorizations, st.krylov_iterations = total, factorizations, krylov
-    st.homotopy = True
     return x, st
-
