@@ -22,7 +22,7 @@ from .natural import PulseOnGrid, judge_pulse, solve_between, tangent_step
 from .relay import recentre, refine_front, zone_offset
 from .strategy import AUTO, ShrinkSteps, Strategy, TargetSteps
 from .stretch import stretch_grid, stretch_profile
-from .tolerance import GRID_TOLERANCE, RESOLVE_CHANGE
+from .tolerance import GRID_TOLERANCE, RESOLVE_CHANGE, GridTolerance
 
 
 #: The march runs at most this many written pulses ahead of checks beside it: beyond, it waits
@@ -521,8 +521,9 @@ class Continuation:
             return False
         new, dbeta, dL_rel, _, msg = recentre(self.params, self.sol, g.front_zone, g.back_zone,
                                               offset=offset)
-        tol = RESOLVE_CHANGE * GRID_TOLERANCE.beta, RESOLVE_CHANGE * GRID_TOLERANCE.L
-        if new is not None and not (abs(dbeta) <= tol[0] and abs(dL_rel) <= tol[1]):
+        same = GridTolerance(RESOLVE_CHANGE * GRID_TOLERANCE.beta,
+                             RESOLVE_CHANGE * GRID_TOLERANCE.L)
+        if new is not None and not same.passes(dbeta, dL_rel):
             new, msg = None, f"{msg}: refused, more than {RESOLVE_CHANGE:g} x the grid tolerance"
         self._told(float(self.sol.x[-1]), new, msg)
         if new is None:
