@@ -338,3 +338,29 @@ def test_a_sign_change_across_a_grid_change_is_decided_on_one_grid(params, tmp_p
     r = cli_inproc.run(["steady", "bifurcations", path, "--locate", "-q"])
     assert r.returncode == 0 and "0 not decided" in r.stdout
     assert "1 det B sign changes across a change of N that keep the sign" in r.stdout
+
+
+def test_the_monitor_hands_its_tangent_to_the_grid_check(params):
+    """A natural step's pulse (fixed τ_d, no tangent) gets the family tangent from the fold
+    test (the β column rescaled), so that its grid check needs no dense solve: the same unit
+    tangent as the check's own solve, and the same check figures."""
+    from slippulse.steady.bifurcation import FamilyMonitor
+    from slippulse.steady.continuation import family_tangent, grid_change
+    from slippulse.steady.continuation.arclength import unit_tangent
+    from slippulse.steady.continuation.gridcheck import as_both
+    from slippulse.steady.solver import solve_pulse
+    sol = solve_pulse(params, 1.15, n_points=500)
+    assert sol.tangent is None
+    both = as_both(params, sol)
+    own = family_tangent(both.problem, both.x, (1.0, 0.0, 1.0))
+    FamilyMonitor(params)(sol, sol.to_pulse())
+    handed = as_both(params, sol)
+    assert handed.tangent is not None and handed.tangent.shape == handed.x.shape
+    t = handed.tangent if handed.tangent[-2] >= 0 else -handed.tangent
+    # the same null vector to round-off relative to its largest component (its q component,
+    # 1e-8 of that, is the least well determined part of either)
+    assert np.max(np.abs(unit_tangent(t, sol.beta, 1.0) - own)) <= 1e-9 * np.max(np.abs(own))
+    _, db_own, dl_own = grid_change(params, both, 500, nested=True)
+    _, db, dl = grid_change(params, handed, 500, nested=True)
+    assert db == pytest.approx(db_own, rel=1e-7, abs=1e-15)
+    assert dl == pytest.approx(dl_own, rel=1e-7, abs=1e-15)

@@ -150,8 +150,12 @@ def _attach_pulse_scales(grp) -> None:
 
 def upgrade_steady(h5) -> None:
     """Bring an open steady/family file to the current format (dimension scales on every pulse
-    group that has the schema's datasets); other groups and subgroups are left alone."""
-    format_version(h5)
+    group that has the schema's datasets); other groups and subgroups are left alone. A file
+    stamped current is left as it is: every writer of this version writes its groups in the
+    current format (the walk over all pulses made each write of a family cost O(pulses))."""
+    if (format_version(h5) == FORMAT_VERSION
+            and str(h5.attrs.get("format", "")) == "slippulse-steady"):
+        return
     for grp in (h5["pulses"].values() if "pulses" in h5 else ()):
         if isinstance(grp, h5py.Group) and all(n in grp for n in DATASETS):
             _attach_pulse_scales(grp)

@@ -621,7 +621,12 @@ class FamilyMonitor:
     Where N changed since the previous pulse and sign det B with it, the pair is decided on one
     grid at once (:func:`across_grid_change`, stored as ``bif_across_grid``: 'kept', 'changed'
     or why it was not decided), so that no later report re-solves it. :func:`stored_rows` reads
-    the attributes back for :func:`events`."""
+    the attributes back for :func:`events`. A solution without a family tangent gets the one the
+    fold test found (``sol.tangent``, in (y, β, q)): its grid check's normal line then needs no
+    dense solve of its own."""
+
+    #: it gives a pulse without a family tangent the fold test's (run before the grid check)
+    finds_tangent = True
 
     def __init__(self, params):
         self.params = params
@@ -635,6 +640,10 @@ class FamilyMonitor:
             orient = (math.log(pulse.beta / prev.beta) * pulse.beta,
                       pulse.tau_d_ratio - prev.tau_d_ratio)
         vals, _ = pulse_tests(pulse, self.params, orient)
+        if sol is not None and sol.tangent is None:
+            t = np.array(vals.tangent)
+            t[-2] *= pulse.beta               # the β column was scaled by β (pulse_system)
+            sol.tangent = t
         out = indicator_attrs(vals)
         if (prev is not None and prev.n_points != pulse.n_points
                 and int(prev.extra.get("bif_bordered_sign", 0)) * vals.bordered_sign < 0):

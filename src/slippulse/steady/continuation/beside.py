@@ -26,6 +26,7 @@ import numpy as np
 from ..equations import SteadyProblem
 from ..solver import SteadySolution
 from .driver import Accepted
+from .gridcheck import monitor_first
 
 
 def pack(sol: SteadySolution) -> tuple:
@@ -79,8 +80,7 @@ def _check(packed, method, extra):
     sol = unpack(ch.params, packed)
     res, p = ch(sol, method, extra)
     # the pulse comes back only where the check replaced it (refined, or N doubled)
-    replaced = res.body_levels or res.doublings or (method == "arclength" and res.sol is not sol)
-    return res.passed, res.message, p, pack(res.sol) if replaced else None, lines
+    return res.passed, res.message, p, pack(res.sol) if res.replaced else None, lines
 
 
 # ------------------------------------------------------------------ the march's side
@@ -142,9 +142,11 @@ class BesideWriter:
         self.base.put(p, message)
 
     def __call__(self, sol, pulse, method, extra=None) -> Pending:
+        attrs, previous = monitor_first(self.monitor, sol, pulse)
         fut = self.pool.submit(_check, pack(sol), method, extra)
-        previous = getattr(self.monitor, "previous", None)
-        attrs = self.monitor(sol, pulse) if self.monitor is not None else {}
+        if attrs is None:
+            previous = getattr(self.monitor, "previous", None)
+            attrs = self.monitor(sol, pulse) if self.monitor is not None else {}
         return Pending(self, fut, sol, attrs, previous)
 
     def close(self) -> None:

@@ -15,7 +15,7 @@ from ...core.h5io import list_pulses, read_pulse, unique_label, write_pulse
 from ...core.params import ParameterError, Parameters
 from ..solver import MAX_POINTS, GridSpec, solve_pulse
 from .driver import Accepted, Continuation
-from .gridcheck import as_both, check_pulse
+from .gridcheck import as_both, check_pulse, monitor_first
 from .natural import PulseOnGrid, judge_pulse, round_targets
 from .report import FamilyReport
 from .strategy import AUTO, BETA_STEPS, FAMILY_POINTS, NATURAL, Strategy, TargetSteps
@@ -417,6 +417,9 @@ class Checker:
         self.warm = ()
 
     def __call__(self, sol, method, extra=None):
+        # the monitor first where the pulse has no family tangent: its fold test finds one,
+        # which the check's normal line then takes (monitor_first)
+        first, previous = monitor_first(self.monitor, sol)
         # the deformed grids of the deep driver are refined where the error sits (located
         # first); adapted grids everywhere (N doubled)
         deep = method == "arclength"
@@ -434,7 +437,11 @@ class Checker:
         p.extra["continuation"] = method
         if extra:
             p.extra.update(extra)
-        if self.monitor is not None:
+        if first is not None and not res.replaced:
+            p.extra.update(first)
+        elif self.monitor is not None:
+            if first is not None and hasattr(self.monitor, "previous"):
+                self.monitor.previous = previous      # the pulse monitored is not the one kept
             p.extra.update(self.monitor(res.sol, p) or {})
         if not res.passed:
             p.converged = False

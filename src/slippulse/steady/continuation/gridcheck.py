@@ -180,13 +180,13 @@ def _as_both(params, sol: SteadySolution) -> SteadySolution:
     both = SteadyProblem(params, prob.tau_d_ratio, prob.xi, prob.pin_index, prob.y_pin,
                          free="both", H=prob.H)
     x = np.concatenate([sol.x[:-1], [prob.beta_fixed, float(sol.x[-1])]])
-    return SteadySolution(both, x, sol.stats, sol.wall_time, sol.passes)
+    return SteadySolution(both, x, sol.stats, sol.wall_time, sol.passes, sol.tangent)
 
 
 
 def as_both(params, sol: SteadySolution) -> SteadySolution:
     """Any solution (fixed τ_d: x = (y, β); fixed β: x = (y, q); both: x = (y, β, q)) as one of
-    ``free="both"`` on the same grid, pin and Hilbert matrix."""
+    ``free="both"`` on the same grid, pin and Hilbert matrix, with its family tangent if any."""
     prob = sol.problem
     if prob.free == "both":
         return sol
@@ -195,7 +195,7 @@ def as_both(params, sol: SteadySolution) -> SteadySolution:
     both = SteadyProblem(params, prob.tau_d_ratio, prob.xi, prob.pin_index, prob.y_pin,
                          free="both", H=prob.H, state_order=prob.state_order)
     x = np.concatenate([sol.x, [prob.tau_d_ratio]])
-    return SteadySolution(both, x, sol.stats, sol.wall_time, sol.passes)
+    return SteadySolution(both, x, sol.stats, sol.wall_time, sol.passes, sol.tangent)
 
 
 #: The regions of :func:`regions`. The body held most of the N-dependence on the deformed grid
@@ -327,6 +327,11 @@ class GridCheck:
     warm: object = None
     method: str = ""
 
+    @property
+    def replaced(self) -> bool:
+        """Whether the pulse kept is another than the one handed (refined, or N doubled)."""
+        return bool(self.body_levels or self.doublings)
+
     def attrs(self, tol) -> dict:
         """The check's figures as pulse attributes (stored in the family file)."""
         return {"grid_check_passed": bool(self.passed), "grid_check_n": int(self.n),
@@ -436,3 +441,15 @@ def check_pulse(params, sol: SteadySolution, tol=GRID_TOLERANCE, n_max=MAX_POINT
     res.homotopy = homotopy
     res.method = describe(method)
     return res
+
+
+def monitor_first(monitor, sol, pulse=None):
+    """(the monitor's attributes, its ``previous`` before the call) where the monitor finds
+    family tangents (``finds_tangent``) and ``sol`` has none, else (None, None). Why: the fold
+    test factors the pinned Jacobian at the pulse and finds the tangent with it
+    (:class:`~slippulse.steady.bifurcation.FamilyMonitor`), which the grid check's normal line
+    would otherwise solve for (a dense LU at N). Other monitors see only the pulse written."""
+    if not getattr(monitor, "finds_tangent", False) or sol.tangent is not None:
+        return None, None
+    previous = getattr(monitor, "previous", None)
+    return monitor(sol, sol.to_pulse() if pulse is None else pulse) or {}, previous
