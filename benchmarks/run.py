@@ -54,7 +54,7 @@ def child(name, quick, tree, threads, timeout):
     env = dict(os.environ, PYTHONPATH=os.path.join(tree, "src"),
                **{k: str(threads) for k in THREAD_VARS})
     with tempfile.TemporaryDirectory(prefix="bench-") as work:
-        cmd = [sys.executable, __file__, "--child", name, "--work", work] + (["--quick"] if quick else [])
+        cmd = [os.path.abspath(sys.executable), os.path.abspath(__file__), "--child", name, "--work", work] + (["--quick"] if quick else [])
         try:
             r = subprocess.run(cmd, env=env, cwd=tree, capture_output=True, text=True,
                                timeout=timeout)

@@ -349,8 +349,8 @@ def test_the_monitor_hands_its_tangent_to_the_grid_check(params):
     from slippulse.steady.continuation.arclength import unit_tangent
     from slippulse.steady.continuation.gridcheck import as_both
     from slippulse.steady.solver import solve_pulse
-    sol = solve_pulse(params, 1.15, n_points=500)
-    assert sol.tangent is None
+    sol = solve_pulse(params, 1.2, n_points=500)
+    assert sol.stats.converged and sol.tangent is None
     both = as_both(params, sol)
     own = family_tangent(both.problem, both.x, (1.0, 0.0, 1.0))
     FamilyMonitor(params)(sol, sol.to_pulse())

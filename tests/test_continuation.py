@@ -719,3 +719,34 @@ def test_the_monitor_sees_every_written_pulse_and_its_figures_are_stored(params,
     for lab in labels:
         p, _ = read_pulse(out, lab)
         assert p.extra["test_function"] == pytest.approx(p.beta ** 2, rel=1e-15)
+
+
+def test_nested_refinement_shows_the_fourth_order_of_the_discretisation(params, tmp_path):
+    """``grid_convergence``: two nested levels of the 1.2 τ_min pulse (N = 500 → 999 → 1997)
+    change β and L by factors of about 2⁴ (the state integration and the Hilbert operator are
+    both of order 4, docs/steady.md); the command prints and stores the same levels."""
+    from slippulse.core.h5io import write_pulse
+    from slippulse.steady.continuation.gridcheck import grid_convergence, observed_order
+    from slippulse.steady.solver import solve_pulse
+    sol = solve_pulse(params, 1.2, n_points=500)
+    assert sol.stats.converged
+    rows = grid_convergence(params, sol, levels=2)
+    assert [r.n for r in rows] == [500, 999, 1997] and all(r.converged for r in rows)
+    p_beta, p_L = observed_order(rows)
+    assert 3.5 < p_beta < 4.5 and 3.5 < p_L < 4.5
+    assert abs(rows[2].dL_rel) < abs(rows[1].dL_rel) / 10
+    import cli_inproc
+    path = str(tmp_path / "one.h5")
+    write_pulse(path, sol.to_pulse(), params)
+    r = cli_inproc.run(["steady", "grid-convergence", path, "--labels", "td1.2000", "--write",
+                        "-q"])
+    assert r.returncode == 0, r.stderr
+    p, _ = read_pulse(path, "td1.2000")
+    assert list(p.extra["grid_convergence_n"]) == [500, 999, 1997]
+    assert np.allclose(p.extra["grid_convergence_dL_rel"], [r.dL_rel for r in rows], rtol=1e-6)
+    assert p.extra["grid_convergence_order_L"] == pytest.approx(p_L, rel=1e-6)
+    r = cli_inproc.run(["steady", "grid-convergence", path, "--labels", "td9.9", "-q"])
+    assert r.returncode == 2 and "--labels" in r.stderr and "Traceback" not in r.stderr
+    r = cli_inproc.run(["steady", "grid-convergence", path, "--labels", "td1.2000",
+                        "--levels", "9", "-q"])
+    assert r.returncode == 2 and "--levels=9 is invalid" in r.stderr

@@ -453,3 +453,62 @@ def monitor_first(monitor, sol, pulse=None):
         return None, None
     previous = getattr(monitor, "previous", None)
     return monitor(sol, sol.to_pulse() if pulse is None else pulse) or {}, previous
+
+
+@dataclass
+class ConvergenceLevel:
+    """One level of :func:`grid_convergence`: the pulse on ``n`` points (τ_d/τ_min, β, L in m)
+    and its change from the level before at that level's τ_d (0 on level 0; inf where the
+    re-solve did not converge)."""
+
+    n: int
+    tau_d_ratio: float
+    beta: float
+    L: float
+    dbeta: float = 0.0
+    dL_rel: float = 0.0
+    converged: bool = True
+    wall_time: float = 0.0
+
+
+def grid_convergence(params, sol: SteadySolution, levels=2, stages=4, max_iter=15,
+                     linear=None, log=None) -> list[ConvergenceLevel]:
+    """The pulse ``sol`` re-solved on ``levels`` nested refinements (N → 2N − 1 → 4N − 3 …),
+    each from the one before, as the grid check does it (:func:`grid_change`: on the normal
+    line, the change at fixed τ_d). Why: one level is the check; two give the observed order
+    and so whether the check's change bounds the pulse's own error (:func:`observed_order`).
+    Stops at the first level that does not converge (its row ``converged=False``)."""
+    linear = NestedCheck().linear if linear is None else linear
+    cur = as_both(params, sol)
+    p = cur.to_pulse()
+    rows = [ConvergenceLevel(cur.xi.size, float(cur.x[-1]), p.beta, p.L)]
+    for _ in range(levels):
+        t0 = time.perf_counter()
+        fine, db, dl = grid_change(params, cur, cur.xi.size, nested=True, stages=stages,
+                                   max_iter=max_iter, linear=linear)
+        ok = bool(fine.stats.converged) and math.isfinite(db)
+        pf = fine.to_pulse()
+        rows.append(ConvergenceLevel(fine.xi.size, float(fine.x[-1]), pf.beta, pf.L, db, dl, ok,
+                                     time.perf_counter() - t0))
+        if log:
+            log(f"N={cur.xi.size} -> {fine.xi.size}: dbeta={db:.3e} dL/L={dl:.3e} "
+                f"({'converged' if ok else 'not converged'}, {rows[-1].wall_time:.1f} s)")
+        if not ok:
+            break
+        fine.stats.lu = None                 # the next level factors its own
+        cur = fine
+    return rows
+
+
+def observed_order(rows) -> tuple[float, float]:
+    """(p_β, p_L): log₂ of the ratio of two successive changes (:func:`grid_convergence`, three
+    converged levels or more; nan otherwise or where a change is zero). Nested doubling halves
+    every spacing, so p is the discretisation's order where the errors are asymptotic (4 for
+    the state integration and the Hilbert operator, docs/steady.md)."""
+    ok = [r for r in rows[1:] if r.converged]
+    if len(ok) < 2:
+        return math.nan, math.nan
+
+    def p(a, b):
+        return math.log2(abs(a) / abs(b)) if a and b else math.nan
+    return p(ok[-2].dbeta, ok[-1].dbeta), p(ok[-2].dL_rel, ok[-1].dL_rel)
