@@ -35,7 +35,7 @@ def real_if_real(*mats):
     """The matrices as real (C-contiguous) arrays where all of them have an exactly zero
     imaginary part, else as given. M(σ) and M′(σ) are real at real σ (M(σ̄) = conj M(σ); the
     assembly gives exactly 0 there), and a real LU costs a third of a complex one (N = 5009,
-    one thread: 1.5 s against 4.9 s; BENCHMARKS.md "Real arithmetic at real σ")."""
+    one thread: 1.5 s against 4.9 s; docs/spectrum.md)."""
     if all(not np.iscomplexobj(A) or not np.any(A.imag) for A in mats):
         return tuple(np.ascontiguousarray(A.real) for A in mats)
     return mats

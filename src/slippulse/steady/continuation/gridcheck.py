@@ -20,8 +20,8 @@ from .tolerance import GRID_TOLERANCE
 
 
 #: The grid checks' Newton reuses each full step's LU for chord iterations (newton(reuse=True)):
-#: the same converged tolerance, fewer factorisations of the 2N − 1 Jacobian
-#: (BENCHMARKS.md "Grid check: one LU for several iterations").
+#: the same converged tolerance, fewer factorisations of the 2N − 1 Jacobian (a test counts
+#: them: tests/test_continuation.py).
 REUSE_LU = True
 
 
