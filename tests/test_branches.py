@@ -143,44 +143,6 @@ def test_trace_follows_the_main_family_down_from_1p2(params, pulse12):
     assert st.converged and x[-1] == pytest.approx(last.beta, rel=1e-9)
 
 
-class _TurnsInBoth:
-    """F(y, β, q) = (β − 0.5 − y², q − 1.1 + y²): a branch y = s along which β and q turn at
-    once at s = 0 (β's minimum, q's maximum) while the profile y moves on."""
-
-    def valid(self, x):
-        return 0.0 < x[-2] < 1.0
-
-    def residual_and_jacobian(self, x):
-        y, beta, q = x
-        r = np.array([beta - 0.5 - y * y, q - 1.1 + y * y])
-        J = np.array([[-2 * y, 1.0, 0.0], [2 * y, 0.0, 1.0]])
-        return r, J
-
-
-def test_the_trace_passes_where_beta_and_tau_d_turn_together():
-    """The arclength counts the profile: steps from s = −0.05 pass s = 0, where the tangent has
-    no (β, q) part (an arclength in (ln β, q) alone has no step there)."""
-    from slippulse.steady.branch_trace import _correct, _tangent
-    prob = _TurnsInBoth()
-    x = np.array([-0.05, 0.5025, 1.0975])
-    tz, t = _tangent(prob.residual_and_jacobian(x)[1], x)
-    if t[0] < 0:
-        tz, t = -tz, -t
-    ys = [x[0]]
-    for _ in range(20):
-        ok, x, J, _ = _correct(prob, x, t, tz, 0.02, 12, 1e-12)
-        assert ok
-        tz, t = _tangent(J, x, orient=tz)
-        ys.append(x[0])
-    assert np.all(np.diff(ys) > 0) and ys[-1] > 0.05
-    r, _ = prob.residual_and_jacobian(x)
-    assert np.max(np.abs(r)) < 1e-12
-    # at the turn itself the tangent is the profile's alone, and still a unit step in z
-    x0 = np.array([0.0, 0.5, 1.1])
-    tz0, t0 = _tangent(prob.residual_and_jacobian(x0)[1], x0)
-    assert abs(t0[1]) < 1e-12 and abs(t0[2]) < 1e-12 and np.linalg.norm(tz0) == pytest.approx(1.0)
-
-
 def test_cli_branch_trace_writes_each_point_and_refuses_bad_input(tmp_path, params, pulse12):
     """One step each way from the 1.2 pulse (--direction both): three pulses in one file, the
     start written once; along the trace position (step signed by direction) τ_d rises and β

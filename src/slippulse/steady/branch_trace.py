@@ -2,12 +2,9 @@
 
 Standalone (it uses only :class:`~slippulse.steady.equations.SteadyProblem` with ``free="both"``
 and :mod:`.bifurcation`), for a branch other than the main family (e.g. the two-pulse bound state
-that :mod:`.branch_search` finds). Unknowns x = (ln v, β, q); the arclength is measured in
-z = (ln v/√N, ln β, q/Q_SCALE): a unit of it is a change of ln β by 1, of q by Q_SCALE, or of ln v
-by 1 in root mean square over the nodes. The profile is in the metric because a branch can turn
-in β and q at once while its profile moves on (the two-hump branch near 1.0259 τ_min: β's
-minimum and q's maximum 1e−5 apart in q), where an arclength in (ln β, q) alone stalls; the
-corrector is Newton on [F(x); τ·(z(x) − z₀) − ds] with τ the unit tangent in z.
+that :mod:`.branch_search` finds). Unknowns x = (ln v, β, q); the arclength is measured in the
+scalars z = (ln β, q/Q_SCALE) only (ln v follows), so a fold in τ_d (q turning while β moves on)
+is passed; the corrector is Newton on [F(x); τ·(z(x) − z₀) − ds] with τ the unit tangent in z.
 The grid is the start pulse's, re-laid (adapted to the current pulse, N points, re-solved at fixed
 τ_d) whenever L or the extent of the humps (:func:`extent`: a trailing hump that comes apart
 from the first moves it, not L) has moved by more than ``regrid`` since the grid was laid. At every accepted step:
@@ -66,32 +63,18 @@ def extent(xi, v, v_star) -> float:
 
 
 def _z(x):
-    """The point in the arclength's coordinates (module notes)."""
-    return np.concatenate([x[:-2] / math.sqrt(x.size - 2), [math.log(x[-2]), x[-1] / Q_SCALE]])
-
-
-def _dz(x):
-    """dz/dx, diagonal: the weights of a tangent's components in z."""
-    w = np.full(x.size, 1.0 / math.sqrt(x.size - 2))
-    w[-2], w[-1] = 1.0 / x[-2], 1.0 / Q_SCALE
-    return w
-
-
-def _oriented(tz, orient):
-    """Whether ``tz`` points along ``orient`` (z tangents; on another grid, after a re-lay, by
-    their (ln β, q) parts alone)."""
-    if orient.size != tz.size:
-        tz, orient = tz[-2:], orient[-2:]
-    return float(tz @ orient) >= 0
+    return np.array([math.log(x[-2]), x[-1] / Q_SCALE])
 
 
 def _tangent(J, x, orient=None):
     """Unit tangent in z and the full tangent scaled to move z by one unit along it."""
     from .bifurcation import null_vector
     t = null_vector(J)
-    tz = _dz(x) * t
+    tz = np.array([t[-2] / x[-2], t[-1] / Q_SCALE])
     nz = float(np.linalg.norm(tz))
-    if orient is not None and not _oriented(tz, orient):
+    if nz < 1e-14:
+        raise RuntimeError("the branch turns in ln v alone (tangent with no (beta, q) part)")
+    if orient is not None and float(tz @ orient) < 0:
         t, tz = -t, -tz
     return tz / nz, t / nz
 
@@ -160,7 +143,9 @@ class _Record:
         out, params = self.out, self.params
         v = indicators(J, orient=None, singular_values=False)
         # orient the indicators' tangent like the march's (continuity)
-        sgn = 1 if _oriented(_dz(x) * v.tangent, tz_or) else -1
+        t_full = v.tangent
+        tzv = np.array([t_full[-2] / x[-2], t_full[-1] / Q_SCALE])
+        sgn = 1 if float(tzv @ tz_or) >= 0 else -1
         Lx = pulse_length(prob.xi, np.exp(x[:-2]), params.v_star, crossings=False)
         pt = TracePoint(float(x[-1]), float(x[-2]), float(Lx), count_humps(np.exp(x[:-2])),
                         v.fold_sign, sgn * v.t_param, sgn * v.bordered_sign, self.grid_id, prob.n,
@@ -196,7 +181,9 @@ def _correct(prob, x, t, tz, ds, max_iter, tol):
         g = float(tz @ (_z(xc) - z0)) - ds
         if np.max(np.abs(rc)) <= tol and abs(g) <= 1e-10:
             return True, xc, Jc, it
-        row = tz * _dz(xc)
+        row = np.zeros(xc.size)
+        row[-2] = tz[0] / xc[-2]
+        row[-1] = tz[1] / Q_SCALE
         try:
             step = sla.solve(np.vstack([Jc, row]), -np.concatenate([rc, [g]]),
                              check_finite=False)
@@ -272,7 +259,7 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
     x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
     r, J = prob.residual_and_jacobian(x)
     tz, t = _tangent(J, x)
-    if tz[-1] * s.direction < 0:
+    if tz[1] * s.direction < 0:
         tz, t = -tz, -t
     log = _Record(params, progress, on_pulse)
     out = log.out
