@@ -54,11 +54,11 @@ def _sbi_points(dirs, rows=(), local_h=2e-3) -> list[dict]:
 
 
 def cmd_overlap(args) -> int:
-    from ..core.h5io import check_writable, list_pulses
+    from ..core.h5io import check_writable
     from ..plotting.stability import attractor_figure
     from ..timedomain.attractor import OVERLAP_COLUMNS, write_overlap_csv
     from ..timedomain.eigenmode import family_overlaps
-    from .checks import check_figure, finite
+    from .checks import check_figure, check_labels, finite
     if not os.path.isfile(args.family):
         raise UsageError(f"FAMILY={args.family!r}: no such file")
     if args.local_h is not None:
@@ -70,10 +70,7 @@ def cmd_overlap(args) -> int:
     _check_dirs(args.pairs, "--pairs")
     scans = _line_scans(args)
     if args.labels:
-        have = list_pulses(args.family)
-        missing = [lab for lab in args.labels if lab not in have]
-        if missing:
-            raise UsageError(f"--labels {' '.join(missing)}: not in {args.family}")
+        check_labels(args.family, args.labels)
     rows = family_overlaps(args.family, local_h=args.local_h, labels=args.labels)
     if not rows:
         raise UsageError(f"{args.family}: no pulse with a stored unstable mode and a neighbour in "

@@ -12,22 +12,19 @@ from tqdm import tqdm
 
 from ..core.errors import UsageError
 from ..core.params import ParameterError
+from .checks import check_labels
 from .paramargs import add_params_args, params_for_input, params_for_output
 
 
 def cmd_bifurcations(args) -> int:
-    from ..core.h5io import list_pulses, open_h5, read_parameters
+    from ..core.h5io import open_h5, read_parameters
     from ..steady.bifurcation import scan
 
     with open_h5(args.file, "FILE") as h5:
         stored = read_parameters(h5)
     params_for_input(args, stored, args.file)
-    labels = list_pulses(args.file)
+    labels = check_labels(args.file, args.labels or [])
     if args.labels:
-        missing = [lab for lab in args.labels if lab not in labels]
-        if missing:
-            raise UsageError(f"labels={missing} not in {args.file}; present: {labels[:6]}"
-                             f"{' ...' if len(labels) > 6 else ''}")
         labels = args.labels
     bar = tqdm(total=len(labels), desc="test functions", unit="pulse", disable=args.quiet,
                file=sys.stderr)

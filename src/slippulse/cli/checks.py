@@ -27,6 +27,18 @@ def finite(value: float, option: str, lo: float | None = None, hi: float | None 
     return float(value)
 
 
+def check_labels(path: str, labels, option: str = "--labels") -> list[str]:
+    """The pulse labels of the file ``path``; a UsageError naming ``option``, the labels of
+    ``labels`` that the file lacks and those it has, where any is missing."""
+    from ..core.h5io import list_pulses
+    have = list_pulses(path)
+    missing = [lab for lab in labels if lab not in have]
+    if missing:
+        raise UsageError(f"{option}={missing} is invalid: not in {path!r} (labels "
+                         f"{', '.join(have[:6])}{' ...' if len(have) > 6 else ''})")
+    return have
+
+
 def check_distinct(out: str, option: str, **inputs) -> None:
     """Refuse an output that is one of the command's input files (``inputs``: option name →
     path), before any work: writing it would destroy the input (--overwrite included)."""

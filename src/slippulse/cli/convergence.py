@@ -8,10 +8,11 @@ import sys
 from tqdm import tqdm
 
 from ..core.errors import UsageError
+from .checks import check_labels
 
 
 def cmd_grid_convergence(args) -> int:
-    from ..core.h5io import atomic_update, list_pulses, read_pulse
+    from ..core.h5io import atomic_update, read_pulse
     from ..steady.bifurcation import pulse_system
     from ..steady.continuation.gridcheck import grid_convergence, observed_order
     from ..steady.newton import SolveStats
@@ -19,11 +20,7 @@ def cmd_grid_convergence(args) -> int:
 
     if not (isinstance(args.levels, int) and 1 <= args.levels <= 4):
         raise UsageError(f"--levels={args.levels!r} is invalid: must be an integer in [1, 4]")
-    labels = list_pulses(args.file)
-    missing = [lab for lab in args.labels if lab not in labels]
-    if missing:
-        raise UsageError(f"--labels: {missing} not in {args.file!r} (labels "
-                         f"{', '.join(labels[:6])}{' ...' if len(labels) > 6 else ''})")
+    check_labels(args.file, args.labels)
     print("label tau_d/tau_min N beta L(m) dbeta dL/L wall(s)")
     stored, failed = {}, 0
     for lab in tqdm(args.labels, desc="grid convergence", unit="pulse", disable=args.quiet,
