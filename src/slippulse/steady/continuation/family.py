@@ -416,10 +416,10 @@ class Checker:
         # the last deep check's (x, x_fine, LU): the next check's warm start (check_pulse)
         self.warm = ()
 
-    def __call__(self, sol, method, extra=None):
+    def __call__(self, sol, method, extra=None, pulse=None):
         # the monitor first where the pulse has no family tangent: its fold test finds one,
-        # which the check's normal line then takes (monitor_first)
-        first, previous = monitor_first(self.monitor, sol)
+        # which the check's normal line then takes (monitor_first; ``pulse``: sol's, if in hand)
+        first, previous = monitor_first(self.monitor, sol, pulse)
         # the deformed grids of the deep driver are refined where the error sits (located
         # first); adapted grids everywhere (N doubled)
         deep = method == "arclength"
@@ -466,7 +466,7 @@ class _CheckedWriter:
                 self.taken[label] = read_pulse(out, label)[0].tau_d_ratio
 
     def __call__(self, sol, pulse, method, extra=None):
-        res, p = self.check(sol, method, extra)
+        res, p = self.check(sol, method, extra, pulse)
         self.put(p, res.message)
         return res
 
