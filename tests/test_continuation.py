@@ -375,6 +375,42 @@ def test_tangent_step_converges_on_the_tangents_lu_to_the_direct_solution(params
     assert abs(sol.beta / x[-1] - 1) < 1e-10 and np.max(np.abs(sol.x[:-1] - x[:-1])) < 1e-8
 
 
+def test_a_natural_step_on_the_fold_tests_lu_predicts_as_on_its_own(params):
+    """The fold test's LU of A = ∂(Δ, pin)/∂(ln v, β) (column-scaled by β), handed to the next
+    natural step, replaces that step's own factorisation: the τ_d and β steps predict the same
+    tangent (the same first residual) and converge to the same pulse, with no LU formed."""
+    from slippulse.steady.bifurcation import FamilyMonitor
+    from slippulse.steady.continuation import PulseOnGrid, tangent_step
+    from slippulse.steady.continuation.strategy import BETA_STEPS, NATURAL
+    from slippulse.steady.solver import solve_pulse
+    a = solve_pulse(params, 1.2, n_points=500)
+    FamilyMonitor(params)(a, a.to_pulse())
+    assert a.fold_lu is not None
+    lu, piv = a.fold_lu
+    P = np.eye(piv.size)
+    for i, j in enumerate(piv):          # LAPACK's row interchanges, applied in order
+        P[[i, j]] = P[[j, i]]
+    from slippulse.steady.equations import SteadyProblem
+    both = SteadyProblem(params, 1.2, a.xi, a.problem.pin_index, a.problem.y_pin, free="both",
+                         H=a.problem.H)
+    _, J = both.residual_and_jacobian(np.concatenate([a.x, [1.2]]))
+    A = J[:, :-1]
+    Lm, Um = np.tril(lu, -1) + np.eye(piv.size), np.triu(lu)
+    assert np.max(np.abs(P @ A - Lm @ Um)) <= 1e-10 * np.max(np.abs(A))   # the LU of A itself
+    L = a.to_pulse().L
+    for fixed, value, corrector in (("tau_d", 1.195, NATURAL.corrector),
+                                    ("beta", 1.02 * a.beta, BETA_STEPS.corrector)):
+        base = PulseOnGrid.of(a, L)
+        own = PulseOnGrid.of(a, L)
+        own.lu_a = None
+        s1, _ = tangent_step(params, base, value, fixed, 500, corrector=corrector)
+        s0, _ = tangent_step(params, own, value, fixed, 500, corrector=corrector)
+        assert s1.stats.converged and s0.stats.converged
+        assert s1.stats.factorizations == 0
+        assert s1.stats.history[0] == pytest.approx(s0.stats.history[0], rel=1e-6)
+        assert np.max(np.abs(s1.x - s0.x)) <= 1e-9
+
+
 def test_stretch_grid_lengthens_the_body_and_keeps_both_edges():
     """The nodes within a of the front stay, the healing-front zone and all behind it move by
     exactly −shift, the body between stretches monotonically; shift = 0 is the identity."""

@@ -138,6 +138,7 @@ class Indicators:
     t_param : t's λ component (t_λ); det A = det B · t_λ (Cramer).
     sigma : the two smallest singular values of B, ascending.
     n : number of equations.
+    lu_a : scipy's LU of A (column-scaled as J), None where A is singular.
     """
     fold_sign: int
     fold_logdet: float
@@ -147,6 +148,7 @@ class Indicators:
     t_param: float
     sigma: tuple
     n: int
+    lu_a: tuple | None = field(default=None, repr=False)
 
     @property
     def cramer_defect(self) -> float:
@@ -216,7 +218,7 @@ def indicators(J, scale=None, orient=None, singular_values=True) -> Indicators:
     else:
         bs, bl, lu = lu_det(B)
         sig = tuple(float(s) for s in smallest_singular_values(B, lu)) if singular_values else ()
-    return Indicators(fs, fl, bs, bl, t, float(t[-1]), sig, n)
+    return Indicators(fs, fl, bs, bl, t, float(t[-1]), sig, n, lu_a if fs != 0 else None)
 
 
 # --------------------------------------------------------------------------- locating a zero
@@ -392,6 +394,16 @@ def pulse_system(pulse, params):
     scale = np.ones(x.size)
     scale[-2] = pulse.beta
     return prob, x, scale
+
+
+def unscaled_lu(lu_scaled, beta):
+    """The LU of A from that of A D, D = diag(1, …, 1, β) (:func:`pulse_system`'s scale on the
+    last column of A = ∂(Δ, pin)/∂(ln v, β)): A D = P L U gives A = P L (U D⁻¹), the same pivots
+    with U's last column, all of it in U, divided by β."""
+    lu, piv = lu_scaled
+    lu = lu.copy(order="K")            # LAPACK's column order kept: no copy per solve
+    lu[:, -1] /= beta
+    return lu, piv
 
 
 def pulse_tests(pulse, params, orient_scalars=None, singular_values=True):
@@ -644,6 +656,8 @@ class FamilyMonitor:
             t = np.array(vals.tangent)
             t[-2] *= pulse.beta               # the β column was scaled by β (pulse_system)
             sol.tangent = t
+        if sol is not None and vals.lu_a is not None:
+            sol.fold_lu = unscaled_lu(vals.lu_a, pulse.beta)
         out = indicator_attrs(vals)
         if (prev is not None and prev.n_points != pulse.n_points
                 and int(prev.extra.get("bif_bordered_sign", 0)) * vals.bordered_sign < 0):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -53,7 +53,8 @@ class GridSpec:
 class SteadySolution:
     """A solved (or failed) pulse: unknowns, grid, problem and solver statistics; ``tangent``:
     the family tangent at x (``free="both"``), where the continuation has it (its grid check
-    then solves none of its own)."""
+    then solves none of its own); ``fold_lu``: scipy's LU of A = ∂(Δ, pin)/∂(ln v, β) at x,
+    where the fold test factored it (the next natural step then factors no matrix of its own)."""
 
     problem: SteadyProblem
     x: np.ndarray
@@ -61,6 +62,7 @@ class SteadySolution:
     wall_time: float
     passes: int
     tangent: np.ndarray | None = None
+    fold_lu: tuple | None = field(default=None, repr=False)
 
     @property
     def xi(self):

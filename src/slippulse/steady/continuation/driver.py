@@ -326,6 +326,9 @@ class Continuation:
         if accepted:
             self.n_steps += 1
             res = self._hand(self.sol, {})
+            if self.current.lu_a is None:       # the fold test's LU of A, if it ran on the pulse
+                # (moved, not shared: a pending check keeps the solution, not its LU)
+                self.current.lu_a, self.sol.fold_lu = self.sol.fold_lu, None
             if hasattr(res, "discard"):
                 self._pending.append((res, None, None))
                 self._collect(upto=NATURAL_LEAD - 1)

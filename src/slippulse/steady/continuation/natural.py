@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
 
 from ..equations import SteadyProblem
 from ..measures import pulse_length
-from ..newton import NEWTON_TOL, newton
+from ..newton import NEWTON_TOL, KrylovLU, newton
 from ..solver import GridSpec, SteadySolution, front_pin, regrid_guess, solve_pulse
 from .strategy import REGRID, NewtonCorrector
 from .stretch import stretch_profile
@@ -28,7 +28,8 @@ def round_targets(start, stop, step):
 class PulseOnGrid:
     """A converged pulse on its grid, the base of the next natural step: ln v on ξ, β,
     q = τ_d/τ_min, the grid's Hilbert matrix (None: not built), the phase condition (pin node, ln v
-    there) and the pulse length the grid was laid out for."""
+    there), the pulse length the grid was laid out for, and scipy's LU of
+    A = ∂(Δ, pin)/∂(ln v, β) there where one was factored (the fold test's: ``fold_lu``)."""
 
     xi: np.ndarray
     y: np.ndarray
@@ -38,6 +39,7 @@ class PulseOnGrid:
     pin: int = 0
     y_pin: float = 0.0
     L_grid: float = math.nan
+    lu_a: tuple | None = field(default=None, repr=False)
 
     @classmethod
     def of(cls, sol: SteadySolution, L_grid=math.nan):
@@ -45,7 +47,7 @@ class PulseOnGrid:
         prob = sol.problem
         q = float(sol.x[-1]) if prob.free == "tau_d" else float(prob.tau_d_ratio)
         return cls(prob.xi, sol.x[:-1].copy(), sol.beta, q, prob.H, prob.pin_index, prob.y_pin,
-                   L_grid)
+                   L_grid, sol.fold_lu)
 
 
 def tangent_step(params, base: PulseOnGrid, value, fixed, n_points, spec=GridSpec(), max_iter=12,
@@ -62,9 +64,16 @@ def tangent_step(params, base: PulseOnGrid, value, fixed, n_points, spec=GridSpe
     |L/L_grid − 1| ≤ regrid, else a grid adapted to the base pulse with ln v interpolated onto it.
     tangent: J = ∂(Δ, pin)/∂(y, β, q) at the base (``SteadyProblem(free="both")``), split into the
     columns of the unknowns J_x and of the stepped parameter J_p; LU of J_x; t = −J_x⁻¹ J_p.
+    On the base's own grid with its LU of A = J[:, (y, β)] (``base.lu_a``, the fold test's), no
+    LU is formed: a τ_d step's J_x is A; a β step's tangent comes from A's null direction
+    (−A⁻¹ J_q, 1) and its corrector's GMRES (:class:`~slippulse.steady.newton.KrylovLU`) is
+    preconditioned by A's LU, which differs from J_x = J[:, (y, q)] in one column (one GMRES
+    iteration more).
     predict: with dp = value − p_base, the scalar unknown + dp t; ln v stretched behind the pin by
     s = exp(dp d ln L/dp) (d ln L/dp from t by a finite difference of the FWHM) plus dp times the
     part of t_y that the stretch does not hold (t_y + (ξ − ξ_pin) y′ d ln L/dp behind the pin).
+    A β step takes ln L linear in ln(1 − β) instead, as L grows near β → 1 (a power of 1 − β):
+    the shallow family's last β steps then converge in 6 Newton iterations instead of 9.
     correct: the corrector (:func:`~slippulse.steady.newton.newton`) with the LU of J_x (chord iterations, then Newton if they stall).
     """
     if corrector is None:
@@ -86,8 +95,15 @@ def tangent_step(params, base: PulseOnGrid, value, fixed, n_points, spec=GridSpe
         cols, p, dp = np.arange(n + 1), n + 1, value - base.q
     else:
         cols, p, dp = np.r_[np.arange(n), n + 1], n, value - base.beta
-    lu = sla.lu_factor(J[:, cols], check_finite=False)
-    t = -sla.lu_solve(lu, J[:, p], check_finite=False)
+    lu = base.lu_a if keep and isinstance(corrector.linear, KrylovLU) else None
+    if lu is None:
+        lu = sla.lu_factor(J[:, cols], check_finite=False)
+        t = -sla.lu_solve(lu, J[:, p], check_finite=False)
+    elif fixed == "tau_d":
+        t = -sla.lu_solve(lu, J[:, p], check_finite=False)
+    else:
+        w = sla.lu_solve(lu, J[:, n + 1], check_finite=False)     # the null direction (−w, 1)
+        t = np.r_[w[:n], -1.0] / w[n]
     # predict: ln v stretched behind the pin by s = e^{dp d ln L/dp} (near τ_min the healing edge
     # moves by many of its own widths per step, which the linear tangent cannot carry), plus the
     # part of the tangent the stretch does not hold; the scalar unknown along the tangent
@@ -99,7 +115,10 @@ def tangent_step(params, base: PulseOnGrid, value, fixed, n_points, spec=GridSpe
     behind = xi < xi[k]
     t_stretch = np.zeros(n)
     t_stretch[behind] = -(xi[behind] - xi[k]) * np.gradient(y, xi)[behind] * dlnL
-    y = stretch_profile(xi, y, xi[k], math.exp(dp * dlnL)) + dp * (t[:n] - t_stretch)
+    lnL_change = dp * dlnL
+    if fixed == "beta":
+        lnL_change = -(1.0 - base.beta) * dlnL * math.log((1.0 - value) / (1.0 - base.beta))
+    y = stretch_profile(xi, y, xi[k], math.exp(lnL_change)) + dp * (t[:n] - t_stretch)
     t = t[n:]
     if fixed == "tau_d":
         x0 = np.concatenate([y, [base.beta]]) + np.r_[np.zeros(n), dp * t]
