@@ -635,7 +635,8 @@ class FamilyMonitor:
     or why it was not decided), so that no later report re-solves it. :func:`stored_rows` reads
     the attributes back for :func:`events`. A solution without a family tangent gets the one the
     fold test found (``sol.tangent``, in (y, β, q)): its grid check's normal line then needs no
-    dense solve of its own."""
+    dense solve of its own, and the LU of A with it (``sol.fold_lu``: the next natural step
+    factors none of its own)."""
 
     #: it gives a pulse without a family tangent the fold test's (run before the grid check)
     finds_tangent = True
@@ -656,8 +657,8 @@ class FamilyMonitor:
             t = np.array(vals.tangent)
             t[-2] *= pulse.beta               # the β column was scaled by β (pulse_system)
             sol.tangent = t
-        if sol is not None and vals.lu_a is not None:
-            sol.fold_lu = unscaled_lu(vals.lu_a, pulse.beta)
+            if vals.lu_a is not None:         # for the next natural step (kept only there)
+                sol.fold_lu = unscaled_lu(vals.lu_a, pulse.beta)
         out = indicator_attrs(vals)
         if (prev is not None and prev.n_points != pulse.n_points
                 and int(prev.extra.get("bif_bordered_sign", 0)) * vals.bordered_sign < 0):
