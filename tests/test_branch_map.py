@@ -55,6 +55,17 @@ def test_series_reads_counts_and_trace_order_and_the_cli_draws(tmp_path, params,
     s = branch_series(path)
     assert s.q.tolist() == [1.2, 1.25, 1.22]
     assert s.unstable()[0].tolist() == [3, 1, -1]
+    # a count of 0 in [0.5, 4] c_p/L with an unstable eigenvalue found at 0.02, left of the box:
+    # one unstable mode, not counted exactly (hollow), never "0 counted"
+    with h5py.File(path, "r+") as h5:
+        g = h5["pulses"]["td1.2200"].create_group("spectrum")
+        g.attrs.update(status="converged", n_unstable=1, count=0,
+                       count_box_c_over_L=np.array([0.5, 4.0, 4.0]))
+        g["s_per_L_real"] = np.array([0.02, -0.3])
+    n, counted = branch_series(path).unstable()
+    assert n.tolist() == [3, 1, 1] and counted.tolist() == [True, False, False]
+    with h5py.File(path, "r+") as h5:
+        del h5["pulses"]["td1.2200"]["spectrum"]
     out = tmp_path / "map.png"
     r = cli_inproc.run(["steady", "branch-map", path, "--names", "synthetic", "--out", out])
     assert r.returncode == 0, r.stderr

@@ -29,19 +29,24 @@ LINE_COLORS = ("0.25", "#1f78b4", "#33a02c", "#a6761d", "#666666")
 @dataclass
 class BranchSeries:
     """One branch: its pulses in branch order. ``count`` is the argument-principle count (nan:
-    none), ``found`` the eigenvalues with Re σ > 0 the search found (−1: no spectrum)."""
+    none), ``found`` the eigenvalues with Re σ > 0 the search found (−1: no spectrum), ``below``
+    those of them left of the counted box (0 < Re σ < its left edge; None: none anywhere)."""
     name: str
     q: np.ndarray
     L: np.ndarray
     count: np.ndarray
     found: np.ndarray
+    below: np.ndarray | None = None
 
     def unstable(self):
-        """(number, counted) per pulse: the count where there is one, else the number found;
-        −1 where the pulse has no spectrum."""
-        counted = np.isfinite(self.count)
-        n = np.where(counted, np.nan_to_num(self.count, nan=-1), self.found).astype(int)
-        return n, counted
+        """(number, counted) per pulse: the count plus the eigenvalues found left of its box
+        where there is a count, else the number found; −1 where the pulse has no spectrum.
+        Counted (exact) only where nothing was found left of the box: the box does not see a
+        mode there (near τ_min the leading one), so a count alone would say 0 where it is 1."""
+        below = np.zeros(self.q.size, int) if self.below is None else np.asarray(self.below)
+        has = np.isfinite(self.count)
+        n = np.where(has, np.nan_to_num(self.count, nan=-1) + below, self.found).astype(int)
+        return n, has & (below == 0)
 
 
 def length_ratio(branch: BranchSeries, reference: BranchSeries):
@@ -73,17 +78,19 @@ def branch_series(paths, name=None) -> BranchSeries:
                 if not pulse_converged(grp, path):
                     continue
                 a = grp.attrs
-                count, found = math.nan, -1
+                count, found, below = math.nan, -1, 0
                 if "spectrum" in grp and grp["spectrum"].attrs.get("status") == "converged":
-                    sa = grp["spectrum"].attrs
+                    sp = grp["spectrum"]
+                    sa = sp.attrs
                     found = int(sa.get("n_unstable", 0))
                     if "count" in sa:
                         count = float(sa["count"])
+                        below = _found_left_of_box(sp)
                 step = a.get("trace_position")
                 q = float(a["tau_d_ratio"])
                 key = (round(q, 9), None if step is None else int(step))
                 if key not in rows or (math.isnan(rows[key][2]) and not math.isnan(count)):
-                    rows[key] = (q, float(a["L"]), count, found, key[1])   # a pulse in two files: once
+                    rows[key] = (q, float(a["L"]), count, found, key[1], below)   # in two files: once
     rows = list(rows.values())
     if not rows:
         raise ValueError(f"{', '.join(map(str, paths))}: no converged pulse")
@@ -91,9 +98,20 @@ def branch_series(paths, name=None) -> BranchSeries:
         rows.sort(key=lambda r: r[4])
     else:
         rows.sort(key=lambda r: -r[0])
-    q, L, c, f, _ = (np.array(col) for col in zip(*rows))
+    q, L, c, f, _, below = (np.array(col) for col in zip(*rows))
     return BranchSeries(name or os.path.splitext(os.path.basename(paths[0]))[0], q.astype(float),
-                        L.astype(float), c.astype(float), f.astype(int))
+                        L.astype(float), c.astype(float), f.astype(int), below.astype(int))
+
+
+def _found_left_of_box(sp) -> int:
+    """The eigenvalues of a stored spectrum (``s_per_L_real``, c_p/L) above the search's floor
+    (Re σ > ``setting_min_re_c_over_L``) left of its counted box (``count_box_c_over_L``[0]); 0 where either is missing."""
+    box = sp.attrs.get("count_box_c_over_L")
+    if box is None or "s_per_L_real" not in sp:
+        return 0
+    re = np.asarray(sp["s_per_L_real"][...], float)
+    floor = float(sp.attrs.get("setting_min_re_c_over_L", 0.0))     # the search's "unstable"
+    return int(np.count_nonzero((re > floor) & (re < float(np.ravel(box)[0]))))
 
 
 def plot_branch_map(series, path, params=None, title=None, dpi=150) -> str:
