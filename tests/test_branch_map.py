@@ -72,6 +72,13 @@ def test_series_reads_counts_and_trace_order_and_the_cli_draws(tmp_path, params,
     assert out.exists() and "synthetic: 3 pulses" in r.stdout and "1 counted (unstable: [3])" in r.stdout
     r = cli_inproc.run(["steady", "branch-map", path, "--names", "a", "b", "--out", out])
     assert r.returncode == 2 and "names" in r.stderr
+    zoomed = tmp_path / "zoom.png"
+    r = cli_inproc.run(["steady", "branch-map", path, "--zoom", "1.21", "1.26", "--out", zoomed])
+    assert r.returncode == 0, r.stderr
+    import matplotlib.image as mpimg
+    assert mpimg.imread(zoomed).shape[1] > mpimg.imread(out).shape[1]     # the second panel
+    r = cli_inproc.run(["steady", "branch-map", path, "--zoom", "1.26", "1.21", "--out", zoomed])
+    assert r.returncode == 2 and "--zoom" in r.stderr
 
 
 def test_two_files_make_one_branch_by_tau_d(tmp_path, params, pulse12):

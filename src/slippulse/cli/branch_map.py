@@ -35,7 +35,11 @@ def cmd_branch_map(args) -> int:
             series.append(branch_series(paths, args.names[i] if args.names else None))
         except ValueError as exc:
             raise UsageError(str(exc)) from None
-    plot_branch_map(series, args.out, params=params, title=args.title)
+    if args.zoom is not None and not (1.0 < args.zoom[0] < args.zoom[1]):
+        raise UsageError(f"--zoom {args.zoom[0]:g} {args.zoom[1]:g}: need 1 < Q0 < Q1 "
+                         "(tau_d/tau_min)")
+    plot_branch_map(series, args.out, params=params, title=args.title,
+                    zoom=tuple(args.zoom) if args.zoom else None)
     for b in series:
         n, counted = b.unstable()
         with_spec = n >= 0
@@ -88,4 +92,7 @@ def register(ss) -> None:
     p.add_argument("--names", nargs="+", default=None, metavar="NAME",
                    help="the branches' names in the legend (default: the file names)")
     p.add_argument("--title", default=None, help="a title")
+    p.add_argument("--zoom", nargs=2, type=float, default=None, metavar=("Q0", "Q1"),
+                   help="a second panel with tau_d/tau_min in [Q0, Q1] (1 < Q0 < Q1), where "
+                        "branches crowd")
     p.set_defaults(func=cmd_branch_map)

@@ -5,9 +5,11 @@ A pulse's number is the argument-principle count stored with its spectrum (``ste
 --count``: the eigenvalues in the counted box, exact for the discrete operator) where there is one
 (filled marker), else the number of eigenvalues with Re σ > 0 that the eigen-search found (hollow
 marker: a lower bound, the search is not exhaustive); a pulse with no spectrum is only a point of
-its branch's line. A branch is one file (or several taken together); its pulses are joined in the order they were traced
-(``trace_position``, the step signed by the direction, from ``steady branch-trace``: traces up
-and down from one pulse merge into one order) or, without it, by decreasing τ_d.
+its branch's line. A branch is one file (or several taken together); its pulses are joined in
+the order they were traced (``trace_position``, the step signed by the direction, from ``steady
+branch-trace``: traces up and down from one pulse merge into one order) or, without it or where
+traces from different pulses repeat a position, by decreasing τ_d. A count whose box lies right of
+an unstable eigenvalue the search found adds it, and is then drawn as found, not counted.
 """
 from __future__ import annotations
 
@@ -94,7 +96,8 @@ def branch_series(paths, name=None) -> BranchSeries:
     rows = list(rows.values())
     if not rows:
         raise ValueError(f"{', '.join(map(str, paths))}: no converged pulse")
-    if all(r[4] is not None for r in rows):
+    steps = [r[4] for r in rows]
+    if None not in steps and len(set(steps)) == len(steps):   # one trace (or up and down from one pulse)
         rows.sort(key=lambda r: r[4])
     else:
         rows.sort(key=lambda r: -r[0])
@@ -105,7 +108,8 @@ def branch_series(paths, name=None) -> BranchSeries:
 
 def _found_left_of_box(sp) -> int:
     """The eigenvalues of a stored spectrum (``s_per_L_real``, c_p/L) above the search's floor
-    (Re σ > ``setting_min_re_c_over_L``) left of its counted box (``count_box_c_over_L``[0]); 0 where either is missing."""
+    (Re σ > ``setting_min_re_c_over_L``) left of its counted box (``count_box_c_over_L``[0]);
+    0 where either is missing."""
     box = sp.attrs.get("count_box_c_over_L")
     if box is None or "s_per_L_real" not in sp:
         return 0
@@ -114,12 +118,46 @@ def _found_left_of_box(sp) -> int:
     return int(np.count_nonzero((re > floor) & (re < float(np.ravel(box)[0]))))
 
 
-def plot_branch_map(series, path, params=None, title=None, dpi=150) -> str:
+def plot_branch_map(series, path, params=None, title=None, dpi=150, zoom=None) -> str:
     """L against τ_d/τ_min for each :class:`BranchSeries` (a line per branch, log L), each pulse
     with a spectrum marked in the colour of its number of unstable eigenvalues: filled where
-    counted by the argument principle, hollow where only found by the eigen-search."""
-    fig = Figure(figsize=(7.5, 5.0))
-    ax = fig.subplots()
+    counted by the argument principle, hollow where only found by the eigen-search.
+    ``zoom`` = (q0, q1): a second panel with that τ_d range, L scaled to the pulses in it (where
+    branches crowd, e.g. about a fold near τ_min)."""
+    if zoom is not None and not (zoom[0] < zoom[1]):
+        raise ValueError(f"zoom={zoom!r}: need q0 < q1")
+    fig = Figure(figsize=(11.0, 5.0) if zoom else (7.5, 5.0))
+    if zoom:
+        ax, az = fig.subplots(1, 2, gridspec_kw={"width_ratios": (3, 2)})
+    else:
+        ax, az = fig.subplots(), None
+    shown = _draw_branches(ax, series)
+    if az is not None:
+        _draw_branches(az, series)
+        inside = np.concatenate([b.L[(b.q >= zoom[0]) & (b.q <= zoom[1])] for b in series])
+        az.set_xlim(*zoom)
+        az.set_yscale("linear")             # a narrow range: plain metres read better
+        if inside.size:
+            az.set_ylim(inside.min() / 1.1, inside.max() * 1.1)
+        az.set_title(f"τ_d / τ_min in [{zoom[0]:g}, {zoom[1]:g}]", fontsize=9)
+        ax.axvspan(*zoom, color="0.85", alpha=0.5, zorder=0)
+    handles = ax.get_legend_handles_labels()[0]
+    for k, counted in sorted(shown, key=lambda t: (not t[1], t[0])):
+        col = COUNT_COLORS[k]
+        word = f"{k}{'+' if k == 3 else ''} unstable"
+        handles.append(Line2D([], [], ls="", marker="o", mec=col, mfc=col if counted else "white",
+                              mew=1.5, label=f"{word} ({'counted' if counted else 'found, not counted'})"))
+    ax.legend(handles=handles, fontsize=7.5, loc="best")
+    if title:
+        ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    save_figure(fig, path, dpi=dpi, metadata=params_metadata(params, path) if params else None)
+    return path
+
+
+def _draw_branches(ax, series) -> set:
+    """The branches' lines and markers on ``ax`` (log L); returns the (number, counted) kinds
+    drawn, for the legend."""
     shown = set()
     for i, b in enumerate(series):
         ax.plot(b.q, b.L, "-", color=LINE_COLORS[i % len(LINE_COLORS)], lw=1.0, zorder=1,
@@ -135,16 +173,5 @@ def plot_branch_map(series, path, params=None, title=None, dpi=150) -> str:
     ax.set_yscale("log")
     ax.set_xlabel("τ_d / τ_min")
     ax.set_ylabel("pulse length L (m, full width at half maximum of ln(v/v* + 1))")
-    handles = ax.get_legend_handles_labels()[0]
-    for k, counted in sorted(shown, key=lambda t: (not t[1], t[0])):
-        col = COUNT_COLORS[k]
-        word = f"{k}{'+' if k == 3 else ''} unstable"
-        handles.append(Line2D([], [], ls="", marker="o", mec=col, mfc=col if counted else "white",
-                              mew=1.5, label=f"{word} ({'counted' if counted else 'found, not counted'})"))
-    ax.legend(handles=handles, fontsize=7.5, loc="best")
     ax.grid(True, which="both", lw=0.3, alpha=0.5)
-    if title:
-        ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    save_figure(fig, path, dpi=dpi, metadata=params_metadata(params, path) if params else None)
-    return path
+    return shown
