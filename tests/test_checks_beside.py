@@ -85,3 +85,17 @@ def test_a_killed_family_run_leaves_no_checker_behind(tmp_path):
     alive = [k for k in kids if os.path.exists(f"/proc/{k}")
              and open(f"/proc/{k}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"]
     assert not alive
+
+
+def test_the_command_checks_beside_only_where_two_cpus_are_free():
+    """`steady family --checks` defaults to beside with two or more usable CPUs and to inline on
+    one (a second process on one core only adds its start and hand-overs): the rule, and the
+    default a process pinned to one CPU gets."""
+    from slippulse.cli.steady import default_checks
+    assert default_checks(1) == "inline" and default_checks(2) == default_checks(16) == "beside"
+    if not hasattr(os, "sched_setaffinity"):
+        pytest.skip("no CPU affinity on this system")
+    code = ("import os; os.sched_setaffinity(0, {min(os.sched_getaffinity(0))}); "
+            "from slippulse.cli.steady import DEFAULT_CHECKS; print(DEFAULT_CHECKS)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "inline"

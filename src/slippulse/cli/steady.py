@@ -21,10 +21,25 @@ from ..core.executor import add_executor_options
 from ..steady.continuation.family import SPACING
 from ..steady.continuation.strategy import AUTO
 
-#: steady family's --checks default: beside. The checks of a second process give the inline
-#: march's pulses (tests) while the march goes on: from scratch to 10 km in 57 min on two cores
-#: (docs/steady.md "Checks beside the march").
-DEFAULT_CHECKS = "beside"
+def default_checks(cpus: int) -> str:
+    """steady family's --checks default for a process that may use ``cpus`` CPUs: 'beside' with
+    two or more (the checks of a second process give the inline march's pulses while the march
+    goes on: from scratch to 10 km in 57 min on two cores, docs/steady.md "Checks beside the
+    march"), 'inline' on one, where the second process only adds its start and hand-overs (the
+    shallow family 29 s beside against 25–27 s inline on one core, BENCHMARKS.md "Family")."""
+    return "beside" if cpus >= 2 else "inline"
+
+
+def usable_cpus() -> int:
+    """The CPUs this process may run on (its affinity where the system tells it)."""
+    import os
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:                   # no affinity on this system
+        return os.cpu_count() or 1
+
+
+DEFAULT_CHECKS = default_checks(usable_cpus())
 
 
 def summary_line(pulse, params) -> str:
@@ -644,7 +659,8 @@ def _add_family(ss) -> None:
                    help="where the grid checks run: 'beside', in a second process while the "
                         "march goes on (the march goes back where a check refines the grid), "
                         "or 'inline', each before the next step, in one process; the same "
-                        f"pulses (default {DEFAULT_CHECKS})")
+                        f"pulses (default: beside where two or more CPUs are free to this "
+                        f"process, else inline; here {DEFAULT_CHECKS})")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_family)
