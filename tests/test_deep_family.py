@@ -790,3 +790,58 @@ def test_natural_steps_are_strategies_of_the_one_driver(params, pulse12):
                 lambda: FreeSteps(overshoot=0.0), lambda: AdaptGrid(n_points=1)):
         with pytest.raises(StrategyError):
             bad()
+
+
+class _ShrinkingMarch(Continuation):
+    """A Continuation whose accepted step shortens the pulse by 0.3 %, finished after 40 steps
+    (a branch followed toward shorter pulses, e.g. a two-hump branch upward in τ_d)."""
+
+    def advance(self):
+        self.L /= 1.003
+        self.n_steps += 1
+        if self.n_steps >= 40:
+            self.status, self.message = "finished", "40 steps"
+        return None
+
+
+def test_a_march_toward_shorter_pulses_hands_over_a_pulse_per_spacing_too(params, pulse12):
+    """The spacing is a change of L either way, |ln(L/L_last)| ≥ ln(1 + spacing): a march along
+    which L falls writes (and checks) its pulses as one along which it grows, not only its last."""
+    from slippulse.steady.continuation import Accepted
+    from slippulse.steady.continuation.gridcheck import as_both
+    for spacing in (0.0, 0.01):
+        written = []
+
+        def on_accept(sol, extra):
+            written.append(m.L)
+            return Accepted(True, sol)
+
+        start = as_both(params, pulse12)
+        L0 = start.to_pulse().L
+        m = _ShrinkingMarch(params, start, AUTO.replace(grid=StretchGrid(recentre=0.0),
+                                                        steps=FreeSteps()),
+                            spacing=spacing, on_accept=on_accept)
+        assert m.run() == "finished"
+        if spacing == 0:
+            assert len(written) == m.n_steps == 40
+        else:
+            shrunk = np.array([L0] + written[:-2]) / np.array(written[:-1])
+            assert shrunk.size >= 8 and np.all(shrunk >= 1 + spacing)
+            assert written[-1] == pytest.approx(L0 / 1.003 ** 40)
+
+
+def test_from_pulse_marches_the_deep_family_with_auto_and_another_branch_with_free_steps(
+        pulse12):
+    """``--from-pulse`` picks its march by the pulse: the deep main family's (one hump,
+    β ≥ DEEP_BETA) is AUTO's with its held cap, tuned to that family's scale; any other pulse
+    (a two-hump one, or the family above the deep march) gets BRANCH, free steps, where the
+    held cap would move β by 2e−4 a step."""
+    import dataclasses
+    from slippulse.steady.continuation import BRANCH, FROM_PULSE, from_pulse_strategy
+    from slippulse.steady.continuation.family import DEEP_BETA
+    p = pulse12.to_pulse()
+    deep = dataclasses.replace(p, beta=DEEP_BETA + 1e-4, extra=dict(p.extra, n_humps=1))
+    two = dataclasses.replace(deep, extra=dict(p.extra, n_humps=2))
+    assert from_pulse_strategy(deep) is FROM_PULSE and FROM_PULSE.held
+    assert from_pulse_strategy(two) is BRANCH and from_pulse_strategy(p) is BRANCH
+    assert not BRANCH.held and BRANCH.steps.overshoot == FROM_PULSE.steps.overshoot

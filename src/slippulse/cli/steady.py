@@ -323,7 +323,7 @@ def from_pulse_run_args(args, params) -> dict:
     from ..core.errors import SchemaError
     from ..core.h5io import read_pulse
     from ..core.params import describe_difference, differing
-    from ..steady.continuation import FROM_PULSE, StrategyError
+    from ..steady.continuation import StrategyError, from_pulse_strategy
     text = args.from_pulse
     path, sep, label = text.rpartition(":")
     if not (sep and path and label):
@@ -349,12 +349,13 @@ def from_pulse_run_args(args, params) -> dict:
     if args.max_points < need:
         raise ParameterError(f"max-points={args.max_points} is invalid: the grid check of the "
                              f"pulse's grid (N = {origin.n_points}) needs at least 2N - 1 = {need}")
-    steps = FROM_PULSE.steps
+    march = from_pulse_strategy(origin)
+    steps = march.steps
     if not (0 < args.ds_min <= steps.ds):
         raise ParameterError(f"ds-min={args.ds_min} is invalid: must be in (0, {steps.ds:g}] "
-                             f"and below the held steps' cap")
+                             f"(the first arclength step) and below a held steps' cap")
     try:
-        strategy = FROM_PULSE.replace(steps=dataclasses.replace(steps, ds_min=args.ds_min))
+        strategy = march.replace(steps=dataclasses.replace(steps, ds_min=args.ds_min))
     except StrategyError as exc:
         raise ParameterError(f"ds-min={args.ds_min} is invalid: {exc}") from None
     return dict(start=origin.tau_d_ratio, stop=stop, step=args.step, n_points=None,
@@ -645,7 +646,7 @@ def _add_family(ss) -> None:
                    help="smallest arclength step of the deep march before it refines the "
                         f"healing front or stops (default {AUTO.steps.ds_min:g})")
     p.add_argument("--spacing", type=float, default=SPACING,
-                   help="write (and grid-check) a deep-march pulse once L has grown by this "
+                   help="write (and grid-check) a deep-march pulse once L has changed by this "
                         f"fraction since the last one (default {SPACING:g}; 0: every arclength "
                         "step). The march goes on from each checked pulse, so a wide spacing "
                         "lets the deformed grid drift between checks")

@@ -3,7 +3,7 @@
 * :mod:`.tolerance` — the tolerances, in one place (grid criterion, Newton tolerance);
 * :mod:`.strategy` — the driver's strategies (predictor, corrector, step control, grid policy,
   grid check) and their combinations :class:`Strategy`: the deep :data:`AUTO`, the shallow
-  :data:`NATURAL` (τ_d steps) and :data:`BETA_STEPS`, and :data:`FROM_PULSE`;
+  :data:`NATURAL` (τ_d steps) and :data:`BETA_STEPS`, and :data:`FROM_PULSE` or :data:`BRANCH`;
 * :mod:`.driver` — :class:`Continuation`, the driver (``step()``, status, counters,
   ``on_accept``) of natural and pseudo-arclength steps alike;
 * :mod:`.natural` — the natural steps' maths (tangent predictor at fixed τ_d or β, the solve
@@ -18,12 +18,12 @@
 """
 from .arclength import ArclengthProblem, family_tangent
 from .driver import Accepted, Continuation
-from .family import FamilyRun, run_family
+from .family import FamilyRun, from_pulse_strategy, run_family
 from .gridcheck import as_both, check_grid_2n, grid_change
 from .homotopy import solve_robust
 from .natural import PulseOnGrid, judge_pulse, round_targets, solve_at_beta, tangent_step
 from .report import FamilyReport
-from .strategy import (AUTO, BETA_STEPS, FAMILY_POINTS, FAMILY_POINTS_BETA, FROM_PULSE, NATURAL,
+from .strategy import (AUTO, BETA_STEPS, BRANCH, FAMILY_POINTS, FAMILY_POINTS_BETA, FROM_PULSE, NATURAL,
                        REGRID, STRATEGIES, AdaptGrid, FreeSteps, HeldSteps, LengthPredictor,
                        NaturalPredictor, NestedCheck, NewtonCorrector, SecantPredictor, ShrinkSteps, Strategy,
                        StrategyError, StretchGrid, TangentPredictor, TargetSteps)
@@ -31,7 +31,7 @@ from .stretch import stretch_grid, stretch_profile
 from .tolerance import GRID_TOLERANCE, NEWTON_TOL, GridTolerance
 
 __all__ = ["AUTO", "Accepted", "FamilyRun", "AdaptGrid", "ArclengthProblem", "BETA_STEPS", "Continuation",
-           "FAMILY_POINTS", "FAMILY_POINTS_BETA", "FROM_PULSE", "FamilyReport", "FreeSteps", "GRID_TOLERANCE",
+           "BRANCH", "from_pulse_strategy", "FAMILY_POINTS", "FAMILY_POINTS_BETA", "FROM_PULSE", "FamilyReport", "FreeSteps", "GRID_TOLERANCE",
            "GridTolerance", "HeldSteps", "LengthPredictor", "NATURAL", "NEWTON_TOL",
            "NaturalPredictor", "NestedCheck", "NewtonCorrector", "PulseOnGrid", "REGRID", "STRATEGIES",
            "SecantPredictor", "ShrinkSteps", "Strategy", "StrategyError", "StretchGrid", "as_both",

@@ -74,8 +74,10 @@ class Continuation:
     beta_cap : natural steps: the march is ``"capped"`` once β ≥ beta_cap (where the arclength
         steps take over).
     max_length : arclength: the march is ``"stopped"`` once L ≥ max_length (m).
-    spacing : arclength: hand an accepted pulse to ``on_accept`` only once L has grown by this
-        fraction since the last one handed (0: every one); the pulse the march ends on always is.
+    spacing : arclength: hand an accepted pulse to ``on_accept`` only once L has changed by this
+        fraction since the last one handed, growing or (on a branch followed toward shorter
+        pulses) shrinking, |ln(L/L_last)| ≥ ln(1 + spacing) (0: every one); the pulse the march
+        ends on always is.
     on_attempt : callable(tau_d_ratio, pulse_or_None, message), optional; after every attempt
         (steps, relays, recentring re-solves).
     on_accept : callable(solution, extra) → :class:`Accepted` or None, optional: the place where
@@ -228,7 +230,8 @@ class Continuation:
             if not self._relay():
                 return self.message
             return None
-        if self.status == "running" and self.L < self._last_written_L * (1.0 + self.spacing):
+        if (self.status == "running"
+                and abs(math.log(self.L / self._last_written_L)) < math.log1p(self.spacing)):
             return None                    # a continuation step, not written (spacing)
         self.sol.tangent = self._tangent()     # the next step's, and the check's normal line
         res = self._hand(self.sol, {})

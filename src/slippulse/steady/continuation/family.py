@@ -18,7 +18,8 @@ from .driver import Accepted, Continuation
 from .gridcheck import as_both, check_pulse, monitor_first
 from .natural import PulseOnGrid, judge_pulse, round_targets
 from .report import FamilyReport
-from .strategy import AUTO, BETA_STEPS, FAMILY_POINTS, NATURAL, Strategy, TargetSteps
+from .strategy import (AUTO, BETA_STEPS, BRANCH, FAMILY_POINTS, FROM_PULSE, NATURAL, Strategy,
+                       TargetSteps)
 from .tolerance import GRID_TOLERANCE, GridTolerance
 
 
@@ -41,7 +42,7 @@ class FamilyRun:
     tolerance, n_max : the grid check's criterion and its largest grid.
     max_length : stop (cleanly, ``rep.limit_reached``) once a pulse is this long (m).
     deep_points : N of the adapted grid the deep driver starts on (default :data:`DEEP_POINTS`).
-    spacing : the deep driver writes an accepted pulse once L has grown by this fraction since
+    spacing : the deep driver writes an accepted pulse once L has changed by this fraction since
     the last written one (0: every one; the last always); default :data:`SPACING`.
     check : False: write the pulses unchecked (for a walk whose pulses only guide a solve, as
     ``steady solve`` below 1.2; such a file is refused on resume by a checked run).
@@ -343,7 +344,17 @@ def _attempt(params, tau_d_ratio, rep: FamilyReport, progress, **solve_args):
 #: Above this β the family goes on by the pseudo-arclength driver (τ_d ≈ 1.0125 τ_min, L ≈ 114 m);
 #: below it the β-steps converge.
 DEEP_BETA = 0.99
-#: The deep driver writes (and grid-checks) a pulse once L has grown by this fraction since the
+
+
+def from_pulse_strategy(pulse) -> Strategy:
+    """The march of ``steady family --from-pulse``: :data:`~.strategy.FROM_PULSE` (the deep
+    family's tuned :data:`~.strategy.AUTO`) from a one-hump pulse at β ≥ :data:`DEEP_BETA`, else
+    :data:`~.strategy.BRANCH` (free steps: AUTO's held cap is the deep family's scale)."""
+    deep = int(pulse.extra.get("n_humps", 1)) == 1 and pulse.beta >= DEEP_BETA
+    return FROM_PULSE if deep else BRANCH
+
+
+#: The deep driver writes (and grid-checks) a pulse once L has changed by this fraction since the
 #: last written one: beyond 2 km a step moves L by 0.2–0.4 %, and a check at 2N − 1 costs several
 #: steps, so checking every step spent about half the march on checks. The march goes on from
 #: each checked pulse, so a wide spacing lets the deformed grid drift between checks (at 0.04 a

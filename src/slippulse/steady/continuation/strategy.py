@@ -541,5 +541,15 @@ BETA_STEPS = Strategy(predictor=NaturalPredictor("beta"),
 #: continued to --to, where the first steps of ds = 0.1 would carry it far past).
 FROM_PULSE = AUTO.replace(steps=dataclasses.replace(AUTO.steps, overshoot=0.5))
 
+#: Another branch from a stored pulse (``steady family --from-pulse`` of a pulse off the deep
+#: main family): free steps with the tangent predictor on the pulse's own grid, deformed with it,
+#: the last step ending near --to. :data:`AUTO`'s held cap (ds ≤ 0.002 in (ln(1 − β), q/κ)) is
+#: the deep family's scale: on the two-hump branch at β ≈ 0.9 it moves β by 2e−4 per step
+#: (1.0193 → 1.0222 τ_min in 10 min, measured), this combination 1.0193 → 1.0301 in 3 min.
+BRANCH = Strategy(predictor=TangentPredictor(), corrector=NewtonCorrector(max_iter=25),
+                  steps=FreeSteps(ds=0.02, ds_min=0.001, ds_max=0.1, overshoot=0.5),
+                  grid=StretchGrid(), check=NestedCheck())
+
 #: Named combinations (``STRATEGIES["auto"]`` is :data:`AUTO`, the deep march).
-STRATEGIES = {"auto": AUTO, "natural": NATURAL, "beta": BETA_STEPS, "from-pulse": FROM_PULSE}
+STRATEGIES = {"auto": AUTO, "natural": NATURAL, "beta": BETA_STEPS, "from-pulse": FROM_PULSE,
+              "branch": BRANCH}
