@@ -845,3 +845,37 @@ def test_from_pulse_marches_the_deep_family_with_auto_and_another_branch_with_fr
     assert from_pulse_strategy(deep) is FROM_PULSE and FROM_PULSE.held
     assert from_pulse_strategy(two) is BRANCH and from_pulse_strategy(p) is BRANCH
     assert not BRANCH.held and BRANCH.steps.overshoot == FROM_PULSE.steps.overshoot
+
+
+class _FoldingMarch(Continuation):
+    """A Continuation whose accepted steps lower τ_d by 0.002 four times, then raise it (a fold),
+    L unchanged."""
+
+    def advance(self):
+        dq = -0.002 if self.n_steps < 4 else 0.002
+        self.q += dq
+        self.tangent = (1.0, dq / 0.002)
+        if self.direction * self.tangent[1] < 0 and self.fold is None:
+            self.fold = self.q - dq
+        self.n_steps += 1
+        self._update_status()
+        if self.status == "running" and self.n_steps >= 20:       # never, once the rule holds
+            self.status, self.message = "failed", "20 steps past the fold"
+        return None
+
+
+def test_a_march_whose_branch_folds_before_stop_ends_back_at_its_start_tau_d(params, pulse12):
+    """Toward a stop beyond a fold the branch never gets there: the march follows the fold's
+    other side back past the start's τ_d and stops there, saying where the branch folded."""
+    from slippulse.steady.continuation.gridcheck import as_both
+    start = as_both(params, pulse12)
+    q0 = float(start.x[-1])
+    m = _FoldingMarch(params, start, AUTO.replace(grid=StretchGrid(recentre=0.0),
+                                                  steps=FreeSteps()), stop=q0 - 0.05)
+    assert m.run() == "stopped"
+    assert m.q >= q0 - 1e-12 and m.n_steps == 8
+    assert f"folds at tau_d/tau_min={q0 - 0.008:.6f}" in m.message
+    # without a fold the stop is reached as before
+    m2 = _FoldingMarch(params, start, AUTO.replace(grid=StretchGrid(recentre=0.0),
+                                                   steps=FreeSteps()), stop=q0 - 0.005)
+    assert m2.run() == "finished" and m2.n_steps == 3

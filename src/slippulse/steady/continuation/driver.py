@@ -69,7 +69,8 @@ class Continuation:
     spec : layout of re-laid grids (:class:`~.strategy.AdaptGrid`).
     stop : arclength: the march is ``"finished"`` once τ_d/τ_min has reached stop from the side
         it starts on, and its first step heads for it (stop = −inf: toward β → 1); through a
-        fold, where τ_d turns, it goes on along the family.
+        fold, where τ_d turns, it goes on along the family, and is ``"stopped"`` once τ_d has
+        come back past the start's on the fold's other side (the branch does not reach stop).
     targets : natural steps: the τ_d/τ_min values to write pulses at, descending.
     beta_cap : natural steps: the march is ``"capped"`` once β ≥ beta_cap (where the arclength
         steps take over).
@@ -137,6 +138,7 @@ class Continuation:
         self.n_points = (base.n if strategy.stretch or grid.n_points is None else grid.n_points)
         self._base, self._x = base, x
         self.beta, self.q = float(x[-2]), float(x[-1])
+        self.q_start = self.q
         # κ: |dq/da| at the start, so that one unit of ds moves a and q/κ alike
         n0 = family_tangent(base, x, (1.0, 0.0, 1.0))
         self.kappa = max(abs(n0[-1] / (-n0[-2] / (1.0 - self.beta))), 1e-5)
@@ -745,6 +747,15 @@ class Continuation:
         elif self.L >= self.max_length:
             self.status = "stopped"
             self.message = f"pulse length L={self.L:.5g} m reached max_length={self.max_length:g} m"
+        elif (math.isfinite(self.stop) and self.fold is not None
+              and self.direction * self.tangent[1] < 0
+              and self.direction * (self.q - self.q_start) <= 0):
+            # the branch turned away from stop at a fold: it cannot reach stop; its other side
+            # is followed back to the start's τ_d
+            self.status = "stopped"
+            self.message = (f"the branch folds at tau_d/tau_min={self.fold:.6f} before "
+                            f"{self.stop}: traced back past the start's {self.q_start:.6f} on "
+                            f"its other side")
 
     def replace(self, sol: SteadySolution) -> None:
         """Continue from ``sol`` (x = (y, β, q); e.g. the refined pulse of a grid check) instead of
