@@ -786,3 +786,19 @@ def test_nested_refinement_shows_the_fourth_order_of_the_discretisation(params, 
     r = cli_inproc.run(["steady", "grid-convergence", path, "--labels", "td1.2000",
                         "--levels", "9", "-q"])
     assert r.returncode == 2 and "--levels=9 is invalid" in r.stderr
+    # --adapted: the pulse re-laid on an adapted grid of 400 first, and that one refined (one
+    # level: 400 → 799), the stored pulse left alone
+    r = cli_inproc.run(["steady", "grid-convergence", path, "--labels", "td1.2000",
+                        "--levels", "1", "--adapted", "400", "-q"])
+    assert r.returncode == 0, r.stderr
+    lines = [ln.split() for ln in r.stdout.splitlines()
+             if ln.startswith("td1.2000 1.") and len(ln.split()) == 8]
+    assert [int(ln[2]) for ln in lines] == [400, 799]
+    assert abs(float(lines[0][3]) / rows[0].beta - 1) < 1e-3        # the same pulse, re-laid
+    p2, _ = read_pulse(path, "td1.2000")
+    assert list(p2.extra["grid_convergence_n"]) == [500, 999, 1997]
+    for bad, word in ((["--adapted", "10"], "--adapted=10 is invalid"),
+                      (["--adapted", "400", "--write"], "--write with --adapted")):
+        r = cli_inproc.run(["steady", "grid-convergence", path, "--labels", "td1.2000", *bad,
+                            "-q"])
+        assert r.returncode == 2 and word in r.stderr

@@ -20,6 +20,11 @@ def cmd_grid_convergence(args) -> int:
 
     if not (isinstance(args.levels, int) and 1 <= args.levels <= 4):
         raise UsageError(f"--levels={args.levels!r} is invalid: must be an integer in [1, 4]")
+    if args.adapted is not None:
+        check_points(args.adapted, "--adapted")
+        if args.write:
+            raise UsageError("--write with --adapted: the levels are of another grid than the "
+                             "stored pulse's; nothing to store with it")
     check_labels(args.file, args.labels)
     print("label tau_d/tau_min N beta L(m) dbeta dL/L wall(s)")
     stored, failed = {}, 0
@@ -28,8 +33,16 @@ def cmd_grid_convergence(args) -> int:
         pulse, params = read_pulse(args.file, lab)
         if not pulse.converged:
             raise UsageError(f"--labels: {lab} is stored not converged; nothing to refine")
-        prob, x, _ = pulse_system(pulse, params)
-        sol = SteadySolution(prob, x, SolveStats(True, "stored", 0, 0.0), 0.0, 0)
+        if args.adapted is None:
+            prob, x, _ = pulse_system(pulse, params)
+            sol = SteadySolution(prob, x, SolveStats(True, "stored", 0, 0.0), 0.0, 0)
+        else:
+            sol = relaid(params, pulse, args.adapted)
+            if sol is None:
+                print(f"{lab}: the re-solve on an adapted grid of {args.adapted} did not "
+                      "converge; nothing refined")
+                failed += 1
+                continue
         rows = grid_convergence(params, sol, args.levels)
         for r in rows:
             print(f"{lab} {r.tau_d_ratio:.9f} {r.n} {r.beta:.10f} {r.L:.8g} {r.dbeta:+.3e} "
@@ -56,6 +69,23 @@ def cmd_grid_convergence(args) -> int:
     return 1 if failed else 0
 
 
+def relaid(params, pulse, n_points):
+    """``pulse`` re-solved at its τ_d on a grid of ``n_points`` adapted to it (the default
+    layout, :class:`~slippulse.steady.solver.GridSpec`), or None when Newton does not converge:
+    a discretisation independent of the stored one (e.g. a deformed grid's) to refine beside it."""
+    import numpy as np
+    from ..steady.solver import solve_pulse
+    sol = solve_pulse(params, pulse.tau_d_ratio, n_points=n_points, passes=0,
+                      guess=(pulse.xi, np.log(pulse.v), pulse.beta))
+    return sol if sol.stats.converged else None
+
+
+def check_points(n, option) -> None:
+    """A grid size option: an integer in [100, 20000]."""
+    if not (isinstance(n, int) and 100 <= n <= 20000):
+        raise UsageError(f"{option}={n!r} is invalid: must be an integer in [100, 20000]")
+
+
 def register(ss) -> None:
     p = ss.add_parser("grid-convergence", help="stored pulses re-solved on nested refinements",
                       description="Re-solves each pulse --labels of FILE on its own grid with "
@@ -70,6 +100,10 @@ def register(ss) -> None:
     p.add_argument("--labels", nargs="+", required=True, metavar="LABEL", help="pulses to refine")
     p.add_argument("--levels", type=int, default=2,
                    help="nested refinements, an integer in [1, 4] (default 2: N, 2N - 1, 4N - 3)")
+    p.add_argument("--adapted", type=int, default=None, metavar="N",
+                   help="first re-solve each pulse at its tau_d on a grid of N points adapted to "
+                        "it (the default layout), and refine that one: an independent "
+                        "discretisation beside the stored grid's (not with --write)")
     p.add_argument("--write", action="store_true",
                    help="store the levels as grid_convergence_* attributes of each pulse")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
