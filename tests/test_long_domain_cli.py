@@ -56,3 +56,27 @@ def test_one_side_extension_keeps_the_grid_and_the_pulse(tmp_path):
     assert np.all(np.diff(ext) > 0) and ext[-1] == pytest.approx(xi[5] + 3 * (xi[-1] - xi[5]))
     with pytest.raises(ValueError, match="behind"):
         extended_grid(xi, xi[5], behind=0.5)
+
+
+def test_a_re_solve_on_the_normal_line_is_the_fixed_tau_d_one(tmp_path):
+    """``resolve_on_normal_line`` (the fallback of ``--side`` where fixed-τ_d Newton creeps, near
+    β → 1): on the 1.2 pulse's grid extended ahead it converges to the pulse the fixed-τ_d re-solve
+    gives, τ_d moving along the family's normal line by a hair, β and L with it."""
+    import numpy as np
+
+    from slippulse.steady.bifurcation import pulse_system
+    from slippulse.steady.continuation.gridcheck import resolve_on_normal_line
+    from slippulse.steady.newton import SolveStats
+    from slippulse.steady.solver import SteadySolution, resolve_on_extended_domain
+    fam = str(tmp_path / "f.h5")
+    assert main(["steady", "solve", "--tau-d", "1.2", "--points", "500", "--out", fam]) == 0
+    pulse, params = read_pulse(fam)
+    fixed = resolve_on_extended_domain(params, pulse, ahead=2.0)
+    assert fixed.stats.converged
+    prob, x, _ = pulse_system(pulse, params)
+    sol = SteadySolution(prob, x, SolveStats(True, "stored", 0, 0.0), 0.0, 0)
+    normal = resolve_on_normal_line(params, sol, fixed.xi)
+    assert normal.stats.converged and np.array_equal(normal.xi, fixed.xi)
+    a, b = fixed.to_pulse(), normal.to_pulse()
+    assert abs(b.tau_d_ratio - a.tau_d_ratio) < 1e-6
+    assert b.beta == pytest.approx(a.beta, rel=1e-5) and b.L == pytest.approx(a.L, rel=1e-5)

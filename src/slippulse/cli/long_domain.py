@@ -20,10 +20,15 @@ def cmd_long_domain(args) -> int:
     out = args.out or os.path.join(os.path.dirname(os.path.abspath(args.file)),
                                    f"long_domain_{args.label}.h5")
     pulse, params = read_pulse(args.file, args.label)
+    how = ""
     if args.side == "both":
         long = resolve_on_longer_domain(params, pulse, args.factor).to_pulse()
     else:
         long = resolve_on_extended_domain(params, pulse, **{args.side: args.factor}).to_pulse()
+        if not long.converged:
+            long = _on_normal_line(params, pulse, long.xi)
+            how = (f"; at fixed tau_d Newton did not converge, so on the line normal to the "
+                   f"family (tau_d/tau_min {pulse.tau_d_ratio:.9f} -> {long.tau_d_ratio:.9f})")
     long.extra["domain_factor"] = args.factor
     long.extra["domain_side"] = args.side
     if not long.converged:
@@ -36,8 +41,20 @@ def cmd_long_domain(args) -> int:
           f"({long.xi[0]:.4g}, {long.xi[-1]:.4g}) m, N {pulse.n_points} -> {long.n_points}; "
           f"beta {pulse.beta:.8f} -> {long.beta:.8f}, L {pulse.L:.6f} -> {long.L:.6f} m "
           f"(the differences are the domain's effect plus the two grids' discretisation "
-          f"errors, no separate error estimate); wrote {out}")
+          f"errors, no separate error estimate){how}; wrote {out}")
     return 0
+
+
+def _on_normal_line(params, pulse, xi_new):
+    """``pulse`` re-solved on ``xi_new`` (its grid extended) on the line normal to its family
+    (:func:`~slippulse.steady.continuation.gridcheck.resolve_on_normal_line`), as a Pulse."""
+    from ..steady.bifurcation import pulse_system
+    from ..steady.continuation.gridcheck import resolve_on_normal_line
+    from ..steady.newton import SolveStats
+    from ..steady.solver import SteadySolution
+    prob, x, _ = pulse_system(pulse, params)
+    sol = SteadySolution(prob, x, SolveStats(True, "stored", 0, 0.0), 0.0, 0)
+    return resolve_on_normal_line(params, sol, xi_new).to_pulse()
 
 
 def register(ss) -> None:
