@@ -13,10 +13,9 @@ from .checks import check_labels
 
 def cmd_grid_convergence(args) -> int:
     from ..core.h5io import atomic_update, read_pulse
-    from ..steady.bifurcation import pulse_system
+    from ..steady.bifurcation import pulse_solution
     from ..steady.continuation.gridcheck import grid_convergence, observed_order
-    from ..steady.newton import SolveStats
-    from ..steady.solver import SteadySolution
+    from ..steady.solver import check_points
 
     if not (isinstance(args.levels, int) and 1 <= args.levels <= 4):
         raise UsageError(f"--levels={args.levels!r} is invalid: must be an integer in [1, 4]")
@@ -34,8 +33,7 @@ def cmd_grid_convergence(args) -> int:
         if not pulse.converged:
             raise UsageError(f"--labels: {lab} is stored not converged; nothing to refine")
         if args.adapted is None:
-            prob, x, _ = pulse_system(pulse, params)
-            sol = SteadySolution(prob, x, SolveStats(True, "stored", 0, 0.0), 0.0, 0)
+            sol = pulse_solution(pulse, params)
         else:
             sol = relaid(params, pulse, args.adapted)
             if sol is None:
@@ -78,12 +76,6 @@ def relaid(params, pulse, n_points):
     sol = solve_pulse(params, pulse.tau_d_ratio, n_points=n_points, passes=0,
                       guess=(pulse.xi, np.log(pulse.v), pulse.beta))
     return sol if sol.stats.converged else None
-
-
-def check_points(n, option) -> None:
-    """A grid size option: an integer in [100, 20000]."""
-    if not (isinstance(n, int) and 100 <= n <= 20000):
-        raise UsageError(f"{option}={n!r} is invalid: must be an integer in [100, 20000]")
 
 
 def register(ss) -> None:

@@ -48,13 +48,9 @@ def cmd_long_domain(args) -> int:
 def _on_normal_line(params, pulse, xi_new):
     """``pulse`` re-solved on ``xi_new`` (its grid extended) on the line normal to its family
     (:func:`~slippulse.steady.continuation.gridcheck.resolve_on_normal_line`), as a Pulse."""
-    from ..steady.bifurcation import pulse_system
+    from ..steady.bifurcation import pulse_solution
     from ..steady.continuation.gridcheck import resolve_on_normal_line
-    from ..steady.newton import SolveStats
-    from ..steady.solver import SteadySolution
-    prob, x, _ = pulse_system(pulse, params)
-    sol = SteadySolution(prob, x, SolveStats(True, "stored", 0, 0.0), 0.0, 0)
-    return resolve_on_normal_line(params, sol, xi_new).to_pulse()
+    return resolve_on_normal_line(params, pulse_solution(pulse, params), xi_new).to_pulse()
 
 
 def register(ss) -> None:

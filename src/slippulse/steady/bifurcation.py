@@ -396,6 +396,15 @@ def pulse_system(pulse, params):
     return prob, x, scale
 
 
+def pulse_solution(pulse, params):
+    """A stored, converged pulse as a SteadySolution of :func:`pulse_system` (x = (ln v, β, q)),
+    for the re-solves that start from one (grid convergence, a longer domain)."""
+    from .newton import SolveStats
+    from .solver import SteadySolution
+    prob, x, _ = pulse_system(pulse, params)
+    return SteadySolution(prob, x, SolveStats(True, "stored", 0, 0.0), 0.0, 0)
+
+
 def unscaled_lu(lu_scaled, beta):
     """The LU of A from that of A D, D = diag(1, …, 1, β) (:func:`pulse_system`'s scale on the
     last column of A = ∂(Δ, pin)/∂(ln v, β)): A D = P L U gives A = P L (U D⁻¹), the same pivots

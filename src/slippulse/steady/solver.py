@@ -196,10 +196,11 @@ def interpolate(xi_old, y_old, xi_new, v_stick, center=0.0):
     return out
 
 
-def check_points(n_points: int) -> None:
+def check_points(n_points: int, name: str = "points") -> None:
+    """A grid size (the option ``name``): an integer in [MIN_POINTS, MAX_POINTS]."""
     if (not isinstance(n_points, (int, np.integer)) or n_points < MIN_POINTS
             or n_points > MAX_POINTS):
-        raise ParameterError(f"points={n_points!r} is invalid: must be an integer in "
+        raise ParameterError(f"{name}={n_points!r} is invalid: must be an integer in "
                              f"[{MIN_POINTS}, {MAX_POINTS}] (dense N x N Jacobian and Hilbert "
                              "matrices)")
 
