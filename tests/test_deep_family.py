@@ -411,12 +411,21 @@ class _GrowingMarch(Continuation):
         return None
 
 
-@pytest.mark.parametrize("spacing", [0.0, 0.01])
-def test_the_deep_march_hands_over_a_pulse_per_spacing_of_L_and_its_last(params, pulse12,
-                                                                          spacing):
-    """``spacing`` (`--spacing`): a step is handed to ``on_accept`` (checked and written) once L
-    has grown by the spacing since the last one, and the march's last pulse always is; spacing 0
-    hands over every step."""
+class _ShrinkingMarch(Continuation):
+    """A Continuation whose accepted step shortens the pulse by 0.3 %, finished after 40 steps
+    (a branch followed toward shorter pulses, e.g. a two-hump branch upward in τ_d)."""
+
+    def advance(self):
+        self.L /= 1.003
+        self.n_steps += 1
+        if self.n_steps >= 40:
+            self.status, self.message = "finished", "40 steps"
+        return None
+
+
+def _handed_lengths(params, pulse12, march, **kw):
+    """Run ``march`` (a Continuation class) from the 1.2 pulse on a deformed grid with free
+    steps; returns (the march, its start's L, the L of each pulse handed to ``on_accept``)."""
     from slippulse.steady.continuation import Accepted
     from slippulse.steady.continuation.gridcheck import as_both
     written = []
@@ -426,11 +435,23 @@ def test_the_deep_march_hands_over_a_pulse_per_spacing_of_L_and_its_last(params,
         return Accepted(True, sol)
 
     start = as_both(params, pulse12)
-    L0 = start.to_pulse().L
-    m = _GrowingMarch(params, start, AUTO.replace(grid=StretchGrid(recentre=0.0),
-                                                  steps=FreeSteps()),
-                      max_length=1.1 * L0, spacing=spacing, on_accept=on_accept)
-    assert m.run() == "stopped"
+    m = march(params, start, AUTO.replace(grid=StretchGrid(recentre=0.0), steps=FreeSteps()),
+              on_accept=on_accept, **kw)
+    m.run()
+    return m, start.to_pulse().L, written
+
+
+@pytest.mark.parametrize("spacing", [0.0, 0.01])
+def test_the_deep_march_hands_over_a_pulse_per_spacing_of_L_and_its_last(params, pulse12,
+                                                                          spacing):
+    """``spacing`` (`--spacing`): a step is handed to ``on_accept`` (checked and written) once L
+    has grown by the spacing since the last one, and the march's last pulse always is; spacing 0
+    hands over every step."""
+    from slippulse.steady.continuation.gridcheck import as_both
+    L0 = as_both(params, pulse12).to_pulse().L
+    m, _, written = _handed_lengths(params, pulse12, _GrowingMarch, max_length=1.1 * L0,
+                                    spacing=spacing)
+    assert m.status == "stopped"
     assert written[-1] >= 1.1 * L0 and m.n_written == len(written)
     if spacing == 0:
         assert len(written) == m.n_steps
@@ -438,6 +459,21 @@ def test_the_deep_march_hands_over_a_pulse_per_spacing_of_L_and_its_last(params,
         grown = np.array(written[:-1]) / np.array([L0] + written[:-2])
         assert grown.size >= 2 and np.all(grown >= 1 + spacing)
         assert len(written) < m.n_steps / 3
+
+
+@pytest.mark.parametrize("spacing", [0.0, 0.01])
+def test_a_march_toward_shorter_pulses_hands_over_a_pulse_per_spacing_too(params, pulse12,
+                                                                          spacing):
+    """The spacing is a change of L either way, |ln(L/L_last)| ≥ ln(1 + spacing): a march along
+    which L falls writes (and checks) its pulses as one along which it grows, not only its last."""
+    m, L0, written = _handed_lengths(params, pulse12, _ShrinkingMarch, spacing=spacing)
+    assert m.status == "finished"
+    if spacing == 0:
+        assert len(written) == m.n_steps == 40
+    else:
+        shrunk = np.array([L0] + written[:-2]) / np.array(written[:-1])
+        assert shrunk.size >= 8 and np.all(shrunk >= 1 + spacing)
+        assert written[-1] == pytest.approx(L0 / 1.003 ** 40)
 
 
 class _StallingCorrector(NewtonCorrector):
@@ -790,44 +826,6 @@ def test_natural_steps_are_strategies_of_the_one_driver(params, pulse12):
                 lambda: FreeSteps(overshoot=0.0), lambda: AdaptGrid(n_points=1)):
         with pytest.raises(StrategyError):
             bad()
-
-
-class _ShrinkingMarch(Continuation):
-    """A Continuation whose accepted step shortens the pulse by 0.3 %, finished after 40 steps
-    (a branch followed toward shorter pulses, e.g. a two-hump branch upward in τ_d)."""
-
-    def advance(self):
-        self.L /= 1.003
-        self.n_steps += 1
-        if self.n_steps >= 40:
-            self.status, self.message = "finished", "40 steps"
-        return None
-
-
-def test_a_march_toward_shorter_pulses_hands_over_a_pulse_per_spacing_too(params, pulse12):
-    """The spacing is a change of L either way, |ln(L/L_last)| ≥ ln(1 + spacing): a march along
-    which L falls writes (and checks) its pulses as one along which it grows, not only its last."""
-    from slippulse.steady.continuation import Accepted
-    from slippulse.steady.continuation.gridcheck import as_both
-    for spacing in (0.0, 0.01):
-        written = []
-
-        def on_accept(sol, extra):
-            written.append(m.L)
-            return Accepted(True, sol)
-
-        start = as_both(params, pulse12)
-        L0 = start.to_pulse().L
-        m = _ShrinkingMarch(params, start, AUTO.replace(grid=StretchGrid(recentre=0.0),
-                                                        steps=FreeSteps()),
-                            spacing=spacing, on_accept=on_accept)
-        assert m.run() == "finished"
-        if spacing == 0:
-            assert len(written) == m.n_steps == 40
-        else:
-            shrunk = np.array([L0] + written[:-2]) / np.array(written[:-1])
-            assert shrunk.size >= 8 and np.all(shrunk >= 1 + spacing)
-            assert written[-1] == pytest.approx(L0 / 1.003 ** 40)
 
 
 def test_from_pulse_marches_the_deep_family_with_auto_and_another_branch_with_free_steps(
