@@ -453,6 +453,13 @@ def spectrum_line(label, res) -> str:
                  else f"; count FAILED: {c.message}")
         if c.count is not None and s.real / res.rate_unit < c.box[0]:
             line += " (the leading eigenvalue lies left of the box: not in this count)"
+        if c.count:
+            loc = getattr(c, "located", ())
+            line += (f"; {len(loc)} of them located" + (": " + ", ".join(
+                f"{z.real:.4g}" + (f"{z.imag:+.3g}i" if z.imag else "") for z in loc[:6])
+                if len(loc) else ""))
+        if getattr(res, "leading_from", "search") == "count":
+            line += "; the leading eigenvalue found from the count's zeros, not the tracked start"
         if c.checkpoint_note:
             line += f" ({c.checkpoint_note})"
     return line + f"; {res.wall_time + (ref.wall_time if ref else 0.0):.1f} s"

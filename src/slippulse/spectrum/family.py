@@ -12,6 +12,7 @@ settings and the level-0 attempt that produced it, so that a rerun resumes. The 
 """
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -22,8 +23,8 @@ from ..core.errors import UsageError
 from ..core.executor import ExecutorSettings, TaskPool
 from ..steady.grid import GridMap
 from .count import count_unstable
-from .pulse import (MIN_RE, NEWTON_TOL, PulseSpectrum, order4_pulse, pulse_spectrum,
-                    read_spectrum, write_spectrum)
+from .pulse import (MIN_RE, NEWTON_TOL, PulseSpectrum, order4_pulse, polish_located,
+                    pulse_spectrum, read_spectrum, write_spectrum)
 from .refine import (MAX_LADDER_POINTS, Ladder, check_refinable, level0_size, level_points,
                      mapped_pulse, refine_leading)
 
@@ -458,6 +459,26 @@ def _count(res, settings, checkpoint, level_progress, executor):
     return cnt
 
 
+def _counted(res, pulse, params, settings, lab, checkpoint, level_progress, executor):
+    """`res` with the count of its level 0 and the count's zeros polished
+    (:func:`~.pulse.polish_located`). Where one of them lies right of the search's leading
+    eigenvalue, the search is made again from it (``leading_from = "count"``) and refined from
+    there: a search tracked from a neighbour follows *its* mode, which need not lead here."""
+    cnt = _count(res, settings, checkpoint, level_progress, executor)
+    located = (polish_located(res.operator, cnt, res.sigmas, settings.tol) if cnt.count
+               else np.zeros(0))
+    lead = res.leading.real if res.sigmas.size else -math.inf
+    if located.size and located[0].real > lead + 1e-6 * abs(located[0]):
+        again = pulse_spectrum(pulse, params, guesses=[located[0]], extra=settings.extra,
+                               tol=settings.tol, label=lab,
+                               pin_translation=settings.pin_translation)
+        if again.status == "converged" and again.sigmas.size and \
+                again.leading.real > lead + 1e-6 * abs(located[0]):
+            res, again.leading_from = again, "count"
+    res.count = cnt
+    return res
+
+
 def pulse_task(lab, pulse, params, tracking, settings, checkpoint=None, level_progress=None,
                count_executor=None):
     """The spectrum of one pulse, started from `tracking`: level 0, the eigenvalues, the
@@ -475,6 +496,9 @@ def pulse_task(lab, pulse, params, tracking, settings, checkpoint=None, level_pr
     guesses, modes = tracking.starts(pulse, predicted)
     res = pulse_spectrum(pulse, params, guesses=guesses, extra=settings.extra, tol=settings.tol,
                          label=lab, guess_modes=modes, pin_translation=settings.pin_translation)
+    if res.status == "converged" and settings.count_box is not None:
+        res = _counted(res, pulse, params, settings, lab, checkpoint, level_progress,
+                       count_executor)
     res.level0_attempt = attempt
     if res.status == "converged" and res.sigmas.size and levels:
         gmap = GridMap(source.xi)
@@ -485,8 +509,6 @@ def pulse_task(lab, pulse, params, tracking, settings, checkpoint=None, level_pr
         if res.refined.status != "converged":
             res.status = "failed"
             res.message = f"refinement failed: {res.refined.message}"
-    if res.status == "converged" and settings.count_box is not None:
-        res.count = _count(res, settings, checkpoint, level_progress, count_executor)
     res.operator = None                             # N×N matrices: not kept per pulse
     if res.status != "converged":                   # a failure stores no eigenvalue
         res.sigmas = np.zeros(0, complex)

@@ -64,6 +64,7 @@ class PulseSpectrum:
     operator: object = field(default=None, repr=False)   # the StabilityOperator (not stored)
     xi: object = None             # the grid of the modes (the pulse's, or a nested refinement)
     level0_attempt: str = ""      # how level 0 was built (spectrum.family.LEVEL0_ATTEMPTS)
+    leading_from: str = "search"  # "search", or "count" where the count's zeros found a larger one
 
     @property
     def n_unstable(self):
@@ -281,6 +282,40 @@ class EigenSearch:
                                    "conjugate"))
         found.sort(key=lambda f: -f.sigma.real)
         return found
+
+
+def polish_located(op, cnt, known=(), tol=NEWTON_TOL):
+    """The eigenvalues (1/s, by decreasing Re σ) inside a converged count's box: ``known`` (1/s,
+    e.g. the search's) and those polished by Newton from the count's own zero estimates
+    (:func:`~.count.zeros_in_box`: one linearised Arnoldi at each estimate inside the box
+    widened by a tenth), estimated again with the ones found taken off while that finds more.
+    Stored on the count as ``located`` (c_p/L). Why: where their number equals the count, the
+    eigenvalues in the box are all known, the leading one among them, whatever the search
+    started from."""
+    from .count import zeros_in_box
+    x0, x1, y1 = cnt.box
+    unit = op.rate_unit
+    pad = 0.1 * max(x1 - x0, y1)
+
+    def inside(z, p=0.0):
+        return x0 - p <= z.real <= x1 + p and abs(z.imag) <= y1 + p
+
+    found = [complex(k) for k in known if inside(complex(k) / unit)]
+    search = EigenSearch(op, tol)
+    while len(found) < (cnt.count or 0):
+        before = len(search.found)
+        for z in sorted(zeros_in_box(cnt, [f / unit for f in found]), key=lambda z: -z.real):
+            if inside(z, pad):
+                sig, vec = linearised_candidates(op, complex(z.real, abs(z.imag)) * unit, k=1)
+                for j in range(len(sig)):
+                    search.add(complex(sig[j]), vec[:, j], floor=x0)
+        if len(search.found) == before:
+            break
+        new = [f.sigma for f in search.with_conjugates() if inside(f.sigma / unit)]
+        found += [s for s in new if all(abs(s - k) > 1e-6 * abs(s) for k in found)]
+    found.sort(key=lambda s: -s.real)
+    cnt.located = np.array(found, complex) / unit
+    return np.array(found, complex)
 
 
 def neutral_pair_of(op, pin_translation):
