@@ -725,7 +725,10 @@ def _add_stability(ss) -> None:
                         "|Im sigma L/c_p| <= Y1 by the argument principle (X1, Y1 raised to 1.5 "
                         "times the leading rate), e.g. --count 0.01 4 4; its det M "
                         "evaluations are kept in FILE.count-LABEL.npz until it converges, so an "
-                        "interrupted or out-of-budget count goes on from them when rerun")
+                        "interrupted or out-of-budget count goes on from them when rerun; "
+                        "the eigenvalues counted are located and polished, and where one lies "
+                        "right of the search's leading eigenvalue the leading rate is taken "
+                        "from it")
     p.add_argument("--count-evals", type=int, default=None, metavar="N",
                    help="budget of det M evaluations per count (default 400; a walk "
                         "that needs more is reported failed, with no count; near the "
