@@ -424,3 +424,36 @@ def test_the_count_finds_the_leading_eigenvalue_a_tracked_start_missed(tmp_path,
     assert located.size == 3 and np.all(st["count_located_imag"] == 0.0)
     assert located == pytest.approx([44.6, 14.99, 1.379], rel=2e-3)
     assert st["leading_s_per_L"] == pytest.approx(located[0], rel=1e-9)
+
+
+class _Positive(_Diag):
+    """_Diag whose M, like the pulse operators' kernel tables, exists only for Re σ > 0."""
+
+    n = 12
+    conjugate_symmetric = True
+
+    def __init__(self, lams):
+        super().__init__(lams, n=self.n)
+        self.lams = self.lams.real.astype(complex)        # real zeros: M(σ̄) = conj M(σ)
+        self.Q, self.Qi = self.Q.real, np.linalg.inv(self.Q.real)
+
+    def matrices(self, z, deriv=True):
+        if not complex(z).real > 0.0:
+            raise ValueError(f"sigma={z}: needs Re sigma > 0")
+        return super().matrices(z, True)
+
+
+def test_the_polish_shifts_an_estimate_left_of_the_box_into_it(monkeypatch):
+    """An estimate of the moments can fall outside the box, left of the analytic half-plane (the
+    two-hump pulse at 1.046 τ_min, three zeros in a box of 70 c_p/L: one at −69). The polish
+    starts from the nearest point of the box instead of failing there."""
+    import slippulse.spectrum.count as count
+    from slippulse.spectrum.pulse import polish_located
+    op = _Positive(np.array([2.0, 3.5]))
+    cnt = count_unstable(op, (0.1, 4.0, 4.0))
+    assert cnt.count == 2
+    # −0.2 lies within the tenth of the box by which estimates are taken, left of Re σ = 0
+    monkeypatch.setattr(count, "zeros_in_box", lambda c, known=(): np.array([-0.2 + 0j, 3.4 + 0j]))
+    found = polish_located(op, cnt)
+    assert np.sort(found.real) == pytest.approx([2.0, 3.5], abs=1e-8)
+    assert np.sort(cnt.located.real) == pytest.approx([2.0, 3.5], abs=1e-8)

@@ -305,8 +305,9 @@ def polish_located(op, cnt, known=(), tol=NEWTON_TOL):
     while len(found) < (cnt.count or 0):
         before = len(search.found)
         for z in sorted(zeros_in_box(cnt, [f / unit for f in found]), key=lambda z: -z.real):
-            if inside(z, pad):
-                sig, vec = linearised_candidates(op, complex(z.real, abs(z.imag)) * unit, k=1)
+            if inside(z, pad):          # the shift inside the box: M needs Re σ > 0
+                shift = complex(min(max(z.real, x0), x1), min(abs(z.imag), y1))
+                sig, vec = linearised_candidates(op, shift * unit, k=1)
                 for j in range(len(sig)):
                     search.add(complex(sig[j]), vec[:, j], floor=x0)
         if len(search.found) == before:
