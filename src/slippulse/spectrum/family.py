@@ -504,8 +504,10 @@ def pulse_task(lab, pulse, params, tracking, settings, checkpoint=None, level_pr
         gmap = GridMap(source.xi)
         ladder = Ladder(levels, target=settings.target, rel_target=settings.rel_target,
                         pin_translation=settings.pin_translation, tol=settings.tol)
+        # the neighbour's ladder is of the mode it tracked: not this one where the count's led
+        neighbour = (predicted or None) if res.leading_from == "search" else None
         res.refined = refine_leading(pulse, params, res, gmap, ladder, progress=level_progress,
-                                     source=source, neighbour=predicted or None)
+                                     source=source, neighbour=neighbour)
         if res.refined.status != "converged":
             res.status = "failed"
             res.message = f"refinement failed: {res.refined.message}"
