@@ -109,6 +109,7 @@ class ContourCount:
     log_abs: np.ndarray = field(default_factory=lambda: np.zeros(0))   # ln|det M| at the points
     g: np.ndarray | None = None      # d ln det M/dσ (units L/c_p) at the points; None: walked without
     located: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))  # zeros polished inside
+    located_modes: dict = field(default_factory=dict)   # {σ (1/s): V} of the polished ones
 
 
 def operator_key(op) -> str:

@@ -469,11 +469,15 @@ def _counted(res, pulse, params, settings, lab, checkpoint, level_progress, exec
                else np.zeros(0))
     lead = res.leading.real if res.sigmas.size else -math.inf
     if located.size and located[0].real > lead + 1e-6 * abs(located[0]):
+        # Newton from the polished (σ, V): a start from σ alone goes through Arnoldi, whose
+        # second candidate may converge far outside the box (834 c_p/L on the two-hump pulse)
+        mode = getattr(cnt, "located_modes", {}).get(located[0])
         again = pulse_spectrum(pulse, params, guesses=[located[0]], extra=settings.extra,
                                tol=settings.tol, label=lab,
+                               guess_modes=None if mode is None else [mode],
                                pin_translation=settings.pin_translation)
         if again.status == "converged" and again.sigmas.size and \
-                again.leading.real > lead + 1e-6 * abs(located[0]):
+                abs(again.leading - located[0]) <= 1e-6 * abs(located[0]):
             res, again.leading_from = again, "count"
     res.count = cnt
     return res
