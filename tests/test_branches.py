@@ -118,6 +118,8 @@ def test_cli_writes_each_solution_under_its_own_label(tmp_path, params, pulse12)
     p, _ = read_pulse(out, "td1.2000")
     assert p.extra["n_humps"] == 1 and p.extra["reached_by"] == "0"
     assert p.beta == pytest.approx(0.0072417, rel=2e-3)
+    # the file is written whole under a temporary name and renamed: nothing of that is left
+    assert sorted(f.name for f in tmp_path.iterdir() if "tmp" in f.name) == []
 
 
 def test_solution_labels_parse_to_the_same_tau_d():

@@ -219,8 +219,10 @@ def cmd_branches(args) -> int:
             write_pulse(tmp, p, params)
         os.replace(tmp, out)
     finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+        from ..core.locking import lock_path
+        for leftover in (tmp, lock_path(tmp)):      # the temporary name's lock is its own
+            if os.path.exists(leftover):
+                os.remove(leftover)
     for k, f in enumerate(rep.found):
         p, c = f.pulse, f.check
         chk = (f"grid check N={p.n_points}->{c['n_fine']}: dbeta={c['dbeta']:.1e} "
