@@ -443,14 +443,19 @@ class _Cubic:
         return self.residual(x), np.array([[1.0 + 1.5 * x[0] ** 2, 0.0], [0.0, 1.0]])
 
 
-def test_solve_robust_falls_back_on_the_residual_homotopy():
+def test_solve_robust_falls_back_on_the_residual_homotopy(monkeypatch):
     """Two Newton iterations from y = 0 cannot reach 1e-13 on the cubic; the homotopy
     F(x) = s F(x0), s = 1 − k/8, reaches the root, and the iterations of all stages are counted.
-    With one iteration per stage it fails and says at which stage."""
-    from slippulse.steady.continuation import solve_robust
+    With four iterations per stage, two stages are too long: each failed step is halved and
+    made again from the last converged stage (``HALVINGS``); with no halving it fails and says
+    at which stage."""
+    from slippulse.steady.continuation import homotopy, solve_robust
     x, st = solve_robust(_Cubic(), np.array([0.0, 0.0]), stages=8, max_iter=2)
     assert st.converged and abs(x[0] + 0.5 * x[0] ** 3 - 3.0) <= 1e-13 and x[1] == 1.0
     assert st.iterations > 2
+    x, st = solve_robust(_Cubic(), np.array([0.0, 0.0]), stages=2, max_iter=1)
+    assert st.converged and abs(x[0] + 0.5 * x[0] ** 3 - 3.0) <= 1e-13
+    monkeypatch.setattr(homotopy, "HALVINGS", 0)
     x, st = solve_robust(_Cubic(), np.array([0.0, 0.0]), stages=2, max_iter=1)
     assert not st.converged and "homotopy stage" in st.message
 
@@ -476,9 +481,18 @@ def test_a_homotopy_tried_first_gives_way_to_plain_newton():
     from slippulse.steady.continuation import solve_robust
     x, st = solve_robust(_Banded(), np.array([0.0, 1.0, 1.0]), stages=8, max_iter=3, plain=False)
     assert st.converged and x[0] == 2.0 and st.homotopy
-    x, st = solve_robust(_Cubic(), np.array([0.0, 0.0]), stages=2, max_iter=1, plain=False)
+    x, st = solve_robust(_Trapped(), np.array([0.0, 1.0, 1.0]), stages=2, max_iter=1,
+                         plain=False)
     assert not st.converged
     assert "homotopy stage" in st.message and "then plain Newton" in st.message
+
+
+class _Trapped(_Banded):
+    """_Banded with a Jacobian twice too large: every Newton step lands in the band or short of
+    it, so plain Newton fails too; the homotopy's stages lie in the band however halved."""
+
+    def residual_and_jacobian(self, x):
+        return self.residual(x), 2.0 * np.eye(3)
 
 
 class _Slow(_Cubic):
