@@ -107,7 +107,7 @@ def _homotopy(problem, x0, stages, max_iter, tol, reuse, linear, lu, handed, cou
     x = np.array(x0, float)
     s, h, halved, k = 1.0, 1.0 / stages, 0, 0
     while s > 0.0:
-        s_k = max(0.0, s - h) if s - h > 1e-12 else 0.0
+        s_k = s - h if s - h > 1e-12 else 0.0
         k += 1
         xt, st = newton(_Shifted(problem, r0, s_k), x, tol=tol if s_k == 0.0 else 1e-10,
                         max_iter=4 * max_iter, reuse=reuse, linear=linear, lu=lu, keep=handed)
