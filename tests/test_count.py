@@ -454,6 +454,6 @@ def test_the_polish_shifts_an_estimate_left_of_the_box_into_it(monkeypatch):
     assert cnt.count == 2
     # −0.2 lies within the tenth of the box by which estimates are taken, left of Re σ = 0
     monkeypatch.setattr(count, "zeros_in_box", lambda c, known=(): np.array([-0.2 + 0j, 3.4 + 0j]))
-    found = polish_located(op, cnt)
+    found, _ = polish_located(op, cnt)
     assert np.sort(found.real) == pytest.approx([2.0, 3.5], abs=1e-8)
     assert np.sort(cnt.located.real) == pytest.approx([2.0, 3.5], abs=1e-8)

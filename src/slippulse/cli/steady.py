@@ -454,11 +454,11 @@ def spectrum_line(label, res) -> str:
         if c.count is not None and s.real / res.rate_unit < c.box[0]:
             line += " (the leading eigenvalue lies left of the box: not in this count)"
         if c.count:
-            loc = getattr(c, "located", ())
+            loc = c.located
             line += (f"; {len(loc)} of them located" + (": " + ", ".join(
                 f"{z.real:.4g}" + (f"{z.imag:+.3g}i" if z.imag else "") for z in loc[:6])
                 if len(loc) else ""))
-        if getattr(res, "leading_from", "search") == "count":
+        if res.leading_from == "count":
             line += "; the leading eigenvalue found from the count's zeros, not the tracked start"
         if c.checkpoint_note:
             line += f" ({c.checkpoint_note})"

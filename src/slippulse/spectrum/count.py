@@ -59,7 +59,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import eigvals, lu_factor, lu_solve
+from scipy.linalg import eigvals, hankel, lu_factor, lu_solve
 
 from ..core.atomic import replacing_open
 
@@ -109,7 +109,6 @@ class ContourCount:
     log_abs: np.ndarray = field(default_factory=lambda: np.zeros(0))   # ln|det M| at the points
     g: np.ndarray | None = None      # d ln det M/dσ (units L/c_p) at the points; None: walked without
     located: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))  # zeros polished inside
-    located_modes: dict = field(default_factory=dict)   # {σ (1/s): V} of the polished ones
 
 
 def operator_key(op) -> str:
@@ -437,8 +436,7 @@ def zeros_in_box(cnt: ContourCount, known=()) -> np.ndarray:
     s = _power_sums(cnt, c, r, 2 * m)
     for k in known:
         s -= ((k - c) / r) ** np.arange(2 * m)
-    H0 = np.array([[s[i + j] for j in range(m)] for i in range(m)])
-    H1 = np.array([[s[i + j + 1] for j in range(m)] for i in range(m)])
+    H0, H1 = hankel(s[:m], s[m - 1:2 * m - 1]), hankel(s[1:m + 1], s[m:2 * m])
     try:
         w = eigvals(H1, H0)
     except (np.linalg.LinAlgError, ValueError):

@@ -465,13 +465,13 @@ def _counted(res, pulse, params, settings, lab, checkpoint, level_progress, exec
     eigenvalue, the search is made again from it (``leading_from = "count"``) and refined from
     there: a search tracked from a neighbour follows *its* mode, which need not lead here."""
     cnt = _count(res, settings, checkpoint, level_progress, executor)
-    located = (polish_located(res.operator, cnt, res.sigmas, settings.tol) if cnt.count
-               else np.zeros(0))
+    located, modes = (polish_located(res.operator, cnt, res.sigmas, settings.tol) if cnt.count
+                      else (np.zeros(0), {}))
     lead = res.leading.real if res.sigmas.size else -math.inf
     if located.size and located[0].real > lead + 1e-6 * abs(located[0]):
         # Newton from the polished (σ, V): a start from σ alone goes through Arnoldi, whose
         # second candidate may converge far outside the box (834 c_p/L on the two-hump pulse)
-        mode = getattr(cnt, "located_modes", {}).get(located[0])
+        mode = modes.get(located[0])
         again = pulse_spectrum(pulse, params, guesses=[located[0]], extra=settings.extra,
                                tol=settings.tol, label=lab,
                                guess_modes=None if mode is None else [mode],

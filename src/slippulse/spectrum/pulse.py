@@ -289,9 +289,9 @@ def polish_located(op, cnt, known=(), tol=NEWTON_TOL):
     e.g. the search's) and those polished by Newton from the count's own zero estimates
     (:func:`~.count.zeros_in_box`: one linearised Arnoldi at each estimate inside the box
     widened by a tenth), estimated again with the ones found taken off while that finds more.
-    Stored on the count as ``located`` (c_p/L), and the polished ones' vectors as
-    ``located_modes`` ({σ: V}). Why: where their number equals the count, the eigenvalues in the
-    box are all known, the leading one among them, whatever the search started from."""
+    Returns (those eigenvalues, {σ: V} of the polished ones) and stores the eigenvalues on the
+    count as ``located`` (c_p/L). Why: where their number equals the count, the eigenvalues in
+    the box are all known, the leading one among them, whatever the search started from."""
     from .count import zeros_in_box
     x0, x1, y1 = cnt.box
     unit = op.rate_unit
@@ -316,8 +316,7 @@ def polish_located(op, cnt, known=(), tol=NEWTON_TOL):
         found += [s for s in new if all(abs(s - k) > 1e-6 * abs(s) for k in found)]
     found.sort(key=lambda s: -s.real)
     cnt.located = np.array(found, complex) / unit
-    cnt.located_modes = {f.sigma: f.V for f in search.found}
-    return np.array(found, complex)
+    return np.array(found, complex), {f.sigma: f.V for f in search.found}
 
 
 def neutral_pair_of(op, pin_translation):

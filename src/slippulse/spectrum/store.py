@@ -35,7 +35,7 @@ def spectrum_attrs(res) -> dict:
             "translation_mode_error": float(res.translation_error),
             "n_points": res.n_points, "wall_time": res.wall_time,
             "newton_iterations": res.newton_iterations, "failures": "; ".join(res.failures),
-            "leading_from": getattr(res, "leading_from", "search")}
+            "leading_from": res.leading_from}
 
 
 def refine_attrs(ref) -> dict:
@@ -71,7 +71,7 @@ def count_attrs(cnt) -> dict:
            "count_max_reach_rad": float(cnt.reach)}                # nan: walk without M′
     if cnt.count is not None:
         out["count"] = int(cnt.count)
-        located = np.asarray(getattr(cnt, "located", np.zeros(0)), complex)
+        located = np.asarray(cnt.located, complex)
         out["count_located_real"] = located.real      # the polished zeros in the box, c_p/L
         out["count_located_imag"] = located.imag
     return out
