@@ -111,6 +111,22 @@ def test_write_pulse_guards_labels(tmp_path):
     assert h5io.read_pulse(other)[0].converged
 
 
+def test_write_pulses_writes_all_or_none(tmp_path):
+    out = str(tmp_path / "f.h5")
+    h5io.write_pulse(out, _synthetic_pulse(1.1, 0.1, 0.1), P)
+    raw = open(out, "rb").read()
+    failed = _synthetic_pulse(1.1, 0.2, 0.1)
+    failed.converged = False
+    # the first is new, the second may not replace the converged pulse: neither is written
+    with pytest.raises(h5io.PulseExistsError, match="never replaces"):
+        h5io.write_pulses(out, [_synthetic_pulse(1.2, 0.1, 0.1), failed], P)
+    assert open(out, "rb").read() == raw
+    h5io.write_pulses(out, [_synthetic_pulse(1.2, 0.1, 0.1), _synthetic_pulse(1.15, 0.1, 0.1)],
+                      P, replace=True)
+    assert sorted(h5io.list_pulses(out)) == ["td1.1500", "td1.2000"]
+    assert sorted(os.listdir(tmp_path)) == [".f.h5.lock", "f.h5"]
+
+
 # ------------------------------------------------------------------ item 3: unconverged refused
 
 def test_every_reader_refuses_an_unconverged_pulse(real, tmp_path, capsys):

@@ -143,7 +143,7 @@ def solution_label(tau_d_ratio: float, k: int) -> str:
 
 
 def cmd_branches(args) -> int:
-    from ..core.h5io import check_writable, write_pulse
+    from ..core.h5io import check_writable, write_pulses
     from ..steady.branch_search import GUESS_SETS, Guess, search
 
     out = args.out
@@ -196,33 +196,20 @@ def cmd_branches(args) -> int:
         print(f"slippulse: no pulse converged at tau_d/tau_min={q:g} from {len(guesses)} guesses; "
               f"nothing written to {out}", file=sys.stderr)
         return 1
-    import tempfile
-    d = os.path.dirname(os.path.abspath(out))
-    os.makedirs(d, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-branches-", suffix=".h5", dir=d)
-    os.close(fd)
-    os.remove(tmp)
-    try:
-        for k, f in enumerate(rep.found):
-            p = f.pulse
-            p.name = solution_label(q, k)
-            p.extra.update({
-                "branch_index": k, "guess_index": int(f.guess),
-                "guess": guesses[f.guess].describe(params),
-                "reached_by": ",".join(str(gi) for gi, r in enumerate(rep.reached) if k in r),
-                "deflation": f"p={args.p:g} sigma={args.sigma:g} norm=sqrt(mean(dlnv^2)+"
-                             "(dbeta/beta)^2)",
-                "grid_check_passed": bool(f.check.get("passed", False)),
-                "grid_check_n_fine": int(f.check.get("n_fine", 0)),
-                "grid_check_dbeta": float(f.check.get("dbeta", math.nan)),
-                "grid_check_dL_rel": float(f.check.get("dL_rel", math.nan))})
-            write_pulse(tmp, p, params)
-        os.replace(tmp, out)
-    finally:
-        from ..core.locking import lock_path
-        for leftover in (tmp, lock_path(tmp)):      # the temporary name's lock is its own
-            if os.path.exists(leftover):
-                os.remove(leftover)
+    for k, f in enumerate(rep.found):
+        p = f.pulse
+        p.name = solution_label(q, k)
+        p.extra.update({
+            "branch_index": k, "guess_index": int(f.guess),
+            "guess": guesses[f.guess].describe(params),
+            "reached_by": ",".join(str(gi) for gi, r in enumerate(rep.reached) if k in r),
+            "deflation": f"p={args.p:g} sigma={args.sigma:g} norm=sqrt(mean(dlnv^2)+"
+                         "(dbeta/beta)^2)",
+            "grid_check_passed": bool(f.check.get("passed", False)),
+            "grid_check_n_fine": int(f.check.get("n_fine", 0)),
+            "grid_check_dbeta": float(f.check.get("dbeta", math.nan)),
+            "grid_check_dL_rel": float(f.check.get("dL_rel", math.nan))})
+    write_pulses(out, [f.pulse for f in rep.found], params, replace=True)
     for k, f in enumerate(rep.found):
         p, c = f.pulse, f.check
         chk = (f"grid check N={p.n_points}->{c['n_fine']}: dbeta={c['dbeta']:.1e} "

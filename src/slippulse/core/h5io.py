@@ -339,43 +339,58 @@ def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = T
     never replaced by an unconverged `pulse` (:class:`PulseExistsError` in both cases, the file
     unchanged).
     """
+    atomic_update(path, lambda h5: _put_pulse(h5, path, pulse, params, overwrite))
+
+
+def write_pulses(path: str, pulses, params: Parameters, replace: bool = False) -> None:
+    """Write several pulses in one :func:`atomic_update` under `path`'s own lock: all of them or
+    none (:func:`write_pulse`'s rules for each); ``replace``: they replace the file's content.
+    Why: a command that writes what it found as one result (``steady branches``) must not leave
+    part of it, nor a temporary file beside `path`, when killed or refused."""
+    pulses = list(pulses)
 
     def fill(h5):
-        format_version(h5, path)
-        if "parameters" in h5:
-            old = read_parameters(h5, path)
-            if old != params:
-                from .params import describe_difference
-                raise SchemaError(f"{path}: stored parameters differ from this run's: "
-                                  + describe_difference(old, params, "stored", "this run"))
-        else:
-            write_parameters(h5, params)
-        if h5.get("pulses", getlink=True) is not None:
-            _labels(h5, path)                  # refuse to add to a file whose pulses are broken
-        pulses = h5.require_group("pulses")
-        if pulse.label in pulses:
-            if not pulse.converged and pulse_converged(pulses[pulse.label], path):
-                raise PulseExistsError(f"{path}: pulse {pulse.label} is stored converged; an "
-                                       "unconverged solve never replaces it (kept unchanged)")
-            if not overwrite:
-                raise PulseExistsError(f"{path}: pulse {pulse.label} already present (replace "
-                                       "it with --overwrite)")
-            del pulses[pulse.label]
-        grp = pulses.create_group(pulse.label)
-        xi = coordinate(grp, "xi", np.asarray(pulse.xi, dtype=float), units=DATASETS["xi"],
-                        long_name=LONG_NAMES["xi"])
-        for name, unit in DATASETS.items():
-            if name != "xi":
-                describe(grp.create_dataset(name, data=np.asarray(getattr(pulse, name), dtype=float)),
-                         unit, LONG_NAMES[name], dims=(xi,))
-        for name in ATTRS:
-            val = getattr(pulse, name)
-            grp.attrs[name] = np.bool_(val) if name == "converged" else val
-        for key, val in pulse.extra.items():
-            grp.attrs[key] = val
-        upgrade_steady(h5)
+        for p in pulses:
+            _put_pulse(h5, path, p, params, True)
 
-    atomic_update(path, fill)
+    atomic_update(path, fill, replace=replace)
+
+
+def _put_pulse(h5, path: str, pulse: Pulse, params: Parameters, overwrite: bool) -> None:
+    """:func:`write_pulse`'s content, into the open file ``h5``."""
+    format_version(h5, path)
+    if "parameters" in h5:
+        old = read_parameters(h5, path)
+        if old != params:
+            from .params import describe_difference
+            raise SchemaError(f"{path}: stored parameters differ from this run's: "
+                              + describe_difference(old, params, "stored", "this run"))
+    else:
+        write_parameters(h5, params)
+    if h5.get("pulses", getlink=True) is not None:
+        _labels(h5, path)                  # refuse to add to a file whose pulses are broken
+    pulses = h5.require_group("pulses")
+    if pulse.label in pulses:
+        if not pulse.converged and pulse_converged(pulses[pulse.label], path):
+            raise PulseExistsError(f"{path}: pulse {pulse.label} is stored converged; an "
+                                   "unconverged solve never replaces it (kept unchanged)")
+        if not overwrite:
+            raise PulseExistsError(f"{path}: pulse {pulse.label} already present (replace "
+                                   "it with --overwrite)")
+        del pulses[pulse.label]
+    grp = pulses.create_group(pulse.label)
+    xi = coordinate(grp, "xi", np.asarray(pulse.xi, dtype=float), units=DATASETS["xi"],
+                    long_name=LONG_NAMES["xi"])
+    for name, unit in DATASETS.items():
+        if name != "xi":
+            describe(grp.create_dataset(name, data=np.asarray(getattr(pulse, name), dtype=float)),
+                     unit, LONG_NAMES[name], dims=(xi,))
+    for name in ATTRS:
+        val = getattr(pulse, name)
+        grp.attrs[name] = np.bool_(val) if name == "converged" else val
+    for key, val in pulse.extra.items():
+        grp.attrs[key] = val
+    upgrade_steady(h5)
 
 
 #: Fewest grid points a stored pulse may have (a resolved pulse has hundreds; fewer is a

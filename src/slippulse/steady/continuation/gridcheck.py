@@ -72,8 +72,7 @@ def grid_change(params, sol: SteadySolution, n_points, spec=GridSpec(), max_iter
         xi = sol.xi
         mid = 0.5 * (xi[1:] + xi[:-1])
         xn = np.sort(np.concatenate([xi, mid if cells is None else mid[cells]]))
-        yn = interpolate(xi, sol.x[:-2], xn, params.v_stick(q * params.tau_min))
-        k = int(np.searchsorted(xn, xi[sol.problem.pin_index]))    # the pin's node, kept
+        yn, k = _onto(params, sol, xn)
         y_pin = sol.problem.y_pin
     else:
         xn, yn = regrid_guess(params, q, sol.xi, sol.x[:-2], beta, 2 * n_points, spec)
@@ -107,13 +106,20 @@ def resolve_on_normal_line(params, sol: SteadySolution, xn, stages=8, max_iter=1
     pulse, its domain doubled ahead: max|Δ| = 1.1e−5 after 60 iterations, 502 s), where this
     one converges in 13 s, τ_d moving by 3e−8 τ_min. Returns the SteadySolution (free="both")."""
     q = float(sol.x[-1])
-    k = int(np.searchsorted(xn, sol.xi[sol.problem.pin_index]))
-    yn = interpolate(sol.xi, sol.x[:-2], xn, params.v_stick(q * params.tau_min))
+    yn, k = _onto(params, sol, xn)
     t0 = time.perf_counter()
     _, base, arc = normal_line(params, sol, xn, k, sol.problem.y_pin)
     xs, st = solve_robust(arc, np.concatenate([yn, [sol.x[-2], q]]), stages=stages,
                           max_iter=max_iter, reuse=True, plain=False, linear=KrylovLU("single"))
     return SteadySolution(base, xs, st, time.perf_counter() - t0, 1)
+
+
+def _onto(params, sol: SteadySolution, xn):
+    """(ln v of ``sol`` (x = (y, β, q)) interpolated onto ``xn``, which holds its nodes; the index
+    in ``xn`` of its pin's node, which is kept)."""
+    q = float(sol.x[-1])
+    yn = interpolate(sol.xi, sol.x[:-2], xn, params.v_stick(q * params.tau_min))
+    return yn, int(np.searchsorted(xn, sol.xi[sol.problem.pin_index]))
 
 
 def normal_line(params, sol: SteadySolution, xn, pin, y_pin):
