@@ -207,3 +207,30 @@ def test_another_branch_is_continued_at_its_own_hump_count(tmp_path, params):
     from slippulse.steady.continuation import judge_pulse
     assert judge_pulse(Solved(), 2)[1] and not judge_pulse(Solved())[1]
     assert "2-hump" in judge_pulse(Solved())[2]
+
+
+def test_cli_real_roots_finds_the_leading_eigenvalue_and_refuses_bad_input(tmp_path, params,
+                                                                            pulse12, spectrum12):
+    """`steady real-roots`: the root it prints is a sign change of det M on the pulse's grid (to
+    its tolerance), the leading eigenvalue of the unpinned spectrum within the pin's rank-one
+    change (4e-5 of s at N = 700, measured); bad input: one line, exit 2."""
+    from slippulse.spectrum.eigensolve import det_sign
+    from slippulse.spectrum.pulse import StabilityOperator
+    path = str(tmp_path / "p.h5")
+    write_pulse(path, pulse12.to_pulse(), params)
+    r = cli_inproc.run(["steady", "real-roots", path, "--between", "15", "30", "--scan", "6"])
+    assert r.returncode == 0, r.stderr
+    line = next(ln for ln in r.stdout.splitlines() if ln.startswith("td1.2000"))
+    assert "1 real eigenvalue on [15, 30] c_p/L" in line
+    s = float(line.split("c_p/L: ")[1].split(";")[0])
+    lead = spectrum12.sigmas[0].real / spectrum12.rate_unit
+    assert s == pytest.approx(lead, rel=2e-4)
+    op = StabilityOperator(pulse12.to_pulse(), params, pin_translation=True)
+    u = op.rate_unit
+    assert det_sign(op, (s - 2e-4) * u)[0] != det_sign(op, (s + 2e-4) * u)[0]  # s printed to 6 digits
+    for bad, name in ((["--between", "0", "1"], "--between"), (["--between", "2", "1"], "--between"),
+                      (["--between", "1", "2", "--scan", "1"], "--scan"),
+                      (["--between", "1", "2", "--xtol", "-1"], "--xtol")):
+        r = cli_inproc.run(["steady", "real-roots", path] + bad)
+        err = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(err) == 1 and name in err[0], r.stderr

@@ -771,7 +771,7 @@ def register(sub) -> None:
     when the parser is built, not with this module). A new command module adds its
     ``register`` to the tuple below."""
     from . import branches, convergence, divergence, existence_map, fold_ratio, long_domain
-    from . import motion, rates, referee, seed
+    from . import motion, rates, real_roots, referee, seed
     p_steady = sub.add_parser("steady", help="steady pulse solutions",
                               description="Steady self-healing pulses (mode III).")
     ss = p_steady.add_subparsers(dest="steady_command", metavar="SUBCOMMAND")
@@ -779,6 +779,6 @@ def register(sub) -> None:
     for add in (_add_solve, _add_family, _add_stability, rates.register, existence_map.register,
                 divergence.register,          # steady divergence, steady edges
                 referee.register, fold_ratio.register, seed.register, long_domain.register,
-                convergence.register,
+                convergence.register, real_roots.register,
                 _add_analyse, branches.register_steady, motion.register):
         add(ss)
