@@ -3,8 +3,6 @@ sign of det M(σ) on each pulse's own grid (:func:`slippulse.spectrum.eigensolve
 docs/branches.md §4)."""
 from __future__ import annotations
 
-import math
-import sys
 import time
 
 from ..core.errors import UsageError
@@ -49,8 +47,7 @@ def cmd_real_roots(args) -> int:
     print(f"real-roots {args.file}: {plural(len(chosen), 'pulse')}, "
           f"{plural(found, 'real eigenvalue')} on [{lo:g}, {hi:g}] c_p/L, each to "
           f"{args.xtol:g} c_p/L on its pulse's own grid (no grid-error estimate: compare two "
-          "grids); an even number between two scan points and every complex pair are not seen",
-          file=sys.stdout)
+          "grids); an even number between two scan points and every complex pair are not seen")
     return 0
 
 

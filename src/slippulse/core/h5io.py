@@ -339,7 +339,7 @@ def write_pulse(path: str, pulse: Pulse, params: Parameters, overwrite: bool = T
     never replaced by an unconverged `pulse` (:class:`PulseExistsError` in both cases, the file
     unchanged).
     """
-    atomic_update(path, lambda h5: _put_pulse(h5, path, pulse, params, overwrite))
+    atomic_update(path, lambda h5: _put_pulses(h5, path, [pulse], params, overwrite))
 
 
 def write_pulses(path: str, pulses, params: Parameters, replace: bool = False) -> None:
@@ -348,16 +348,12 @@ def write_pulses(path: str, pulses, params: Parameters, replace: bool = False) -
     Why: a command that writes what it found as one result (``steady branches``) must not leave
     part of it, nor a temporary file beside `path`, when killed or refused."""
     pulses = list(pulses)
-
-    def fill(h5):
-        for p in pulses:
-            _put_pulse(h5, path, p, params, True)
-
-    atomic_update(path, fill, replace=replace)
+    atomic_update(path, lambda h5: _put_pulses(h5, path, pulses, params, True), replace=replace)
 
 
-def _put_pulse(h5, path: str, pulse: Pulse, params: Parameters, overwrite: bool) -> None:
-    """:func:`write_pulse`'s content, into the open file ``h5``."""
+def _put_pulses(h5, path: str, pulses, params: Parameters, overwrite: bool) -> None:
+    """:func:`write_pulse`'s content for each of ``pulses``, into the open file ``h5``: the
+    file's format, parameters and existing pulses checked once, then each pulse written."""
     format_version(h5, path)
     if "parameters" in h5:
         old = read_parameters(h5, path)
@@ -369,7 +365,14 @@ def _put_pulse(h5, path: str, pulse: Pulse, params: Parameters, overwrite: bool)
         write_parameters(h5, params)
     if h5.get("pulses", getlink=True) is not None:
         _labels(h5, path)                  # refuse to add to a file whose pulses are broken
-    pulses = h5.require_group("pulses")
+    group = h5.require_group("pulses")
+    for pulse in pulses:
+        _put_pulse(group, path, pulse, overwrite)
+    upgrade_steady(h5)
+
+
+def _put_pulse(pulses, path: str, pulse: Pulse, overwrite: bool) -> None:
+    """One pulse into the file's ``pulses`` group, under :func:`write_pulse`'s rules."""
     if pulse.label in pulses:
         if not pulse.converged and pulse_converged(pulses[pulse.label], path):
             raise PulseExistsError(f"{path}: pulse {pulse.label} is stored converged; an "
@@ -390,7 +393,6 @@ def _put_pulse(h5, path: str, pulse: Pulse, params: Parameters, overwrite: bool)
         grp.attrs[name] = np.bool_(val) if name == "converged" else val
     for key, val in pulse.extra.items():
         grp.attrs[key] = val
-    upgrade_steady(h5)
 
 
 #: Fewest grid points a stored pulse may have (a resolved pulse has hundreds; fewer is a
