@@ -364,3 +364,41 @@ def test_the_monitor_hands_its_tangent_to_the_grid_check(params):
     _, db, dl = grid_change(params, handed, 500, nested=True)
     assert db == pytest.approx(db_own, rel=1e-7, abs=1e-15)
     assert dl == pytest.approx(dl_own, rel=1e-7, abs=1e-15)
+
+
+class SignStep:
+    """F(x, z; λ) = (x − λ, s(x)(z − λ)), s(x) = sign(x − 0.3): the solutions are the regular line
+    x = z = λ, but det A = s(x) changes sign at x = 0.3 by a jump, with no zero."""
+
+    def residual_and_jacobian(self, X):
+        x, z, lam = X
+        s = 1.0 if x > 0.3 else -1.0
+        r = np.array([x - lam, s * (z - lam)])
+        J = np.array([[1.0, 0.0, -1.0], [0.0, s, -s]])
+        return r, J
+
+
+def test_a_test_function_that_jumps_sign_is_not_located_as_a_zero():
+    bif = locate(SignStep(), np.zeros(3), np.ones(3))
+    assert bif.jump and bif.theta == pytest.approx(0.3, abs=1e-8)
+    assert abs(bif.residual_test) > 0.1
+    # a simple zero is not a jump
+    assert not locate(SCurve(), _scurve_point(0.3), _scurve_point(0.9)).jump
+    assert not locate(Pitchfork(), np.array([0.0, -0.5, -0.5]), np.array([0.0, 0.7, 0.7])).jump
+
+
+def test_transversality_is_zero_at_a_pitchfork_and_not_at_a_fold():
+    from slippulse.steady.null_modes import transversality
+    # the pitchfork at λ = 0, x = 0: ψ = (1, 0), ∂F/∂λ = (−x, −1) = (0, −1)
+    _, J = Pitchfork().residual_and_jacobian(np.array([0.0, 0.0, 0.0]))
+    assert transversality(J) < 1e-12
+    # the S-curve's fold at x = 1/√3: ψ = (1, 0), ∂F/∂λ = (−1, 0)
+    xf = 1 / math.sqrt(3)
+    _, J = SCurve().residual_and_jacobian(_scurve_point(xf))
+    assert transversality(J) == pytest.approx(1.0, abs=1e-10)
+    # the imperfect pitchfork's fold: ψ = (1, 0), ∂F/∂λ = (−x_f, −1): cos = x_f/√(1 + x_f²)
+    mu = 0.01
+    xf = (mu / 2) ** (1 / 3)
+    lam = 3 * (mu / 2) ** (2 / 3)
+    _, J = Pitchfork(mu).residual_and_jacobian(np.array([xf, xf * xf + lam, lam]))
+    assert transversality(J) == pytest.approx(xf / math.sqrt(1 + xf * xf), rel=1e-8)

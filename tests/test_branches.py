@@ -234,3 +234,24 @@ def test_cli_real_roots_finds_the_leading_eigenvalue_and_refuses_bad_input(tmp_p
         r = cli_inproc.run(["steady", "real-roots", path] + bad)
         err = r.stderr.strip().splitlines()
         assert r.returncode == 2 and len(err) == 1 and name in err[0], r.stderr
+
+
+def test_null_modes_name_the_trailing_hump_shift_of_the_two_hump_pulse(params):
+    """The smallest singular vector of the two-hump pulse's A at 1.2 τ_min moves its trailing hump
+    (the humps' separation, cos 0.98 with d ln v/dξ behind the split); the one-hump pulse has no
+    split and no trailing shift."""
+    from slippulse.steady.branch_search import GUESS_SETS, search
+    from slippulse.steady.bifurcation import pulse_null_modes
+    from slippulse.steady.null_modes import hump_split
+    rep = search(params, 1.2, GUESS_SETS["quick"](), n_points=500, check=False)
+    by_humps = {f.pulse.extra["n_humps"]: f.pulse for f in rep.found}
+    two, one = by_humps[2], by_humps[1]
+    k = hump_split(two.xi, two.v, params.v_star)
+    ahead_peak = int(np.argmax(np.where(np.arange(two.n_points) > k, two.v, 0)))
+    behind_peak = int(np.argmax(np.where(np.arange(two.n_points) < k, two.v, 0)))
+    assert two.v[k] < min(two.v[ahead_peak], two.v[behind_peak])     # a dip between two humps
+    m = pulse_null_modes(two, params, 2)
+    assert m[0].shape == "trailing-hump shift" and m[0].shift_trailing > 0.95
+    assert m[0].sigma < m[1].sigma and m[1].shape != "trailing-hump shift"
+    assert hump_split(one.xi, one.v, params.v_star) is None
+    assert all(math.isnan(x.shift_trailing) for x in pulse_null_modes(one, params, 2))

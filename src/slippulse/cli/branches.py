@@ -20,6 +20,8 @@ def cmd_bifurcations(args) -> int:
     from ..core.h5io import open_h5, read_parameters
     from ..steady.bifurcation import scan
 
+    if not 0 <= args.modes <= 6:
+        raise UsageError(f"--modes={args.modes} is invalid: must be in [0, 6]")
     with open_h5(args.file, "FILE") as h5:
         stored = read_parameters(h5)
     params_for_input(args, stored, args.file)
@@ -43,6 +45,15 @@ def cmd_bifurcations(args) -> int:
         print(f"{r.label} {r.tau_d_ratio:.7f} {r.beta:.7g} {r.L:.6g} {r.n_points} "
               f"{v.fold_sign:+d} {v.fold_logdet:.6g} {v.bordered_sign:+d} {v.t_param:+.4e} "
               f"{v.sigma[0]:.4e} {v.sigma[1]:.4e} {r.max_residual:.1e} {cnt}")
+    if args.modes:
+        from ..core.h5io import read_pulse
+        from ..steady.bifurcation import pulse_null_modes
+        print(f"the {args.modes} smallest singular values of A and the shift each right singular "
+              "vector is (cosine with d ln v/dxi of the whole pulse, its front hump or the humps "
+              "behind it; 'other' below 0.9)")
+        for r in rows:
+            modes = pulse_null_modes(read_pulse(args.file, r.label)[0], stored, args.modes)
+            print(f"{r.label} " + "; ".join(m.describe() for m in modes))
     if args.write:
         from ..steady.bifurcation import write_indicators
         write_indicators(args.file, rows)
@@ -61,7 +72,7 @@ def event_lines(path, params, rows, evs, locate=True, bridge=True) -> list[str]:
     from ..steady.bifurcation import LocateError, across_grid_change, locate_between_pulses
     lines = [f"event: {e.kind} between {e.between[0]} and {e.between[1]}: {e.detail}" for e in evs]
     kept = sum(r.across == "kept" for r in rows)     # decided when the family wrote them
-    undecided = 0
+    undecided = jumps = 0
     found = []                                       # branch points found across a grid change
     for e in evs:
         if e.kind == "not comparable":
@@ -90,8 +101,18 @@ def event_lines(path, params, rows, evs, locate=True, bridge=True) -> list[str]:
             pa, pb = pb, pa
         try:
             b = locate_between_pulses(pa, pb, params)
+            if b.jump:
+                lines.append(f"located: no {b.kind} between {e.between}: the test function "
+                             f"changes sign by a jump at tau_d/tau_min={b.extra['tau_d_ratio']:.9f} "
+                             f"(|test| {abs(b.residual_test):.2g} of its value at the first "
+                             "pulse, no zero): the two pulses lie on nearby different solution "
+                             f"branches; smallest mode of A there {b.extra['null_mode']}")
+                jumps += 1
+                continue
             lines.append(f"located: {b.kind} at tau_d/tau_min={b.extra['tau_d_ratio']:.9f} "
-                         f"beta={b.extra['beta']:.8g} L={b.extra['L']:.6g} m "
+                         f"beta={b.extra['beta']:.8g} L={b.extra['L']:.6g} m; "
+                         f"cos(psi, dF/dq)={b.extra['transversality']:.3e} (0 at a branch "
+                         f"point), smallest mode of A {b.extra['null_mode']} "
                          f"({b.evaluations} evaluations"
                          f"{'' if b.converged else ', NOT CONVERGED: bracket still open, best point shown'})")
         except LocateError as exc:
@@ -104,6 +125,8 @@ def event_lines(path, params, rows, evs, locate=True, bridge=True) -> list[str]:
                  f"{count['branch point']} branch points (det B sign changes on one grid), "
                  f"{kept} det B sign changes across a change of N that keep the sign on one "
                  f"grid, {undecided} not decided"
+                 + (f", {jumps} of them located as jumps between branches, not zeros"
+                    if jumps else "")
                  + ("" if not undecided or (locate and bridge) else
                     f" (slippulse steady bifurcations {path} --locate)")
                  + f", {count['sigma minimum']} sigma1/sigma2 minima; smallest sigma1 = "
@@ -366,6 +389,10 @@ def register_steady(ss) -> None:
                         "by the file's decreasing tau_d")
     p.add_argument("--locate", action="store_true",
                    help="locate each fold or branch point found (re-solves between neighbours)")
+    p.add_argument("--modes", type=int, default=0, metavar="K",
+                   help="also print the K smallest singular values of A and what each right "
+                        "singular vector moves: the whole pulse, its front hump or the humps "
+                        "behind it (steady.null_modes; default 0: none)")
     p.add_argument("--write", action="store_true",
                    help="also store them as attributes of each pulse (bif_fold_sign, "
                         "bif_fold_logdet, bif_bordered_sign, bif_t_q, bif_sigma1, bif_sigma2), "

@@ -227,7 +227,9 @@ class Bifurcation:
     """A located fold or branch point: ``kind`` ('fold' or 'branch point'), its unknowns x (the
     parameter last), the chord position θ in [0, 1], the test function's value there relative to
     the bracket's (``residual_test``), the evaluations it took, and whether the bracket closed
-    (``converged``; when not, x is only the best point met)."""
+    (``converged``; when not, x is only the best point met). ``jump``: the bracket closed on a
+    sign change with no zero (:data:`JUMP_TEST`): the chord passes from one solution branch to
+    another, and x is no fold or branch point."""
     kind: str
     x: np.ndarray = field(repr=False)
     theta: float
@@ -236,6 +238,15 @@ class Bifurcation:
     evaluations: int
     extra: dict = field(default_factory=dict)
     converged: bool = True        # False: max_eval reached with the bracket still open
+    jump: bool = False
+
+
+#: A bracket closed to ``theta_tol`` around a simple zero leaves |test| ≈ |test'| θ_tol ≲ 1e-9
+#: of its value at x_a; one that closes with |test| above this has bracketed a jump of the test
+#: function's sign, not a zero: the chord's Newton solutions pass from one solution branch to a
+#: nearby other one there (seen between two-hump pulses that a march took from both sides of a
+#: fold: |test| = 0.11 at the jump).
+JUMP_TEST = 1e-6
 
 
 class LocateError(RuntimeError):
@@ -338,6 +349,7 @@ def locate(system, xa, xb, scale=None, tol=1e-12, theta_tol=1e-10, max_eval=60,
         return s * math.exp(min(lg - ref, 700.0))
 
     fa, fb = value((psi_a, phi_a)[which]), value((psi_b, phi_b)[which])
+    vals = {0.0: fa, 1.0: fb}
     ta, tb = 0.0, 1.0
     pts = {0.0: xa, 1.0: xb}
     side = 0
@@ -353,6 +365,7 @@ def locate(system, xa, xb, scale=None, tol=1e-12, theta_tol=1e-10, max_eval=60,
         pts[t] = x
         nev += 1
         f = value(_tests_on_chord(J, d, sc)[which])
+        vals[t] = f
         if abs(f) < abs(f_best):
             x_best, t_best, f_best = x, t, f
         if abs(f) <= tol:
@@ -367,9 +380,13 @@ def locate(system, xa, xb, scale=None, tol=1e-12, theta_tol=1e-10, max_eval=60,
             if side == 1:
                 fb *= 0.5
             side = 1
-    converged = (tb - ta <= theta_tol) or abs(f_best) <= tol
+    closed = tb - ta <= theta_tol
+    converged = closed or abs(f_best) <= tol
+    jump = closed and abs(f_best) > JUMP_TEST
+    if jump:                       # where it jumps: the bracket's end, not the smallest |test|
+        x_best, t_best, f_best = pts[tb], tb, vals[tb]
     return Bifurcation(kind, x_best, t_best, float(x_best[-1]), float(f_best), nev,
-                       converged=bool(converged))
+                       converged=bool(converged), jump=bool(jump))
 
 
 # --------------------------------------------------------------------------- steady pulses
@@ -432,6 +449,16 @@ def pulse_tests(pulse, params, orient_scalars=None, singular_values=True):
         orient[-2] = orient_scalars[0] / pulse.beta
         orient[-1] = orient_scalars[1]
     return indicators(J, scale, orient, singular_values), float(np.max(np.abs(r)))
+
+
+def pulse_null_modes(pulse, params, k=2):
+    """:func:`~slippulse.steady.null_modes.null_modes` of a stored pulse's pinned matrix A (speed
+    column scaled by β): its k smallest singular values and the shifts their vectors are."""
+    from .null_modes import null_modes
+    prob, x, scale = pulse_system(pulse, params)
+    J = prob.residual_and_jacobian(x)[1] * scale[None, :]
+    n = J.shape[0]
+    return null_modes(J[:, :n], prob.xi, x[:-2], params.v_star, k)
 
 
 @dataclass
@@ -574,14 +601,22 @@ def on_one_grid(pa, pb, params):
 
 def locate_between_pulses(pa, pb, params, **kw) -> Bifurcation:
     """Locate a fold or branch point between two pulses (:func:`on_one_grid`, then
-    :func:`locate`). The result's ``extra`` holds τ_d/τ_min, β and L (FWHM) there."""
+    :func:`locate`). The result's ``extra`` holds τ_d/τ_min, β and L (FWHM) there, the
+    transversality cos(ψ, ∂F/∂q) (zero at a branch point) and what the smallest singular
+    vector of A moves there (:mod:`.null_modes`)."""
     from .measures import pulse_length
+    from .null_modes import null_modes, transversality
 
     prob, xa, xb, scale = on_one_grid(pa, pb, params)
     bif = locate(prob, xa, xb, scale=scale, **kw)
     v = np.exp(bif.x[:-2])
+    J = prob.residual_and_jacobian(bif.x)[1] * scale[None, :]
+    n = J.shape[0]
+    lu = sla.lu_factor(J[:, :n], check_finite=False)
+    mode = null_modes(J[:, :n], prob.xi, bif.x[:-2], params.v_star, k=1, lu=lu)[0]
     bif.extra = {"tau_d_ratio": float(bif.x[-1]), "beta": float(bif.x[-2]),
-                 "L": float(pulse_length(prob.xi, v, params.v_star, crossings=False))}
+                 "L": float(pulse_length(prob.xi, v, params.v_star, crossings=False)),
+                 "transversality": transversality(J, lu=lu), "null_mode": mode.describe()}
     return bif
 
 
