@@ -130,12 +130,15 @@ def test_solution_labels_parse_to_the_same_tau_d():
     assert all(label_ratio(lab) == 1.2 for lab in labs)
 
 
-def test_trace_follows_the_main_family_down_from_1p2(params, pulse12):
-    """Three pseudo-arclength steps down from the 1.2 pulse: τ_d falls, β rises, one hump, no
-    fold or branch point; the last point is the pulse a fixed-τ_d solve gives there."""
-    from slippulse.steady.branch_trace import TraceSettings, trace
+@pytest.mark.parametrize("state", [0.0, 1.0])
+def test_trace_follows_the_main_family_down_from_1p2(params, pulse12, state):
+    """Three pseudo-arclength steps down from the 1.2 pulse, the arclength in (ln β, q) alone or
+    with the shape counted: τ_d falls, β rises, one hump, no fold or branch point; the last point
+    is the pulse a fixed-τ_d solve gives there."""
+    from slippulse.steady.branch_trace import ArcMetric, TraceSettings, trace
     from slippulse.steady.solver import solve_on_grid
-    tr = trace(params, pulse12.to_pulse(), TraceSettings(direction=-1, max_steps=3))
+    tr = trace(params, pulse12.to_pulse(), TraceSettings(direction=-1, max_steps=3,
+                                                         metric=ArcMetric(state)))
     q = [p.q for p in tr.points]
     b = [p.beta for p in tr.points]
     assert len(q) == 4 and all(np.diff(q) < 0) and all(np.diff(b) > 0)
@@ -149,8 +152,8 @@ def test_cli_branch_trace_writes_each_point_and_refuses_bad_input(tmp_path, para
     """One step each way from the 1.2 pulse (--direction both): three pulses in one file, the
     start written once; along the trace position (step signed by direction) τ_d rises and β
     falls, t_q is oriented along each march (negative down, positive up) and each pulse carries
-    its grid check; a missing label and a ds outside [ds-min, ds-max] are one-line refusals with
-    no file."""
+    its grid check and the arclength's metric; a missing label, a ds outside [ds-min, ds-max]
+    and a negative --arc-state are one-line refusals with no file."""
     src = str(tmp_path / "src.h5")
     write_pulse(src, pulse12.to_pulse(), params)
     out = str(tmp_path / "t.h5")
@@ -168,8 +171,10 @@ def test_cli_branch_trace_writes_each_point_and_refuses_bad_input(tmp_path, para
     assert pulses[0].extra["trace_t_q"] < 0 < pulses[2].extra["trace_t_q"]
     assert all(p.extra["grid_check_converged"] for p in pulses)
     assert "2 points traced down" in r.stdout and "2 points traced up" in r.stdout
-    for bad, name in ((f"{src}:td1.1000", "td1.1000"), (f"{src}:td1.2000", "ds=")):
-        extra = ["--ds", "0.5"] if name == "ds=" else []
+    assert pulses[0].extra["trace_arc_metric"] == "(ln beta, q/0.04)"
+    for bad, name in ((f"{src}:td1.1000", "td1.1000"), (f"{src}:td1.2000", "ds="),
+                      (f"{src}:td1.2000", "arc-state=")):
+        extra = {"ds=": ["--ds", "0.5"], "arc-state=": ["--arc-state", "-1"]}.get(name, [])
         o2 = tmp_path / "bad.h5"
         r = cli_inproc.run(["steady", "branch-trace", bad, "--direction", "down", *extra,
                             "--out", o2, "-q"])
@@ -255,3 +260,23 @@ def test_null_modes_name_the_trailing_hump_shift_of_the_two_hump_pulse(params):
     assert m[0].sigma < m[1].sigma and m[1].shape != "trailing-hump shift"
     assert hump_split(one.xi, one.v, params.v_star) is None
     assert all(math.isnan(x.shift_trailing) for x in pulse_null_modes(one, params, 2))
+
+
+def test_the_arc_metric_measures_the_shape_when_asked():
+    """z's derivative is the metric's weights (finite differences); with state = 0 ln v does not
+    count, with state > 0 its root mean square does; a negative weight is refused."""
+    from slippulse.steady.branch_trace import ArcMetric
+    rng = np.random.default_rng(1)
+    x = np.concatenate([rng.standard_normal(50), [0.3, 1.1]])
+    for state in (0.0, 2.0):
+        m = ArcMetric(state)
+        h = 1e-7
+        fd = np.array([(m.z(x + h * e) - m.z(x - h * e))[i] / (2 * h)
+                       for i, e in enumerate(np.eye(x.size))])
+        assert fd == pytest.approx(m.weights(x), rel=1e-6, abs=1e-9)
+    dx = np.zeros(x.size)
+    dx[:-2] = 0.5                                  # every node's ln v up by 0.5: RMS 0.5
+    assert np.linalg.norm(ArcMetric(0.0).z(x + dx) - ArcMetric(0.0).z(x)) == 0.0
+    assert np.linalg.norm(ArcMetric(2.0).z(x + dx) - ArcMetric(2.0).z(x)) == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="state"):
+        ArcMetric(-1.0)

@@ -275,6 +275,9 @@ def cmd_branch_trace(args) -> int:
         raise ParameterError(f"regrid={args.regrid!r} is invalid: must be > 0 (a fraction of L)")
     if args.points is not None and args.points < 10:
         raise ParameterError(f"points={args.points!r} is invalid: must be >= 10")
+    if not (math.isfinite(args.arc_state) and args.arc_state >= 0):
+        raise ParameterError(f"arc-state={args.arc_state!r} is invalid: must be a finite "
+                             "number >= 0")
     out = args.out
     check_writable(out, "out")
     if os.path.exists(out) and not args.overwrite:
@@ -297,7 +300,7 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
     pulse is already written (by the other direction)."""
     from ..core.h5io import unique_label, write_pulse
     from ..steady.branch_search import grid_check
-    from ..steady.branch_trace import TraceSettings, trace
+    from ..steady.branch_trace import ArcMetric, TraceSettings, trace
     from ..steady.continuation.tolerance import GRID_TOLERANCE
     direction = -1 if name == "down" else 1
     mine = []
@@ -321,7 +324,8 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
                         "trace_t_q": float(pt.t_q),
                         "trace_fold_sign": int(pt.fold_sign),
                         "trace_bordered_sign": int(pt.bordered_sign),
-                        "trace_grid": int(pt.grid), "trace_extent": float(pt.extent)})
+                        "trace_grid": int(pt.grid), "trace_extent": float(pt.extent),
+                        "trace_arc_metric": ArcMetric(args.arc_state).describe()})
         if args.grid_check:
             c = grid_check(params, p)
             ok = bool(c.get("passed")) and GRID_TOLERANCE.passes(c["dbeta"], c["dL_rel"])
@@ -339,7 +343,7 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
         settings = TraceSettings(direction=direction, ds=args.ds, ds_min=args.ds_min,
                                  ds_max=args.ds_max, max_steps=args.max_steps,
                                  n_points=args.points, regrid=args.regrid,
-                                 relay_start=args.relay)
+                                 relay_start=args.relay, metric=ArcMetric(args.arc_state))
         tr = trace(params, pulse, settings, on_pulse=on_pulse)
     except RuntimeError as exc:        # the start pulse's re-lay, or a tangent with no (β, q) part
         bar.close()
@@ -361,7 +365,8 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
     for kind, i, detail in tr.events:
         print(f"event ({name}): {kind} at step {i}: {detail}")
     n_pass = sum(bool(p.extra.get("grid_check_passed")) for _, _, p in mine)
-    print(f"{len(tr.points)} points traced {name} from {args.source} "
+    print(f"{len(tr.points)} points traced {name} from {args.source} by the arclength in "
+          f"{ArcMetric(args.arc_state).describe()} "
           f"(q {tr.points[0].q:.6f} -> {tr.points[-1].q:.6f}), {len(mine)} written to {out}"
           + (f", {n_pass} pass the grid check (|dbeta| <= {GRID_TOLERANCE.beta:g}, "
              f"|dL/L| <= {GRID_TOLERANCE.L:g} at 2N-1)" if args.grid_check else
@@ -431,7 +436,13 @@ def register_steady(ss) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_branches)
+    _register_branch_trace(ss)
 
+    from .branch_map import register as register_branch_map
+    register_branch_map(ss)
+
+
+def _register_branch_trace(ss) -> None:
     p = ss.add_parser("branch-trace", help="trace the branch of one stored pulse in tau_d",
                       description="Pseudo-arclength in (ln beta, tau_d/tau_min/0.04) from a stored "
                                   "pulse (steady.branch_trace; docs/branches.md section 3), each "
@@ -455,6 +466,11 @@ def register_steady(ss) -> None:
                    help="N of the re-laid grids (default: the start pulse's)")
     p.add_argument("--regrid", type=float, default=0.25,
                    help="re-lay the grid when L has moved by this fraction (default 0.25)")
+    p.add_argument("--arc-state", type=float, default=0.0, metavar="W",
+                   help="count the pulse's shape in the arclength: W times the RMS change of "
+                        "ln v over the nodes beside (ln beta, q/0.04); follows a branch that "
+                        "changes in shape at nearly fixed (beta, tau_d), where the scalars alone "
+                        "stall (default 0: the scalars only)")
     p.add_argument("--relay", action="store_true",
                    help="first re-lay the start pulse's grid (adapted, --points) and re-solve it "
                         "(e.g. from the end of a trace whose grid no longer fits the pulse)")
@@ -467,6 +483,3 @@ def register_steady(ss) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_branch_trace)
-
-    from .branch_map import register as register_branch_map
-    register_branch_map(ss)

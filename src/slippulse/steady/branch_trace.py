@@ -3,8 +3,10 @@
 Standalone (it uses only :class:`~slippulse.steady.equations.SteadyProblem` with ``free="both"``
 and :mod:`.bifurcation`), for a branch other than the main family (e.g. the two-pulse bound state
 that :mod:`.branch_search` finds). Unknowns x = (ln v, β, q); the arclength is measured in the
-scalars z = (ln β, q/Q_SCALE) only (ln v follows), so a fold in τ_d (q turning while β moves on)
-is passed; the corrector is Newton on [F(x); τ·(z(x) − z₀) − ds] with τ the unit tangent in z.
+scalars z = (ln β, q/Q_SCALE), so a fold in τ_d (q turning while β moves on) is passed, and,
+with :class:`ArcMetric`'s ``state`` > 0, in the nodal ln v as well, which follows a branch that
+changes in shape at nearly fixed (β, q); the corrector is Newton on [F(x); τ·(z(x) − z₀) − ds]
+with τ the unit tangent in z.
 The grid is the start pulse's, re-laid (adapted to the current pulse, N points, re-solved at fixed
 τ_d) whenever L or the extent of the humps (:func:`extent`: a trailing hump that comes apart
 from the first moves it, not L) has moved by more than ``regrid`` since the grid was laid. At every accepted step:
@@ -63,20 +65,52 @@ def extent(xi, v, v_star) -> float:
     return float(xi[above[-1]] - xi[above[0]])
 
 
-def _z(x):
-    return np.array([math.log(x[-2]), x[-1] / Q_SCALE])
+@dataclass(frozen=True)
+class ArcMetric:
+    """What the pseudo-arclength measures, in the unknowns x = (ln v, β, q): the scalars
+    z = (ln β, q/Q_SCALE), and with ``state`` > 0 the nodal ln v as well, as ``state`` times its
+    root mean square over the nodes. The scalars alone cannot follow a branch that changes in
+    shape at nearly fixed (β, q) (a trailing hump drifting away, a fold where β and q turn
+    together): there the step stalls. With the state counted the step moves the shape, and the
+    tangent's orientation by continuity keeps the trace from turning back on itself."""
+
+    state: float = 0.0
+
+    def __post_init__(self):
+        if not (self.state >= 0.0 and math.isfinite(self.state)):
+            raise ValueError(f"state={self.state!r} must be a finite number >= 0")
+
+    def weights(self, x):
+        """dz/dx, elementwise, in the layout of x."""
+        w = np.full(x.size, self.state / math.sqrt(x.size - 2))
+        w[-2], w[-1] = 1.0 / x[-2], 1.0 / Q_SCALE
+        return w
+
+    def z(self, x):
+        """The measured coordinates, in the layout of x (ln v scaled, ln β, q/Q_SCALE)."""
+        z = x * (self.state / math.sqrt(x.size - 2))
+        z[-2], z[-1] = math.log(x[-2]), x[-1] / Q_SCALE
+        return z
+
+    def describe(self) -> str:
+        return ("(ln beta, q/0.04)" if self.state == 0.0 else
+                f"(ln beta, q/0.04, {self.state:g} x RMS ln v)")
 
 
-def _tangent(J, x, orient=None):
-    """Unit tangent in z and the full tangent scaled to move z by one unit along it."""
+def _tangent(J, x, metric, orient=None):
+    """Unit tangent in the metric's coordinates (layout of x) and the full tangent scaled to
+    move them by one unit along it; oriented along ``orient`` (the last one) where given: by the
+    whole vector on one grid size, else by its scalar part."""
     from .bifurcation import null_vector
     t = null_vector(J)
-    tz = np.array([t[-2] / x[-2], t[-1] / Q_SCALE])
+    tz = t * metric.weights(x)
     nz = float(np.linalg.norm(tz))
     if nz < 1e-14:
         raise RuntimeError("the branch turns in ln v alone (tangent with no (beta, q) part)")
-    if orient is not None and float(tz @ orient) < 0:
-        t, tz = -t, -tz
+    if orient is not None:
+        dot = float(tz @ orient) if orient.size == tz.size else float(tz[-2:] @ orient[-2:])
+        if dot < 0:
+            t, tz = -t, -tz
     return tz / nz, t / nz
 
 
@@ -99,7 +133,8 @@ class TraceSettings:
     L_max (m): where the trace stops; max_iter and tol: the corrector's iterations and its max|F|;
     stop_on_humps: stop when the hump count changes (always reported as an event 'humps');
     relay_start: first re-lay the grid on the start pulse (adapted, ``n_points``) and re-solve it
-    at its τ_d (a stored pulse whose grid no longer fits it, e.g. the end of a trace).
+    at its τ_d (a stored pulse whose grid no longer fits it, e.g. the end of a trace); metric:
+    what the arclength measures (:class:`ArcMetric`).
     """
 
     direction: int = -1
@@ -115,6 +150,7 @@ class TraceSettings:
     tol: float = 1e-11
     stop_on_humps: bool = False
     relay_start: bool = False
+    metric: ArcMetric = ArcMetric()
 
     def __post_init__(self):
         if self.direction not in (-1, 1):
@@ -140,13 +176,11 @@ class _Record:
         self.out = Trace()
         self.grid_id = 0
 
-    def add(self, prob, x, J, tz_or) -> TracePoint:
+    def add(self, prob, x, J, tz_or, metric) -> TracePoint:
         out, params = self.out, self.params
         v = indicators(J, orient=None, singular_values=False)
         # orient the indicators' tangent like the march's (continuity)
-        t_full = v.tangent
-        tzv = np.array([t_full[-2] / x[-2], t_full[-1] / Q_SCALE])
-        sgn = 1 if float(tzv @ tz_or) >= 0 else -1
+        sgn = 1 if float((v.tangent * metric.weights(x)) @ tz_or) >= 0 else -1
         Lx = pulse_length(prob.xi, np.exp(x[:-2]), params.v_star, crossings=False)
         pt = TracePoint(float(x[-1]), float(x[-2]), float(Lx), count_humps(np.exp(x[:-2])),
                         v.fold_sign, sgn * v.t_param, sgn * v.bordered_sign, self.grid_id, prob.n,
@@ -169,22 +203,20 @@ class _Record:
         return pt
 
 
-def _correct(prob, x, t, tz, ds, max_iter, tol):
+def _correct(prob, x, t, tz, ds, max_iter, tol, metric):
     """The corrector from the predictor x + ds t: Newton on [F(x); τ·(z(x) − z₀) − ds], each step
     capped at 1 in ln v. Returns (converged, x, J, iterations)."""
-    z0 = _z(x)
+    z0 = metric.z(x)
     xp = x + ds * t
     if not prob.valid(xp):
         return False, None, None, 0
     xc = xp.copy()
     for it in range(max_iter):
         rc, Jc = prob.residual_and_jacobian(xc)
-        g = float(tz @ (_z(xc) - z0)) - ds
+        g = float(tz @ (metric.z(xc) - z0)) - ds
         if np.max(np.abs(rc)) <= tol and abs(g) <= 1e-10:
             return True, xc, Jc, it
-        row = np.zeros(xc.size)
-        row[-2] = tz[0] / xc[-2]
-        row[-1] = tz[1] / Q_SCALE
+        row = tz * metric.weights(xc)
         try:
             # where the branch turns in shape at nearly fixed (β, q) the bordered matrix is
             # singular to working precision; the residual test above judges the step, and the
@@ -264,8 +296,9 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
     prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, float(y[k]), free="both")
     x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
     r, J = prob.residual_and_jacobian(x)
-    tz, t = _tangent(J, x)
-    if tz[1] * s.direction < 0:
+    m = s.metric
+    tz, t = _tangent(J, x, m)
+    if tz[-1] * s.direction < 0:
         tz, t = -tz, -t
     log = _Record(params, progress, on_pulse)
     out = log.out
@@ -274,9 +307,9 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
     humps0 = count_humps(np.exp(y))
     q_hi = params.tau_peak / params.tau_min - 1e-4
     ds = s.ds
-    log.add(prob, x, J, tz)
+    log.add(prob, x, J, tz, m)
     while len(out.points) <= s.max_steps:
-        ok, xc, Jc, it = _correct(prob, x, t, tz, ds, s.max_iter, s.tol)
+        ok, xc, Jc, it = _correct(prob, x, t, tz, ds, s.max_iter, s.tol, m)
         if not ok:
             ds *= 0.5
             if ds < s.ds_min:
@@ -284,8 +317,8 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
                 break
             continue
         x, J = xc, Jc
-        tz, t = _tangent(J, x, orient=tz)
-        pt = log.add(prob, x, J, tz)
+        tz, t = _tangent(J, x, m, orient=tz)
+        pt = log.add(prob, x, J, tz, m)
         if it <= 3:
             ds = min(ds * 1.5, s.ds_max)
         out.stop_reason = _stop(pt, s, q_hi)
@@ -301,12 +334,15 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
                 break
         if abs(pt.L / L_grid - 1.0) > s.regrid or abs(pt.extent / E_grid - 1.0) > s.regrid:
             # re-lay the grid on the current pulse, re-solve at fixed τ_d, keep going
+            xi_old = prob.xi
             prob, x = _relay(params, prob, x, pt, n_points)
             if prob is None:
                 out.stop_reason = x
                 break
             J = prob.residual_and_jacobian(x)[1]
-            tz, t = _tangent(J, x, orient=tz)
+            # the last tangent carried onto the new nodes orients the new one
+            orient = np.concatenate([np.interp(prob.xi, xi_old, tz[:-2]), tz[-2:]])
+            tz, t = _tangent(J, x, m, orient=orient)
             L_grid = pulse_length(prob.xi, np.exp(x[:-2]), params.v_star, crossings=False)
             E_grid = extent(prob.xi, np.exp(x[:-2]), params.v_star)
             log.grid_id += 1
