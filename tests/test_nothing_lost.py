@@ -44,7 +44,7 @@ def real(tmp_path_factory):
     return {"good": good, "bad": bad, "dir": d}
 
 
-# ------------------------------------------------------------------ item 2: no overwritten pulse
+# ------------------------------------------------------------------ no overwritten pulse
 
 class _FakeSolution:
     def __init__(self, pulse, message):
@@ -104,7 +104,6 @@ def test_write_pulse_guards_labels(tmp_path):
         h5io.write_pulse(out, failed, P, overwrite=True)
     assert open(out, "rb").read() == raw
     # an unconverged pulse may be replaced, by anything
-    h5io.write_pulse(out, failed, P, overwrite=False) if False else None
     other = str(tmp_path / "g.h5")
     h5io.write_pulse(other, failed, P)
     h5io.write_pulse(other, _synthetic_pulse(1.1, 0.3, 0.1), P)
@@ -127,7 +126,7 @@ def test_write_pulses_writes_all_or_none(tmp_path):
     assert sorted(os.listdir(tmp_path)) == [".f.h5.lock", "f.h5"]
 
 
-# ------------------------------------------------------------------ item 3: unconverged refused
+# ------------------------------------------------------------------ unconverged refused
 
 def test_every_reader_refuses_an_unconverged_pulse(real, tmp_path, capsys):
     bad = real["bad"]
@@ -177,7 +176,7 @@ def test_analyse_skip_unconverged_names_them(real, tmp_path, capsys):
         assert list(h5["family/label"].asstr()[...]) == ["td1.1000"]
 
 
-# ------------------------------------------------------------------ item 4: the probes
+# ------------------------------------------------------------------ the probes
 
 def test_probes_one_line_errors(real, tmp_path, capsys):
     good = real["good"]
@@ -280,7 +279,7 @@ def test_ctrl_c_is_taken_at_a_step_boundary(tmp_path, monkeypatch):
         assert int(h5["checkpoint/nstep"][()]) == 10
 
 
-# ------------------------------------------------------------------ item 5
+# ------------------------------------------------------------------ version and entry points
 
 def test_version_and_python_dash_m():
     for cmd in (["slippulse", "--version"], [sys.executable, "-m", "slippulse", "--version"]):
