@@ -170,6 +170,7 @@ def test_cli_branch_trace_writes_each_point_and_refuses_bad_input(tmp_path, para
     assert all(np.diff([p.beta for p in pulses]) < 0)
     assert pulses[0].extra["trace_t_q"] < 0 < pulses[2].extra["trace_t_q"]
     assert all(p.extra["grid_check_converged"] for p in pulses)
+    assert all(abs(p.extra["grid_check_dq"]) < 1e-6 for p in pulses)
     assert "2 points traced down" in r.stdout and "2 points traced up" in r.stdout
     assert pulses[0].extra["trace_arc_metric"] == "(ln beta, q/0.04)"
     for bad, name in ((f"{src}:td1.1000", "td1.1000"), (f"{src}:td1.2000", "ds="),
@@ -280,3 +281,19 @@ def test_the_arc_metric_measures_the_shape_when_asked():
     assert np.linalg.norm(ArcMetric(2.0).z(x + dx) - ArcMetric(2.0).z(x)) == pytest.approx(1.0)
     with pytest.raises(ValueError, match="state"):
         ArcMetric(-1.0)
+
+
+@pytest.mark.parametrize("state", [0.0, 1.0])
+def test_the_check_on_the_normal_hyperplane_agrees_with_fixed_tau_d_on_a_regular_branch(
+        params, pulse12, state):
+    """On the main family at 1.2 τ_min (regular, far from a fold) the re-solve at 2N − 1 normal to
+    the branch moves τ_d by almost nothing and gives the fixed-τ_d check's dβ and dL/L."""
+    from slippulse.steady.branch_search import grid_check
+    from slippulse.steady.branch_trace import ArcMetric, check_on_normal
+    p = pulse12.to_pulse()
+    fixed = grid_check(params, p)
+    normal = check_on_normal(params, p, ArcMetric(state))
+    assert fixed["passed"] and normal["passed"] and normal["n_fine"] == fixed["n_fine"]
+    assert abs(normal["dq"]) < 1e-6
+    assert normal["dbeta"] == pytest.approx(fixed["dbeta"], abs=1e-7)
+    assert normal["dL_rel"] == pytest.approx(fixed["dL_rel"], abs=2e-6)
