@@ -297,3 +297,18 @@ def test_the_check_on_the_normal_hyperplane_agrees_with_fixed_tau_d_on_a_regular
     assert abs(normal["dq"]) < 1e-6
     assert normal["dbeta"] == pytest.approx(fixed["dbeta"], abs=1e-7)
     assert normal["dL_rel"] == pytest.approx(fixed["dL_rel"], abs=2e-6)
+
+
+def test_a_relaid_trace_stays_on_the_branch(params, pulse12):
+    """With the grid re-laid after every step (regrid tiny; a point is on the grid before its
+    re-lay), each re-lay re-solves the pulse on
+    the hyperplane normal to the branch: the trace goes on along the family, and its last point
+    is the pulse a fixed-τ_d solve gives on its grid."""
+    from slippulse.steady.branch_trace import ArcMetric, TraceSettings, trace
+    from slippulse.steady.solver import solve_on_grid
+    tr = trace(params, pulse12.to_pulse(), TraceSettings(direction=-1, max_steps=2, regrid=1e-6,
+                                                         metric=ArcMetric(1.0)))
+    assert [p.grid for p in tr.points] == [0, 0, 1] and all(np.diff([p.q for p in tr.points]) < 0)
+    last = tr.pulses[-1]
+    prob, x, st = solve_on_grid(params, last.tau_d_ratio, last.xi, np.log(last.v), 1.05 * last.beta)
+    assert st.converged and x[-1] == pytest.approx(last.beta, rel=1e-9)

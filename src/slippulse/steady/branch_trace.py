@@ -236,20 +236,43 @@ def _correct(prob, x, t, tz, ds, max_iter, tol, metric):
     return False, None, None, 0
 
 
-def _relay(params, prob, x, pt, n_points):
-    """Re-lay the grid on the current pulse (adapted, ``n_points``) and re-solve it at fixed τ_d:
-    (the problem on the new grid, its x) or (None, the failure's message)."""
+def _relay(params, prob, x, pt, n_points, t, metric):
+    """Re-lay the grid on the current pulse (adapted, ``n_points``) and re-solve it there on the
+    hyperplane normal to the branch's tangent ``t`` (:func:`_onto_normal`), else at fixed τ_d
+    (which fails where the shape moves at nearly fixed τ_d): (the problem on the new grid, its x)
+    or (None, the failure's message)."""
     yv = x[:-2]
     vst = params.v_stick(pt.q * params.tau_min)
     fields = SteadyProblem(params, pt.q, prob.xi, prob.pin_index, prob.y_pin, H=prob.H)
     phi = fields.fields(x[:-1])[1]
     xi_new = adapted_grid(prob.xi, yv, phi, pt.beta, params, vst, n_points)
+    new, xn = _onto_normal(params, prob, x, t, xi_new, metric)
+    if new is not None:
+        return new, xn
     y_new = interpolate(prob.xi, yv, xi_new, vst)
     p2, x2, st = solve_on_grid(params, pt.q, xi_new, y_new, pt.beta)
     if not st.converged:
         return None, f"re-lay of the grid at q={pt.q:.6f} failed: {st.message}"
     prob = SteadyProblem(params, pt.q, xi_new, p2.pin_index, p2.y_pin, free="both", H=p2.H)
     return prob, np.concatenate([x2, [pt.q]])
+
+
+def _onto_normal(params, prob, x, t, xi_new, metric, pin=None, max_iter=20, tol=1e-11):
+    """The solution x of ``prob`` (free="both") re-solved on the grid ``xi_new`` on the hyperplane
+    through it normal to its tangent ``t`` in ``metric``'s coordinates (ln v and t's ln v part
+    interpolated; the pin at node ``pin``, else where :func:`front_pin` puts it): (the problem,
+    its x), or (None, None) where the corrector does not converge."""
+    q = float(x[-1])
+    yn = interpolate(prob.xi, x[:-2], xi_new, params.v_stick(q * params.tau_min))
+    if pin is None:
+        pin, _ = front_pin(xi_new, yn, math.log(params.v_stick(q * params.tau_min)))
+    new = SteadyProblem(params, q, xi_new, pin, float(yn[pin]), free="both",
+                        state_order=prob.state_order)
+    xn = np.concatenate([yn, x[-2:]])
+    tn = np.concatenate([np.interp(xi_new, prob.xi, t[:-2]), t[-2:]])
+    tz = tn * metric.weights(xn)
+    ok, xs, _, _ = _correct(new, xn, tn, tz / np.linalg.norm(tz), 0.0, max_iter, tol, metric)
+    return (new, xs) if ok else (None, None)
 
 
 def _stop(pt, s: TraceSettings, q_hi):
@@ -335,7 +358,7 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
         if abs(pt.L / L_grid - 1.0) > s.regrid or abs(pt.extent / E_grid - 1.0) > s.regrid:
             # re-lay the grid on the current pulse, re-solve at fixed τ_d, keep going
             xi_old = prob.xi
-            prob, x = _relay(params, prob, x, pt, n_points)
+            prob, x = _relay(params, prob, x, pt, n_points, t, m)
             if prob is None:
                 out.stop_reason = x
                 break
@@ -367,14 +390,10 @@ def check_on_normal(params, pulse, metric: ArcMetric = ArcMetric(), max_iter=20,
     xi = prob.xi
     xin = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
     q = float(x[-1])
-    yn = interpolate(xi, x[:-2], xin, params.v_stick(q * params.tau_min))
-    k = int(np.searchsorted(xin, xi[prob.pin_index]))
-    fine = SteadyProblem(params, q, xin, k, float(yn[k]), free="both",
-                         state_order=prob.state_order)
-    xf = np.concatenate([yn, x[-2:]])
-    tf = np.concatenate([np.interp(xin, xi, t[:-2]), t[-2:]])
-    tz = tf * metric.weights(xf)
-    ok, xs, _, _ = _correct(fine, xf, tf, tz / np.linalg.norm(tz), 0.0, max_iter, tol, metric)
+    _, xs = _onto_normal(params, prob, x, t, xin, metric,
+                         pin=int(np.searchsorted(xin, xi[prob.pin_index])), max_iter=max_iter,
+                         tol=tol)
+    ok = xs is not None
     wall = time.perf_counter() - t0
     if not ok:
         return {"passed": False, "message": f"the re-solve on the normal hyperplane did not "
