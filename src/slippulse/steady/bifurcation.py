@@ -243,9 +243,9 @@ class Bifurcation:
 
 #: A bracket closed to ``theta_tol`` around a simple zero leaves |test| ≈ |test'| θ_tol, far
 #: below this (relative to its value at x_a) unless the zero lies within ~1e-7 of x_a; one that
-#: closes with |test| above this has bracketed a jump of the test function's sign, not a zero: the chord's Newton solutions pass from one solution branch to a
-#: nearby other one there (seen between two-hump pulses that a march took from both sides of a
-#: fold: |test| = 0.11 at the jump).
+#: closes with |test| above this has bracketed a jump of the test function's sign, not a zero:
+#: the chord's Newton solutions pass from one solution branch to a nearby other one there (seen
+#: between two-hump pulses that a march took from both sides of a fold: |test| = 0.11 there).
 JUMP_TEST = 1e-3
 
 

@@ -6,11 +6,11 @@ that :mod:`.branch_search` finds). Unknowns x = (ln v, β, q); the arclength is 
 scalars z = (ln β, q/Q_SCALE), so a fold in τ_d (q turning while β moves on) is passed, and,
 with :class:`ArcMetric`'s ``state`` > 0, in the nodal ln v as well, which follows a branch that
 changes in shape at nearly fixed (β, q); the corrector is Newton on [F(x); τ·(z(x) − z₀) − ds]
-with τ the unit tangent in z.
-The grid is the start pulse's, re-laid (adapted to the current pulse, N points, re-solved on the
-hyperplane normal to the branch, else at fixed τ_d) whenever L or the extent of the humps (:func:`extent`: a trailing hump that comes apart
-from the first moves it, not L) has moved by more than ``regrid`` since the grid was laid. At every accepted step:
-β, L, the hump count, sign det A, t_q (continuity-oriented) and sign det B (comparable between
+with τ the unit tangent in z. The grid is the start pulse's, re-laid (adapted to the current
+pulse, N points, re-solved on the hyperplane normal to the branch, else at fixed τ_d) whenever L
+or the extent of the humps (:func:`extent`: a trailing hump that comes apart from the first moves
+it, not L) has moved by more than ``regrid`` since the grid was laid. At every accepted step: β,
+L, the hump count, sign det A, t_q (continuity-oriented) and sign det B (comparable between
 re-lays only); a sign change of t_q is a fold, of det B on one grid a branch point.
 """
 from __future__ import annotations

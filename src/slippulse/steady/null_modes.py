@@ -139,7 +139,8 @@ def null_modes(A, xi, lnv, v_star, k=2, lu=None) -> list[NullMode]:
 def transversality(J, scale=None, lu=None, iterations=4) -> float:
     """|cos(ψ, c)| for the extended Jacobian J = [A c] (n × (n+1), the parameter last, columns
     scaled by ``scale``), ψ the left singular vector of A's smallest singular value (inverse
-    iteration with the LU of A; a dense SVD for small or exactly singular A). Zero at a branch point; at a fold a number that converges in N."""
+    iteration with the LU of A; a dense SVD for small or exactly singular A). Zero at a branch
+    point; at a fold a number that converges in N."""
     J = np.asarray(J, float)
     if scale is not None:
         J = J * np.asarray(scale, float)[None, :]
