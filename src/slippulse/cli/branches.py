@@ -302,6 +302,7 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
     from ..steady.branch_trace import ArcMetric, TraceSettings, check_on_normal, trace
     from ..steady.continuation.tolerance import GRID_TOLERANCE
     direction = -1 if name == "down" else 1
+    metric = ArcMetric(args.arc_state)
     mine = []
     bar = tqdm(total=args.max_steps + 1, desc=f"trace {name}", unit="step",
                disable=args.quiet, file=sys.stderr)
@@ -324,9 +325,9 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
                         "trace_fold_sign": int(pt.fold_sign),
                         "trace_bordered_sign": int(pt.bordered_sign),
                         "trace_grid": int(pt.grid), "trace_extent": float(pt.extent),
-                        "trace_arc_metric": ArcMetric(args.arc_state).describe()})
+                        "trace_arc_metric": metric.describe()})
         if args.grid_check:
-            c = check_on_normal(params, p, ArcMetric(args.arc_state))
+            c = check_on_normal(params, p, metric)
             ok = bool(c.get("passed")) and GRID_TOLERANCE.passes(c["dbeta"], c["dL_rel"])
             p.extra.update({"grid_check_converged": bool(c.get("passed", False)),
                             "grid_check_passed": ok,
@@ -345,7 +346,7 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
         settings = TraceSettings(direction=direction, ds=args.ds, ds_min=args.ds_min,
                                  ds_max=args.ds_max, max_steps=args.max_steps,
                                  n_points=args.points, regrid=args.regrid,
-                                 relay_start=args.relay, metric=ArcMetric(args.arc_state))
+                                 relay_start=args.relay, metric=metric)
         tr = trace(params, pulse, settings, on_pulse=on_pulse)
     except RuntimeError as exc:        # the start pulse's re-lay, or a tangent with no (β, q) part
         bar.close()
@@ -369,7 +370,7 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
         print(f"event ({name}): {kind} at step {i}: {detail}")
     n_pass = sum(bool(p.extra.get("grid_check_passed")) for _, _, p in mine)
     print(f"{len(tr.points)} points traced {name} from {args.source} by the arclength in "
-          f"{ArcMetric(args.arc_state).describe()} "
+          f"{metric.describe()} "
           f"(q {tr.points[0].q:.6f} -> {tr.points[-1].q:.6f}), {len(mine)} written to {out}"
           + (f", {n_pass} pass the grid check (|dbeta| <= {GRID_TOLERANCE.beta:g}, "
              f"|dL/L| <= {GRID_TOLERANCE.L:g} at 2N-1)" if args.grid_check else

@@ -32,9 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-#: Largest bordered matrix whose singular values are taken by a full SVD; above, the two smallest
-#: come from ARPACK on B⁻¹B⁻ᵀ with the LU of B (same numbers to ~1e-10, far cheaper at N = 6614).
-DENSE_SVD_MAX = 400
+from .singular import DENSE_SVD_MAX, smallest_singular_values  # noqa: F401 (re-exported)
 
 
 def lu_det(M):
@@ -102,30 +100,6 @@ def null_vector_from_lu(J, lu):
     if np.linalg.norm(J @ t) > 1e-10 * np.linalg.norm(J, ord=np.inf):
         return None
     return t
-
-
-def smallest_singular_values(M, lu=None, k=2, solve=None):
-    """The k smallest singular values of a square M, ascending (dense SVD for small M; else
-    ARPACK on M⁻¹M⁻ᵀ with the LU of M, ``lu`` if given, or ``solve(r, trans)`` = M⁻¹ r
-    (M⁻ᵀ r with trans=1) if given)."""
-    m = M.shape[0]
-    if m <= DENSE_SVD_MAX:
-        return np.sort(sla.svdvals(M, check_finite=False))[:k]
-    from scipy.sparse.linalg import LinearOperator, eigsh
-    if solve is None:
-        if lu is None:
-            lu = sla.lu_factor(M, check_finite=False)
-
-        def solve(r, trans=0):
-            return sla.lu_solve(lu, r, trans=trans, check_finite=False)
-
-    def mv(x):
-        return solve(solve(np.ravel(x), 1))
-
-    op = LinearOperator((m, m), matvec=mv, dtype=float)
-    lam = eigsh(op, k=k, which="LM", return_eigenvectors=False, tol=1e-10,
-                v0=np.ones(m) / math.sqrt(m))
-    return np.sort(1.0 / np.sqrt(np.abs(lam)))
 
 
 @dataclass

@@ -26,7 +26,8 @@ import scipy.linalg as sla
 from .bifurcation import indicators
 from .equations import SteadyProblem
 from .measures import pulse_length
-from .solver import adapted_grid, count_humps, front_pin, interpolate, solve_on_grid
+from .solver import (adapted_grid, count_humps, front_pin, interpolate, nested_grid,
+                     solve_on_grid)
 
 #: q = τ_d/τ_min enters the arclength as q/Q_SCALE (a step of 0.04 in q weighs as one in ln β).
 Q_SCALE = 0.04
@@ -99,18 +100,16 @@ class ArcMetric:
 
 def _tangent(J, x, metric, orient=None):
     """Unit tangent in the metric's coordinates (layout of x) and the full tangent scaled to
-    move them by one unit along it; oriented along ``orient`` (the last one) where given: by the
-    whole vector on one grid size, else by its scalar part."""
+    move them by one unit along it; oriented along ``orient`` (the last one, on the same nodes)
+    where given."""
     from .bifurcation import null_vector
     t = null_vector(J)
     tz = t * metric.weights(x)
     nz = float(np.linalg.norm(tz))
     if nz < 1e-14:
         raise RuntimeError("the branch turns in ln v alone (tangent with no (beta, q) part)")
-    if orient is not None:
-        dot = float(tz @ orient) if orient.size == tz.size else float(tz[-2:] @ orient[-2:])
-        if dot < 0:
-            t, tz = -t, -tz
+    if orient is not None and float(tz @ orient) < 0:
+        t, tz = -t, -tz
     return tz / nz, t / nz
 
 
@@ -356,7 +355,7 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
                 out.stop_reason = out.events[-1][2]
                 break
         if abs(pt.L / L_grid - 1.0) > s.regrid or abs(pt.extent / E_grid - 1.0) > s.regrid:
-            # re-lay the grid on the current pulse, re-solve at fixed τ_d, keep going
+            # re-lay the grid on the current pulse, re-solve it there (_relay), keep going
             xi_old = prob.xi
             prob, x = _relay(params, prob, x, pt, n_points, t, m)
             if prob is None:
@@ -388,7 +387,7 @@ def check_on_normal(params, pulse, metric: ArcMetric = ArcMetric(), max_iter=20,
     prob, x, _ = pulse_system(pulse, params)
     _, t = _tangent(prob.residual_and_jacobian(x)[1], x, metric)
     xi = prob.xi
-    xin = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
+    xin = nested_grid(xi)
     q = float(x[-1])
     _, xs = _onto_normal(params, prob, x, t, xin, metric,
                          pin=int(np.searchsorted(xin, xi[prob.pin_index])), max_iter=max_iter,

@@ -21,14 +21,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from .singular import DENSE_SVD_MAX, smallest_singular_values
+
 #: A singular vector whose ln v part has a cosine of at least this with one of the shifts is
 #: named after it.
 SHIFT_COS = 0.9
 #: A maximum of ln(v/v* + 1) counts as a hump if it stands this fraction of the largest value
 #: above the lowest value between it and the front hump.
 HUMP_PROMINENCE = 0.01
-#: Largest matrix whose singular vectors come from a dense SVD.
-DENSE_MAX = 400
 
 
 @dataclass(frozen=True)
@@ -87,34 +87,13 @@ def hump_split(xi, v, v_star) -> int | None:
     return low
 
 
-def _smallest_right_singular(A, k, lu=None):
-    """The k smallest singular values of the square A, ascending, with their right singular
-    vectors (columns)."""
-    n = A.shape[0]
-    if n <= DENSE_MAX:
-        _, s, vt = sla.svd(A, check_finite=False)
-        return s[::-1][:k], vt[::-1][:k].T
-    from scipy.sparse.linalg import LinearOperator, eigsh
-    if lu is None:
-        lu = sla.lu_factor(A, check_finite=False)
-
-    def mv(z):
-        return sla.lu_solve(lu, sla.lu_solve(lu, np.ravel(z), trans=1, check_finite=False),
-                            check_finite=False)
-
-    lam, vec = eigsh(LinearOperator((n, n), matvec=mv, dtype=float), k=k, which="LM",
-                     tol=1e-10, v0=np.ones(n) / math.sqrt(n))
-    order = np.argsort(-lam)
-    return 1.0 / np.sqrt(np.abs(lam[order])), vec[:, order]
-
-
 def null_modes(A, xi, lnv, v_star, k=2, lu=None) -> list[NullMode]:
     """The k smallest singular values of A (unknowns: ln v at the nodes ``xi``, then the speed)
     with the shifts their right singular vectors are (:class:`NullMode`), ascending."""
     xi = np.asarray(xi, float)
     lnv = np.asarray(lnv, float)
     n = xi.size
-    sig, vec = _smallest_right_singular(np.asarray(A, float), k, lu)
+    sig, vec = smallest_singular_values(np.asarray(A, float), lu, k, vectors=True)
     dy = np.gradient(lnv, xi)
     split = hump_split(xi, np.exp(lnv), v_star)
 
@@ -147,7 +126,7 @@ def transversality(J, scale=None, lu=None, iterations=4) -> float:
     n = J.shape[0]
     A, c = J[:, :n], J[:, n]
     psi = None
-    if n > DENSE_MAX:
+    if n > DENSE_SVD_MAX:
         if lu is None:
             lu = sla.lu_factor(A, check_finite=False)
         psi = np.random.default_rng(0).standard_normal(n)

@@ -360,9 +360,13 @@ def refine_nested(params, pulse, method="newton", tol=NEWTON_TOL, state_order=ST
     its ln v interpolated there: a nested refinement, for convergence studies (near τ_min it keeps
     the adapted grid's spacing jumps; :class:`slippulse.steady.grid.GridMap` does not). Returns a
     :class:`SteadySolution`."""
-    xi = np.asarray(pulse.xi, float)
-    xin = np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
-    return resolve_on_grid(params, pulse, xin, method, tol, state_order)
+    return resolve_on_grid(params, pulse, nested_grid(pulse.xi), method, tol, state_order)
+
+
+def nested_grid(xi):
+    """``xi`` with the midpoint of every cell inserted (N → 2N − 1): every old node kept."""
+    xi = np.asarray(xi, float)
+    return np.sort(np.concatenate([xi, 0.5 * (xi[1:] + xi[:-1])]))
 
 
 def extended_grid(xi, lead, ahead=1.0, behind=1.0, max_ratio=1.3):
