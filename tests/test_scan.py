@@ -315,14 +315,19 @@ log = "{log}"
 [grid]
 eps = [1e-3, -1e-3, 2e-3]
 """)
-    proc = subprocess.Popen([sys.executable, "-m", "slippulse.cli", "dynamic", "scan", str(toml),
-                             "--workers", "2", "--no-progress"], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE)
-    deadline = time.time() + 60
-    while time.time() < deadline and not _children(proc.pid):
+    # Output goes to files, not pipes nobody reads: a full pipe would block the scan before
+    # it starts its workers.
+    err_path = tmp_path / "scan.err"
+    with open(tmp_path / "scan.out", "wb") as out, open(err_path, "wb") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "slippulse.cli", "dynamic", "scan",
+                                 str(toml), "--workers", "2", "--no-progress"],
+                                stdout=out, stderr=err)
+    deadline = time.time() + 180
+    while time.time() < deadline and proc.poll() is None and not _children(proc.pid):
         time.sleep(0.2)
     kids = _children(proc.pid)
-    assert kids, "the scan started no worker"
+    assert kids, (f"the scan started no worker (exit {proc.poll()}): "
+                  f"{err_path.read_text()[-2000:]}")
     time.sleep(1.0)
     proc.send_signal(signal.SIGTERM)
     proc.wait(timeout=30)
