@@ -183,6 +183,48 @@ def test_cli_branch_trace_writes_each_point_and_refuses_bad_input(tmp_path, para
         assert len(r.stderr.strip().splitlines()) == 1
 
 
+def test_a_killed_branch_trace_is_resumed_by_the_same_command(tmp_path, params, pulse12):
+    """A trace killed in its third write (SIGKILL once the write's journal is on disk) keeps
+    three pulses; the same command resumes it from its last one, numbering on, and stops at
+    --max-steps in all; run once more it does nothing, and with a larger --max-steps it goes on.
+    A file of another trace (another --arc-state) is refused in one line and left as it was."""
+    import os
+    import subprocess
+    import sys
+    src = str(tmp_path / "src.h5")
+    write_pulse(src, pulse12.to_pulse(), params)
+    out = str(tmp_path / "t.h5")
+    args = ["steady", "branch-trace", f"{src}:td1.2000", "--direction", "down", "--ds", "0.05",
+            "--out", out, "-q"]
+    env = dict(os.environ, SLIPPULSE_KILL_AT="journal_written:2")
+    r = subprocess.run([sys.executable, "-m", "slippulse.cli", *args, "--max-steps", "4"],
+                       env=env, capture_output=True, text=True)
+    assert r.returncode == -9, r.stderr
+    before = {lab: read_pulse(out, lab)[0] for lab in list_pulses(out)}
+    assert sorted(p.extra["trace_step"] for p in before.values()) == [0, 1, 2]
+    r = cli_inproc.run([*args, "--max-steps", "4"])
+    assert r.returncode == 0, r.stderr
+    assert "resumed trace down from step 2" in r.stderr
+    pulses = sorted((read_pulse(out, lab)[0] for lab in list_pulses(out)),
+                    key=lambda p: p.extra["trace_step"])
+    assert [p.extra["trace_step"] for p in pulses] == [0, 1, 2, 3, 4]
+    assert [p.extra["trace_position"] for p in pulses] == [0, -1, -2, -3, -4]
+    assert all(np.diff([p.tau_d_ratio for p in pulses]) < 0)
+    assert all(np.diff([p.beta for p in pulses]) > 0)
+    for lab, p in before.items():
+        assert np.array_equal(read_pulse(out, lab)[0].v, p.v)       # not redone
+    r = cli_inproc.run([*args, "--max-steps", "4"])
+    assert r.returncode == 0 and len(list_pulses(out)) == 5, r.stderr
+    r = cli_inproc.run([*args, "--max-steps", "5"])
+    assert r.returncode == 0 and "resumed trace down from step 4" in r.stderr, r.stderr
+    last = max((read_pulse(out, lab)[0] for lab in list_pulses(out)),
+               key=lambda p: p.extra["trace_step"])
+    assert last.extra["trace_step"] == 5 and last.tau_d_ratio < pulses[-1].tau_d_ratio
+    r = cli_inproc.run([*args, "--max-steps", "6", "--arc-state", "1"])
+    assert r.returncode == 2 and "another trace" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and len(list_pulses(out)) == 6
+
+
 def test_another_branch_is_continued_at_its_own_hump_count(tmp_path, params):
     """``steady family --from-pulse`` on the two-hump pulse: the march accepts the steps that keep
     its two humps (the branch it continues, ``Continuation.humps``), where the main family's

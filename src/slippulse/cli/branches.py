@@ -255,7 +255,8 @@ def cmd_branch_trace(args) -> int:
         raise UsageError(f"source={args.source!r} is invalid: must be FILE:LABEL "
                          "(e.g. branches.h5:td1.20000)")
     path, label = args.source.rsplit(":", 1)
-    from ..core.h5io import list_pulses, open_h5, read_parameters, read_pulse, SchemaError
+    from ..core.h5io import (label_ratio, list_pulses, open_h5, read_parameters, read_pulse,
+                             SchemaError)
     with open_h5(path, "source") as h5:
         stored = read_parameters(h5)
     params_for_input(args, stored, path)
@@ -280,39 +281,79 @@ def cmd_branch_trace(args) -> int:
                              "number >= 0")
     out = args.out
     check_writable(out, "out")
-    if os.path.exists(out) and not args.overwrite:
-        raise UsageError(f"out={out!r} exists; --overwrite replaces it")
-    if os.path.exists(out):
+    if os.path.exists(out) and args.overwrite:
         os.remove(out)
+    ends = _trace_ends(out, args) if os.path.exists(out) else {}
     pulse, _ = read_pulse(path, label)
-    taken = {}
+    taken = {lab: label_ratio(lab) for lab in (list_pulses(out) if ends else [])}
     written = []
     dirs = {"down": ["down"], "up": ["up"], "both": ["down", "up"]}[args.direction]
     for n_dir, name in enumerate(dirs):
-        rc = _trace_one(args, params, pulse, name, out, taken, written, skip_start=n_dir > 0)
+        skip = n_dir > 0 or "down" in ends or "up" in ends
+        rc = _trace_one(args, params, pulse, name, out, taken, written, skip_start=skip,
+                        resume=ends.get(name))
         if rc:
             return rc
     return 0
 
 
-def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> int:
+def _trace_ends(out, args) -> dict:
+    """The last written pulse of each direction of the trace stored in ``out``, which this
+    command resumes: {direction: pulse}. Refused (one line) where ``out`` holds anything else
+    than this command's trace: another start pulse, another arclength metric, or no trace."""
+    from ..core.h5io import list_pulses, read_pulse
+    from ..steady.branch_trace import ArcMetric
+    want = {"trace_source": args.source, "trace_arc_metric": ArcMetric(args.arc_state).describe()}
+    ends = {}
+    for lab in list_pulses(out):
+        p = read_pulse(out, lab)[0]
+        have = {k: p.extra.get(k) for k in want}
+        if have != want:
+            raise UsageError(f"out={out!r} holds another trace ({have['trace_source']!r}, "
+                             f"metric {have['trace_arc_metric']!r}), not this one "
+                             f"({args.source!r}, metric {want['trace_arc_metric']!r}); "
+                             "--overwrite replaces it")
+        name = p.extra["trace_direction"]
+        if name not in ends or p.extra["trace_step"] > ends[name].extra["trace_step"]:
+            ends[name] = p
+    return ends
+
+
+def _trace_one(args, params, pulse, name, out, taken, written, skip_start, resume=None) -> int:
     """One direction of ``steady branch-trace``: trace, write, print. ``skip_start``: the start
-    pulse is already written (by the other direction)."""
+    pulse is already written (by the other direction, or by the run resumed). ``resume``: the
+    last pulse this direction wrote before (the march goes on from it along its stored t_q,
+    steps numbered on; a direction the branch itself stopped is not retraced)."""
     from ..core.h5io import unique_label, write_pulse
     from ..steady.branch_trace import ArcMetric, TraceSettings, check_on_normal, trace
     from ..steady.continuation.tolerance import GRID_TOLERANCE
-    direction = -1 if name == "down" else 1
+    position_sign = -1 if name == "down" else 1
+    direction = position_sign
     metric = ArcMetric(args.arc_state)
+    k0 = 0
+    if resume is not None:
+        k0 = int(resume.extra["trace_step"])
+        if resume.extra.get("trace_stop_reason"):
+            print(f"trace {name}: already ended at step {k0} ({resume.label}): "
+                  f"{resume.extra['trace_stop_reason']}")
+            return 0
+        if k0 >= args.max_steps:
+            print(f"trace {name}: max-steps={args.max_steps} already reached (step {k0}, "
+                  f"{resume.label}); a larger --max-steps goes on")
+            return 0
+        print(f"resumed trace {name} from step {k0} ({resume.label}) in {out}", file=sys.stderr)
+        pulse, skip_start = resume, True
+        direction = 1 if resume.extra["trace_t_q"] > 0 else -1   # the march's own orientation
     mine = []
-    bar = tqdm(total=args.max_steps + 1, desc=f"trace {name}", unit="step",
+    bar = tqdm(total=args.max_steps + 1, initial=k0, desc=f"trace {name}", unit="step",
                disable=args.quiet, file=sys.stderr)
 
     def on_pulse(pt, p):
-        k = len(bar_steps)
+        k = k0 + len(bar_steps)
         bar_steps.append(pt)
         bar.update(1)
         bar.set_postfix_str(f"q={pt.q:.6f} beta={pt.beta:.4g} L={pt.L:.4g}")
-        if (k % args.every and k != 0) or (k == 0 and skip_start):
+        if (k % args.every and k != k0) or (k == k0 and skip_start):
             return
         write(k, pt, p)
 
@@ -320,7 +361,7 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
         p.name = unique_label(p.tau_d_ratio, taken)
         taken[p.name] = p.tau_d_ratio
         p.extra.update({"trace_source": args.source, "trace_direction": name,
-                        "trace_step": int(k), "trace_position": int(k * direction),
+                        "trace_step": int(k), "trace_position": int(k * position_sign),
                         "trace_t_q": float(pt.t_q),
                         "trace_fold_sign": int(pt.fold_sign),
                         "trace_bordered_sign": int(pt.bordered_sign),
@@ -344,9 +385,9 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
     bar_steps = []
     try:
         settings = TraceSettings(direction=direction, ds=args.ds, ds_min=args.ds_min,
-                                 ds_max=args.ds_max, max_steps=args.max_steps,
+                                 ds_max=args.ds_max, max_steps=args.max_steps - k0,
                                  n_points=args.points, regrid=args.regrid,
-                                 relay_start=args.relay, metric=metric)
+                                 relay_start=args.relay and resume is None, metric=metric)
         tr = trace(params, pulse, settings, on_pulse=on_pulse)
     except RuntimeError as exc:        # the start pulse's re-lay, or a tangent with no (β, q) part
         bar.close()
@@ -354,8 +395,23 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
               f"{len(written)} pulses written to {out}", file=sys.stderr)
         return 1
     bar.close()
-    if (not mine or mine[-1][0] != len(bar_steps) - 1) and len(bar_steps) > 1:  # the last point
-        write(len(bar_steps) - 1, tr.points[-1], tr.pulses[-1])
+    last = k0 + len(bar_steps) - 1
+    if not tr.out_of_steps:            # the branch stopped it: a rerun does not retrace it
+        tr.pulses[-1].extra["trace_stop_reason"] = tr.stop_reason
+    if (not mine or mine[-1][0] != last) and len(bar_steps) > 1:          # the last point
+        write(last, tr.points[-1], tr.pulses[-1])
+    elif not tr.out_of_steps:          # the last point is stored: its label, with the reason
+        p_last = mine[-1][2] if mine and mine[-1][0] == last else resume
+        if p_last is not None:
+            p_last.extra["trace_stop_reason"] = tr.stop_reason
+            write_pulse(out, p_last, params)
+    _report_trace(args, name, tr, mine, metric, out)
+    return 0
+
+
+def _report_trace(args, name, tr, mine, metric, out) -> None:
+    """Print one direction's written points, its events and its one-line summary."""
+    from ..steady.continuation.tolerance import GRID_TOLERANCE
     print(f"trace {name}: step label tau_d/tau_min beta L(m) extent(m) humps N sign(detA) t_q "
           "sign(detB) grid grid_check(dbeta dq dL/L passed)")
     for k, pt, p in mine:
@@ -376,7 +432,6 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start) -> in
              f"|dL/L| <= {GRID_TOLERANCE.L:g} at 2N-1)" if args.grid_check else
              ", not grid-checked")
           + f"; stopped: {tr.stop_reason}; wall={tr.wall_time:.1f} s")
-    return 0
 
 
 def register_steady(ss) -> None:
@@ -454,13 +509,17 @@ def _register_branch_trace(ss) -> None:
                                   "tau_d component t_q, sign det A, sign det B and grid index; "
                                   "--grid-check re-solves each written pulse at 2N-1. Prints the "
                                   "points, the events (fold: t_q changes sign; branch point: det B "
-                                  "changes sign on one grid; hump count) and why it stopped.")
+                                  "changes sign on one grid; hump count) and why it stopped. "
+                                  "Interrupted, the same command again resumes it.")
     p.add_argument("source", metavar="FILE:LABEL", help="the start pulse")
     p.add_argument("--direction", choices=("down", "up", "both"), required=True,
                    help="start toward decreasing (down) or increasing (up) tau_d, or both, one "
                         "after the other, into one file")
-    p.add_argument("--out", required=True, help="output HDF5 (refused if it exists, unless "
-                                                "--overwrite)")
+    p.add_argument("--out", required=True,
+                   help="output HDF5; where it holds this trace (same FILE:LABEL and --arc-state)"
+                        " the command resumes it: each direction goes on from its last written "
+                        "pulse, up to --max-steps in all, unless the branch ended it; a file of "
+                        "anything else is refused unless --overwrite")
     p.add_argument("--ds", type=float, default=0.1, help="first arclength step (default 0.1)")
     p.add_argument("--ds-min", type=float, default=1e-3,
                    help="stop when the step falls below this (default 1e-3)")
@@ -486,7 +545,8 @@ def _register_branch_trace(ss) -> None:
                         "at folds and where the shape moves at nearly fixed tau_d) and store "
                         "dbeta, dq, dL/L and whether dbeta and dL/L meet the family's criterion "
                         "(1e-5, 1e-4)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing --out (start afresh)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_params_args(p)
     p.set_defaults(func=cmd_branch_trace)

@@ -52,6 +52,7 @@ class Trace:
     points: list = field(default_factory=list)
     events: list = field(default_factory=list)     # (kind, index of the point after it, detail)
     stop_reason: str = ""
+    out_of_steps: bool = False     # stopped by max_steps (a budget), not by the branch
     wall_time: float = 0.0
     pulses: list = field(default_factory=list, repr=False)   # the accepted solutions (Pulse)
 
@@ -370,6 +371,7 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
             log.grid_id += 1
     if not out.stop_reason:
         out.stop_reason = f"max_steps={s.max_steps} reached"
+        out.out_of_steps = True
     out.wall_time = time.perf_counter() - t0
     return out
 
