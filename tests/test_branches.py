@@ -1,6 +1,7 @@
 """Deflated Newton (steady/deflation.py), the search for every pulse at one τ_d
 (steady/branch_search.py) and its command ``slippulse steady branches``."""
 import math
+import os
 from types import SimpleNamespace
 
 import numpy as np
@@ -354,3 +355,54 @@ def test_a_relaid_trace_stays_on_the_branch(params, pulse12):
     last = tr.pulses[-1]
     prob, x, st = solve_on_grid(params, last.tau_d_ratio, last.xi, np.log(last.v), 1.05 * last.beta)
     assert st.converged and x[-1] == pytest.approx(last.beta, rel=1e-9)
+
+
+JUMP_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data",
+                         "two_hump_fold_jump.h5")
+
+
+def _jump_pulses():
+    """Three pulses of the unguarded march down the two-hump branch toward its first fold
+    (1.01867 τ_min), on one deformed grid (N = 2006, the same pin): td1.0199, td1.019381 (where the
+    march landed on the fold's far side) and td1.018846 (back on the near side)."""
+    from slippulse.steady.bifurcation import pulse_solution
+    out = []
+    for lab in ("td1.0199", "td1.019381", "td1.018846"):
+        p, prm = read_pulse(JUMP_FILE, lab)
+        out.append(pulse_solution(p, prm))
+    return out, prm
+
+
+def test_the_sign_guard_sees_the_march_that_jumped_past_a_fold():
+    """sign det [J; c], c the last tangent's (β, q) part, is what the guard compares: the same
+    from td1.0199 to td1.018846 (one side of the fold), another at td1.019381, the pulse between
+    them that an unguarded march reached (β 2e-3 above its neighbours' line, on the far side)."""
+    from slippulse.steady.continuation.arclength import guarded_tangent
+    (a, jumped, b), _ = _jump_pulses()
+    kappa = 0.05
+    s_a, n_a = guarded_tangent(a.problem, a.x, (1.0, 0.0, kappa))   # toward larger β
+    orient = (n_a[-2], n_a[-1], kappa)
+    s_j, _ = guarded_tangent(jumped.problem, jumped.x, orient)
+    s_b, n_b = guarded_tangent(b.problem, b.x, orient)
+    assert s_a == s_b != s_j
+    assert n_a[-1] < 0 and n_b[-1] < 0            # τ_d still falling: the fold lies ahead
+
+
+def test_a_guarded_march_passes_steps_on_its_branch_and_refuses_a_bad_guard():
+    """BRANCH (the march of another branch) carries the guard: from td1.0199, two steps toward
+    the fold are taken with no refusal and no sign change, τ_d falling and β rising; a guard
+    whose floor is below ds_min, or on natural steps, is refused when built."""
+    from slippulse.steady.continuation import (BRANCH, NATURAL, Continuation, SignGuard,
+                                               StrategyError)
+    (a, _, _), prm = _jump_pulses()
+    assert "sign-guard(floor=0.002)" in str(BRANCH)
+    m = Continuation(prm, a, BRANCH, stop=1.0)
+    for _ in range(2):
+        assert m.advance() is None
+    assert m.n_failed == 0 and m.sign_changes == []
+    assert m.state_attrs()["march_sign_changes"] == 0
+    assert m.q < a.x[-1] and m.beta > a.x[-2]
+    with pytest.raises(StrategyError, match="ds_min"):
+        BRANCH.replace(guard=SignGuard(floor=1e-4))
+    with pytest.raises(StrategyError, match="arclength"):
+        NATURAL.replace(guard=SignGuard())

@@ -330,9 +330,9 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start, resum
     position_sign = -1 if name == "down" else 1
     direction = position_sign
     metric = ArcMetric(args.arc_state)
-    k0 = 0
+    k0 = grid0 = 0
     if resume is not None:
-        k0 = int(resume.extra["trace_step"])
+        k0, grid0 = int(resume.extra["trace_step"]), int(resume.extra["trace_grid"])
         if resume.extra.get("trace_stop_reason"):
             print(f"trace {name}: already ended at step {k0} ({resume.label}): "
                   f"{resume.extra['trace_stop_reason']}")
@@ -365,7 +365,7 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start, resum
                         "trace_t_q": float(pt.t_q),
                         "trace_fold_sign": int(pt.fold_sign),
                         "trace_bordered_sign": int(pt.bordered_sign),
-                        "trace_grid": int(pt.grid), "trace_extent": float(pt.extent),
+                        "trace_grid": int(pt.grid) + grid0, "trace_extent": float(pt.extent),
                         "trace_arc_metric": metric.describe()})
         if args.grid_check:
             c = check_on_normal(params, p, metric)

@@ -315,8 +315,14 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
     y = np.log(np.asarray(pulse.v, float))
     if s.relay_start:
         xi, y, pulse = _relay_start(params, pulse, n_points)
-    k, _ = front_pin(xi, y, math.log(pulse.v_stick))
-    prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, float(y[k]), free="both")
+    if not s.relay_start and "pin_index" in pulse.extra:
+        # the pulse's own phase condition: a stored trace point goes on in the discrete system
+        # it was solved in (a resumed trace), not one pinned at another node
+        k, y_pin = int(pulse.extra["pin_index"]), float(pulse.extra["y_pin"])
+    else:
+        k, _ = front_pin(xi, y, math.log(pulse.v_stick))
+        y_pin = float(y[k])
+    prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, y_pin, free="both")
     x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
     r, J = prob.residual_and_jacobian(x)
     m = s.metric

@@ -25,7 +25,7 @@ from .natural import PulseOnGrid, judge_pulse, round_targets, solve_at_beta, tan
 from .report import FamilyReport
 from .strategy import (AUTO, BETA_STEPS, BRANCH, FAMILY_POINTS, FAMILY_POINTS_BETA, FROM_PULSE, NATURAL,
                        REGRID, STRATEGIES, AdaptGrid, FreeSteps, HeldSteps, LengthPredictor,
-                       NaturalPredictor, NestedCheck, NewtonCorrector, SecantPredictor, ShrinkSteps, Strategy,
+                       NaturalPredictor, NestedCheck, NewtonCorrector, SecantPredictor, ShrinkSteps, SignGuard, Strategy,
                        StrategyError, StretchGrid, TangentPredictor, TargetSteps)
 from .stretch import stretch_grid, stretch_profile
 from .tolerance import GRID_TOLERANCE, NEWTON_TOL, GridTolerance
@@ -34,7 +34,7 @@ __all__ = ["AUTO", "Accepted", "FamilyRun", "AdaptGrid", "ArclengthProblem", "BE
            "BRANCH", "from_pulse_strategy", "FAMILY_POINTS", "FAMILY_POINTS_BETA", "FROM_PULSE", "FamilyReport", "FreeSteps", "GRID_TOLERANCE",
            "GridTolerance", "HeldSteps", "LengthPredictor", "NATURAL", "NEWTON_TOL",
            "NaturalPredictor", "NestedCheck", "NewtonCorrector", "PulseOnGrid", "REGRID", "STRATEGIES",
-           "SecantPredictor", "ShrinkSteps", "Strategy", "StrategyError", "StretchGrid", "as_both",
+           "SecantPredictor", "ShrinkSteps", "SignGuard", "Strategy", "StrategyError", "StretchGrid", "as_both",
            "TangentPredictor", "TargetSteps", "check_grid_2n", "family_tangent", "grid_change",
            "judge_pulse", "round_targets", "run_family", "solve_at_beta", "solve_robust",
            "stretch_grid", "stretch_profile", "tangent_step"]

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import math
 import numpy as np
+import scipy.linalg as sla
 
+from ..bifurcation import lu_det
 from ..equations import SteadyProblem
 from ..newton import gmres_on_lu, lu_solve
 
@@ -59,6 +61,16 @@ def family_tangent(prob: SteadyProblem, x, orient):
     rhs = np.zeros(x.size)
     rhs[-1] = 1.0
     return unit_tangent(np.linalg.solve(tangent_matrix(prob, x, orient), rhs), x[-2], orient[2])
+
+
+def guarded_tangent(prob, x, orient):
+    """(sign det [J; c], the unit tangent) at a converged x: :func:`family_tangent` by one LU of
+    [J; c], whose determinant's sign is what :class:`~.strategy.SignGuard` compares between
+    steps (constant along one branch on one discretisation)."""
+    sign, _, lu = lu_det(tangent_matrix(prob, x, orient))
+    rhs = np.zeros(x.size)
+    rhs[-1] = 1.0
+    return sign, unit_tangent(sla.lu_solve(lu, rhs, check_finite=False), x[-2], orient[2])
 
 
 def tangent_matrix(prob, x, orient):

@@ -16,8 +16,8 @@ from ..equations import SteadyProblem
 from ..measures import pulse_length
 from ..newton import KrylovLU, SolveStats
 from ..solver import GridSpec, SteadySolution, count_humps, front_pin, regrid_guess
-from .arclength import (ArclengthProblem, family_tangent, tangent_by_refinement, tangent_matrix,
-                        unit_tangent)
+from .arclength import (ArclengthProblem, family_tangent, guarded_tangent, tangent_by_refinement,
+                        tangent_matrix, unit_tangent)
 from .natural import PulseOnGrid, judge_pulse, solve_between, tangent_step
 from .relay import recentre, refine_front, zone_offset
 from .strategy import AUTO, ShrinkSteps, Strategy, TargetSteps
@@ -159,6 +159,10 @@ class Continuation:
         # of the pulse before the current one, kept while the current grid is its deformed one
         self._rate = None
         self._prev = None
+        # the sign guard: sign det [J; c] at the current pulse (None: not yet on this grid), the
+        # candidate's sign and tangent, and the τ_d where a change persisted (branch points)
+        self.sign_changes = []
+        self._next = None
         self._forget()
         self._candidate = (None, None, None)
         # held steps: a tangent step above the predictor's ds_max failed since the last
@@ -207,10 +211,13 @@ class Continuation:
         ("tau_d", or "beta" for a pulse between targets) and the strategy."""
         if self.strategy.parameter != "arclength":
             return {"continuation": self._method, "continuation_strategy": str(self.strategy)}
-        return {"continuation": "arclength", "continuation_strategy": str(self.strategy),
-                "continuation_predictor": self.last_predictor,
-                "continuation_iterations": int(self.sol.stats.iterations),
-                "march_held": bool(self.held), "march_cap": float(self.cap)}
+        out = {"continuation": "arclength", "continuation_strategy": str(self.strategy),
+               "continuation_predictor": self.last_predictor,
+               "continuation_iterations": int(self.sol.stats.iterations),
+               "march_held": bool(self.held), "march_cap": float(self.cap)}
+        if self.strategy.guard is not None:
+            out["march_sign_changes"] = len(self.sign_changes)
+        return out
 
     # ---------------------------------------------------------------- the public step
     def step(self):
@@ -553,7 +560,7 @@ class Continuation:
         ``keep_lu``: keep its LU, of a nearby pulse on a nearby grid, for the Krylov solves of
         the next tangent and corrector (they test their own residual; a size that no longer
         fits is never used)."""
-        self._jac = self._arc = self._n = None
+        self._jac = self._arc = self._n = self._sign = None
         if not keep_lu:
             self._lu = None
 
@@ -564,6 +571,10 @@ class Continuation:
         if self._n is not None:
             return self._n
         base, x, n = self._base, self._x, None
+        if self.strategy.guard is not None:
+            self._sign, self._n = guarded_tangent(base, x, self._orient)
+            self._jac = None
+            return self._n
         if self._lu is not None and self._lu[0].shape[0] == x.size:
             if self._jac is not None:
                 A = self._jac
@@ -667,6 +678,31 @@ class Continuation:
         msg = f"arclength step ds={ds:.3g} (N={n_cur}, {its} it.) to beta~{bp:.6f}: {msg}"
         return ok, new, msg, (t_a, t_Q), qp
 
+    def _guard(self, new, msg):
+        """The strategy's :class:`~.strategy.SignGuard` on a converged step: (accepted, message).
+        The sign of det [J; c] at ``new`` (c: the current tangent's (β, q) part, the matrix of
+        the next tangent) against the current pulse's, where both lie on one discretisation (the
+        same N, and the same grid or its deformation); kept with the tangent for acceptance."""
+        g = self.strategy.guard
+        self._next = None
+        if g is None:
+            return True, msg
+        self._next = guarded_tangent(new.problem, new.x, self._orient)
+        base = self._base
+        same = new.problem.n == base.n and (self.strategy.stretch or new.problem.xi is base.xi)
+        if self._sign is None or not same or self._next[0] == self._sign:
+            return True, msg
+        change = f"sign det [J; t] {self._sign:+d} -> {self._next[0]:+d}"
+        if 0.5 * self.ds >= g.floor:
+            self._next = None
+            return False, (f"{msg}; refused by the sign guard: {change} (the step left the "
+                           "branch: past a fold's tip or onto another branch)")
+        self.sign_changes.append(float(new.x[-1]))
+        if self.log:
+            self.log(f"sign guard: {change} persists at ds={self.ds:.3g} < 2 x floor: a branch "
+                     f"point crossed near tau_d/tau_min={float(new.x[-1]):.6f}")
+        return True, f"{msg}; {change} at ds < 2 x floor: a branch point crossed"
+
     def _toward_stop(self, ds, t_Q):
         """``ds``, shortened where the predicted τ_d would pass ``stop`` by more than the step
         control's ``overshoot`` times the distance left (to ds_min at least)."""
@@ -686,6 +722,10 @@ class Continuation:
         while True:
             ok, new, msg, tangent, qp = self._attempt()
             self.n_attempts += 1
+            jumped = False
+            if ok:
+                ok, msg = self._guard(new, msg)
+                jumped = not ok
             self.message = msg
             if self.on_attempt:
                 qa = float(new.x[-1]) if new is not None else qp
@@ -693,7 +733,9 @@ class Continuation:
             if ok:
                 break
             self.n_failed += 1
-            if self.last_predictor == "tangent" and self.ds > pred_ds_max:
+            if jumped:
+                pass                       # a step that left the branch: only ds halves
+            elif self.last_predictor == "tangent" and self.ds > pred_ds_max:
                 self._tangent_failed = True
             if self.held and st.cap_shrink < 1.0 and self.ds >= st.cap_shrink * self.cap:
                 # a failure at or near the cap: the cap below it
@@ -710,6 +752,9 @@ class Continuation:
         self._lu, self._jac, self._arc = (self._candidate if S.corrector.reuse_lu
                                           else (None, None, None))
         self._n = None
+        if self._next is not None:         # the guard's sign and tangent at the new pulse
+            self._sign, self._n = self._next
+            self._next = None
         # the history: a nodal secant only across a step that kept the front on its nodes
         lineage = (S.stretch and new.problem.n == self._base.n
                    and self.last_predictor in ("length", "secant"))

@@ -409,6 +409,30 @@ class NestedCheck:
                                 f"KrylovLU")
 
 
+# ------------------------------------------------------------------------------ step guard
+@dataclass(frozen=True)
+class SignGuard:
+    """Refuse a step that leaves the branch it marches on: one across which the sign of
+    det [J; c] changes (J the extended Jacobian at the new pulse, c the last tangent's (β, q)
+    part, the matrix that gives the next tangent). Along one branch that sign is constant, folds
+    included, where the bordered matrix is regular (docs/branches.md §1); it changes where a step
+    lands on the far side of a fold's tip or on another branch (a jump), and where the branch
+    crosses a branch point. A changed step is re-taken at half ds while ds/2 ≥ ``floor``; a
+    change that persists below is a branch point crossed: accepted, and counted
+    (``Continuation.sign_changes``). Costs one LU of the bordered matrix per converged step (the
+    next tangent comes from it). Signs compare on one discretisation only: on a new grid (a
+    re-lay, a refined or replaced pulse) the reference is taken afresh.
+    """
+
+    floor: float = 0.002
+    name = "sign-guard"
+
+    def __post_init__(self):
+        if not (self.floor > 0 and math.isfinite(self.floor)):
+            raise StrategyError(f"sign-guard: floor={self.floor!r} is invalid: must be a finite "
+                                "number > 0")
+
+
 # ------------------------------------------------------------------------------ combination
 @dataclass(frozen=True)
 class Strategy:
@@ -420,7 +444,9 @@ class Strategy:
     * :class:`HeldSteps` caps ds where the length or secant predictor acts, on a stretched grid:
       it needs both, and a ds_min below that cap (the predictor's ds_max);
     * the natural predictor steps τ_d to round targets (:class:`TargetSteps`) or β toward 1
-      (:class:`ShrinkSteps`) on adapted grids (:class:`AdaptGrid`), and only it does.
+      (:class:`ShrinkSteps`) on adapted grids (:class:`AdaptGrid`), and only it does;
+    * a :class:`SignGuard` re-takes arclength steps: it needs an arclength predictor, and a
+      ``floor`` at or above the steps' ds_min (the march would fail before it decides).
     """
 
     predictor: object = field(default_factory=TangentPredictor)
@@ -428,6 +454,7 @@ class Strategy:
     steps: FreeSteps = field(default_factory=FreeSteps)
     grid: object = field(default_factory=AdaptGrid)
     check: NestedCheck = field(default_factory=NestedCheck)
+    guard: SignGuard | None = None
 
     def __post_init__(self):
         kinds = ((self.predictor, (TangentPredictor, LengthPredictor, NaturalPredictor),
@@ -440,6 +467,15 @@ class Strategy:
             if not isinstance(obj, cls):
                 raise StrategyError(f"{what}={obj!r} is invalid: must be one of "
                                     f"{', '.join(c.__name__ for c in cls)}")
+        if self.guard is not None:
+            if not isinstance(self.guard, SignGuard):
+                raise StrategyError(f"guard={self.guard!r} is invalid: must be None or SignGuard")
+            if isinstance(self.predictor, NaturalPredictor):
+                raise StrategyError("guard=sign-guard re-takes arclength steps: it needs an "
+                                    "arclength predictor, not natural")
+            if self.guard.floor < getattr(self.steps, "ds_min", 0.0):
+                raise StrategyError(f"guard=sign-guard: floor={self.guard.floor:g} must be at "
+                                    f"least the steps' ds_min={self.steps.ds_min:g}")
         natural_steps = {"tau_d": TargetSteps, "beta": ShrinkSteps}
         if isinstance(self.predictor, NaturalPredictor):
             need = natural_steps[self.predictor.parameter]
@@ -489,8 +525,8 @@ class Strategy:
         return dataclasses.replace(self, **parts)
 
     def __str__(self):
-        return " + ".join(describe(p) for p in (self.predictor, self.corrector, self.steps,
-                                                 self.grid, self.check))
+        parts = (self.predictor, self.corrector, self.steps, self.grid, self.check, self.guard)
+        return " + ".join(describe(p) for p in parts if p is not None)
 
 
 #: The product's combination: the deep family from β ≈ 0.99 toward τ̃*, on a grid deformed with
@@ -546,9 +582,12 @@ FROM_PULSE = AUTO.replace(steps=dataclasses.replace(AUTO.steps, overshoot=0.5))
 #: the last step ending near --to. :data:`AUTO`'s held cap (ds ≤ 0.002 in (ln(1 − β), q/κ)) is
 #: the deep family's scale: on the two-hump branch at β ≈ 0.9 it moves β by 2e−4 per step
 #: (1.0193 → 1.0222 τ_min in 10 min, measured), this combination 1.0193 → 1.0301 in 3 min.
+#: The sign guard: near the two-hump branch's first fold (1.01867 τ_min) the unguarded march
+#: landed once on the fold's far side and came back at the next step (1.019381 τ_min, a 13-
+#: iteration corrector; det [J; t] changes sign there and back, docs/branches.md §1).
 BRANCH = Strategy(predictor=TangentPredictor(), corrector=NewtonCorrector(max_iter=25),
                   steps=FreeSteps(ds=0.02, ds_min=0.001, ds_max=0.1, overshoot=0.5),
-                  grid=StretchGrid(), check=NestedCheck())
+                  grid=StretchGrid(), check=NestedCheck(), guard=SignGuard(floor=0.002))
 
 #: Named combinations (``STRATEGIES["auto"]`` is :data:`AUTO`, the deep march).
 STRATEGIES = {"auto": AUTO, "natural": NATURAL, "beta": BETA_STEPS, "from-pulse": FROM_PULSE,
