@@ -69,14 +69,16 @@ def _children(pid):
 def test_a_killed_family_run_leaves_no_checker_behind(tmp_path):
     """kill -9 of the family command while its checker process runs: the checker exits too."""
     out = str(tmp_path / "f.h5")
-    proc = subprocess.Popen([sys.executable, "-m", "slippulse.cli", "steady", "family", "--from",
-                             "1.2", "--to", "1.15", "--checks", "beside", "--out", out, "-q"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    err = tmp_path / "family.err"
+    with open(err, "wb") as fh:
+        proc = subprocess.Popen([sys.executable, "-m", "slippulse.cli", "steady", "family",
+                                 "--from", "1.2", "--to", "1.15", "--checks", "beside", "--out",
+                                 out, "-q"], stdout=subprocess.DEVNULL, stderr=fh)
     t0, kids = time.time(), []
-    while time.time() - t0 < 120 and not kids:
+    while time.time() - t0 < 120 and not kids and proc.poll() is None:
         time.sleep(0.2)
         kids = _children(proc.pid)
-    assert kids, "no checker process started"
+    assert kids, f"no checker process started (exit {proc.poll()}): {err.read_text()[-2000:]}"
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     t0 = time.time()

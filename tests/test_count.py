@@ -74,6 +74,7 @@ class _Continuum:
         return np.diag(z - self.lams), dM
 
 
+@pytest.mark.slow
 def test_count_is_not_fooled_by_a_continuum_just_outside_the_edge():
     """Each zero outside turns the phase by about -pi as the left edge passes it; the phase-only
     walk aliases that drift (it counts -7 here), the derivative-checked walk counts the one."""
@@ -357,6 +358,7 @@ def test_count_on_workers_walks_the_same_points(tmp_path):
         ExecutorSettings(workers=0)
 
 
+@pytest.mark.slow
 def test_count_of_the_pulse_operator_on_workers(pulse12, params):
     """The pulse operator survives the trip to two worker processes of a local Dask cluster
     (sent once to each): the same

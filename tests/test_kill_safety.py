@@ -139,6 +139,7 @@ def _kill_at_points(tmp_path, kills):
     _assert_same_as_reference(ref, out, ())
 
 
+@pytest.mark.slow
 def test_kills_inside_the_checkpoint_leave_readable_resumable_file(tmp_path):
     """Deterministic: before the commit rename, after it, during the catch-up, while writing."""
     _kill_at_points(tmp_path, KILLS)

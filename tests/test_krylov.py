@@ -118,6 +118,7 @@ def test_a_krylov_march_keeps_its_lu_across_a_replace(params, pulse12):
     assert march(DirectLU(), True).sol.stats.factorizations > 0
 
 
+@pytest.mark.slow
 def test_a_failed_checks_region_solves_share_one_tangent(params, monkeypatch):
     """The grid check's normal line needs the pulse's family tangent (a dense solve at N): the
     region re-solves of ``locate_error`` and the check itself on one pulse solve for it once; a

@@ -85,6 +85,7 @@ def test_unstable_mode_growth_rate_is_converged(params):
     assert abs(rates[0] - rates[1]) < 0.1 * rates[0], rates
 
 
+@pytest.mark.slow
 def test_without_far_field_the_short_domain_distorts_the_pulse(pulse105, params):
     """The bare period (λ = 4 L) is a train of pulses: their images distort the pulse
     (measured L error 8.6e-2 at 0.5 L), so the far-field load is what makes the short domain work."""
