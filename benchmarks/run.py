@@ -2,7 +2,8 @@
 
     python benchmarks/run.py [GROUP ...] [--base REV] [--quick] [--repeat R] [--no-base]
 
-GROUPs (default all): steady, family, deep, reach, continuation, spectrum, sbi, gpu (benchmarks/suite.py). The base
+GROUPs (default all): steady, family, branch, deep, reach, continuation, spectrum, sbi, gpu
+(benchmarks/suite.py). The base
 commit (default ``main``) is checked out once into a git worktree under the cache directory
 (``--cache``, default ``$TMPDIR/slippulse-bench``: its numba caches survive between runs), and
 every benchmark of ``suite.py`` (this tree's) runs in a fresh process per tree, ``PYTHONPATH``

@@ -6,7 +6,8 @@ A benchmark uses only what both trees are likely to share: the command line (``p
 slippulse``), the file readers of :mod:`slippulse.core.h5io`, the steady solver and the SBI
 stepper. Its wall times are taken inside the process, after a warm-up that fills the numba caches.
 
-Groups: steady (one pulse solved), family (the continuation 1.2 → 1.1 or → 1.015), deep (the
+Groups: steady (one pulse solved), family (the continuation 1.2 → 1.1 or → 1.015), branch
+(another branch's march toward its fold), deep (the
 deep march resumed from a committed seed), reach (the family from scratch to L = 300 m or
 1.5 km), continuation (the family's pulses against the
 committed deep tables), spectrum (the leading growth rate with its error), sbi
@@ -113,6 +114,26 @@ def family_continuation(quick, work):
     deep = max(pulses, key=lambda p: p.L)
     return {"wall s": wall, "cpu s": cpu, "pulses": len(pulses), "beta (longest)": deep.beta,
             "L m (longest)": deep.L, "max abs r": max(p.max_residual for p in pulses)}
+
+
+def branch_march(quick, work):
+    """``slippulse steady family --from-pulse`` of the two-hump pulse at 1.0199 τ_min (N = 2006,
+    tests/data/two_hump_fold_jump.h5) toward its first fold, checks inline: the march of another
+    branch (``BRANCH``), quick to 1.0195, full to 1.0190. Measures what the sign guard costs (one
+    LU of [J; c] per converged step, which also gives the next tangent) against a base without
+    it."""
+    io = _h5io()
+    src = os.path.join(ROOT, "tests", "data", "two_hump_fold_jump.h5")
+    _warm_steady()
+    out_file = os.path.join(work, "branch.h5")
+    cpu0 = _child_cpu()
+    wall = _cli("steady", "family", "--from-pulse", f"{src}:td1.0199", "--to",
+                "1.0195" if quick else "1.019", "--checks", "inline", "--out", out_file, "-q")
+    cpu = _child_cpu() - cpu0
+    pulses = [io.read_pulse(out_file, lab)[0] for lab in io.list_pulses(out_file)]
+    last = min(pulses, key=lambda p: p.tau_d_ratio)
+    return {"wall s": wall, "cpu s": cpu, "pulses": len(pulses),
+            "tau_d/tau_min (last)": last.tau_d_ratio, "beta (last)": last.beta}
 
 
 # ---------------------------------------------------------------- deep family
@@ -404,6 +425,7 @@ def gpu_step(quick, work):
 GROUPS = {
     "steady": [("steady.solve", steady_solve)],
     "family": [("family.continuation", family_continuation)],
+    "branch": [("branch.march", branch_march)],
     "deep": [("deep.march", deep_march)],
     "reach": [("family.reach", family_reach)],
     "continuation": [("continuation.tables", continuation_tables)],

@@ -18,10 +18,10 @@ def _load(name):
     return mod
 
 
-def test_the_suite_has_the_eight_groups_each_with_a_benchmark():
+def test_the_suite_has_the_nine_groups_each_with_a_benchmark():
     suite = _load("suite")
-    assert list(suite.GROUPS) == ["steady", "family", "deep", "reach", "continuation", "spectrum",
-                                  "sbi", "gpu"]
+    assert list(suite.GROUPS) == ["steady", "family", "branch", "deep", "reach", "continuation",
+                                  "spectrum", "sbi", "gpu"]
     assert all(suite.GROUPS[g] for g in suite.GROUPS)
     assert all(callable(f) for f in suite.BENCHMARKS.values())
 
