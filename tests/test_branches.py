@@ -226,6 +226,24 @@ def test_a_killed_branch_trace_is_resumed_by_the_same_command(tmp_path, params, 
     assert len(r.stderr.strip().splitlines()) == 1 and len(list_pulses(out)) == 6
 
 
+def test_a_trace_its_branch_ended_is_not_retraced(tmp_path, params, pulse12):
+    """A trace that stopped for the branch's own reason (here its first step, ds = ds-min = 5,
+    fails) stores the reason with its last pulse; the same command again says so and adds
+    nothing."""
+    src = str(tmp_path / "src.h5")
+    write_pulse(src, pulse12.to_pulse(), params)
+    out = str(tmp_path / "t.h5")
+    args = ["steady", "branch-trace", f"{src}:td1.2000", "--direction", "down", "--ds", "5",
+            "--ds-min", "5", "--ds-max", "5", "--out", out, "-q"]
+    r = cli_inproc.run(args)
+    assert r.returncode == 0, r.stderr
+    (lab,) = list_pulses(out)
+    assert read_pulse(out, lab)[0].extra["trace_stop_reason"].startswith("step below ds_min")
+    r = cli_inproc.run(args)
+    assert r.returncode == 0 and "already ended at step 0" in r.stdout, r.stdout
+    assert list_pulses(out) == [lab]
+
+
 def test_another_branch_is_continued_at_its_own_hump_count(tmp_path, params):
     """``steady family --from-pulse`` on the two-hump pulse: the march accepts the steps that keep
     its two humps (the branch it continues, ``Continuation.humps``), where the main family's
