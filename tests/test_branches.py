@@ -392,18 +392,29 @@ def _jump_pulses():
 
 
 def test_the_sign_guard_sees_the_march_that_jumped_past_a_fold():
-    """sign det [J; c], c the last tangent's (β, q) part, is what the guard compares: the same
-    from td1.0199 to td1.018846 (one side of the fold), another at td1.019381, the pulse between
-    them that an unguarded march reached (β 2e-3 above its neighbours' line, on the far side)."""
-    from slippulse.steady.continuation.arclength import guarded_tangent
+    """sign det [J; c] (c a direction along the march, here the first pulse's tangent in (β, q))
+    is what the guard compares: the same from td1.0199 to td1.018846 (one side of the fold),
+    another at td1.019381, the pulse between them that an unguarded march reached (β 2e-3 above
+    its neighbours' line, on the far side). Read off the LU of a nearby matrix where refinement
+    on it converges: there it is the dense sign, and where the signs differ it cannot converge."""
+    import scipy.linalg
+    from slippulse.steady.continuation.arclength import (bordered_sign, family_tangent,
+                                                         refined_solution, tangent_matrix)
     (a, jumped, b), _ = _jump_pulses()
     kappa = 0.05
-    s_a, n_a = guarded_tangent(a.problem, a.x, (1.0, 0.0, kappa))   # toward larger β
+    n_a = family_tangent(a.problem, a.x, (1.0, 0.0, kappa))          # toward larger β
     orient = (n_a[-2], n_a[-1], kappa)
-    s_j, _ = guarded_tangent(jumped.problem, jumped.x, orient)
-    s_b, n_b = guarded_tangent(b.problem, b.x, orient)
-    assert s_a == s_b != s_j
-    assert n_a[-1] < 0 and n_b[-1] < 0            # τ_d still falling: the fold lies ahead
+    A = {k: tangent_matrix(p.problem, p.x, orient) for k, p in
+         (("a", a), ("jumped", jumped), ("b", b))}
+    s = {k: bordered_sign(M) for k, M in A.items()}
+    assert s["a"] == s["b"] != s["jumped"]
+    assert n_a[-1] < 0                                   # τ_d still falling: the fold lies ahead
+    lu_a = scipy.linalg.lu_factor(A["a"])
+    near = A["a"].copy()
+    near[:-1] *= 1.0 + 1e-6                              # a nearby matrix of the same sign
+    assert refined_solution(near, lu_a) is not None and bordered_sign(near, lu_a) == s["a"]
+    assert refined_solution(A["jumped"], lu_a) is None
+    assert bordered_sign(A["jumped"], lu_a) == s["jumped"]
 
 
 def test_a_guarded_march_passes_steps_on_its_branch_and_refuses_a_bad_guard():

@@ -63,14 +63,26 @@ def family_tangent(prob: SteadyProblem, x, orient):
     return unit_tangent(np.linalg.solve(tangent_matrix(prob, x, orient), rhs), x[-2], orient[2])
 
 
-def guarded_tangent(prob, x, orient):
-    """(sign det [J; c], the unit tangent) at a converged x: :func:`family_tangent` by one LU of
-    [J; c], whose determinant's sign is what :class:`~.strategy.SignGuard` compares between
-    steps (constant along one branch on one discretisation)."""
-    sign, _, lu = lu_det(tangent_matrix(prob, x, orient))
-    rhs = np.zeros(x.size)
-    rhs[-1] = 1.0
-    return sign, unit_tangent(sla.lu_solve(lu, rhs, check_finite=False), x[-2], orient[2])
+def bordered_sign(A, lu=None) -> int:
+    """sign det A of a square bordered matrix A = [J; r] (the corrector's arclength Jacobian, or
+    :func:`tangent_matrix`), what :class:`~.strategy.SignGuard` compares between steps: constant
+    along one branch on one discretisation. With ``lu``, the LU of a nearby matrix A₀ (the
+    corrector's): where iterative refinement on it converges, A = A₀(I + E) with the spectral
+    radius of E below one, so det(I + E) > 0 and sign det A = sign det A₀, read off ``lu`` (no
+    factorisation); else one LU of A."""
+    if lu is not None and lu[0].shape[0] == A.shape[0] and refined_solution(A, lu) is not None:
+        return lu_sign(lu)
+    return lu_det(A)[0]
+
+
+def lu_sign(lu) -> int:
+    """The sign of det of the matrix whose scipy LU is ``lu``: the product of U's diagonal signs
+    and the pivots' parity (0 for an exactly singular U)."""
+    d = np.diag(lu[0])
+    if np.any(d == 0):
+        return 0
+    parity = int(np.count_nonzero(lu[1] != np.arange(lu[1].size))) % 2
+    return int((-1) ** parity * np.prod(np.sign(d)))
 
 
 def tangent_matrix(prob, x, orient):
@@ -102,6 +114,20 @@ def tangent_by_refinement(A, lu, max_iter=30, rtol=1e-11):
     to 3e−11). ``rtol`` bounds the tangent's relative error; it sets the predictor and the
     arclength condition's direction only, never the tolerance of the pulse.
     """
+    n = refined_solution(A, lu, max_iter, rtol)
+    if n is not None:
+        return n
+    # an LU too far from A for refinement (one of a Krylov corrector, several steps old):
+    # GMRES on it, to the same relative residual
+    e = np.zeros(A.shape[0])
+    e[-1] = 1.0
+    n, _ = gmres_on_lu(A, e, lu, rtol, max_iter)
+    return n
+
+
+def refined_solution(A, lu, max_iter=30, rtol=1e-11):
+    """A⁻¹(0…0, 1) by iterative refinement on ``lu`` alone, or None where a correction grows or
+    they do not fall below ``rtol`` ‖n‖ within ``max_iter`` (:func:`tangent_by_refinement`)."""
     e = np.zeros(A.shape[0])
     e[-1] = 1.0
     n = lu_solve(lu, e)
@@ -111,11 +137,8 @@ def tangent_by_refinement(A, lu, max_iter=30, rtol=1e-11):
         n = n + dn
         size = np.linalg.norm(dn) / np.linalg.norm(n)
         if not (np.isfinite(size) and size < last):
-            break
+            return None
         if size <= rtol:
             return n
         last = size
-    # an LU too far from A for refinement (one of a Krylov corrector, several steps old):
-    # GMRES on it, to the same relative residual
-    n, _ = gmres_on_lu(A, e, lu, rtol, max_iter)
-    return n
+    return None

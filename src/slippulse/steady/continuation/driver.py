@@ -16,7 +16,7 @@ from ..equations import SteadyProblem
 from ..measures import pulse_length
 from ..newton import KrylovLU, SolveStats
 from ..solver import GridSpec, SteadySolution, count_humps, front_pin, regrid_guess
-from .arclength import (ArclengthProblem, family_tangent, guarded_tangent, tangent_by_refinement,
+from .arclength import (ArclengthProblem, bordered_sign, family_tangent, tangent_by_refinement,
                         tangent_matrix, unit_tangent)
 from .natural import PulseOnGrid, judge_pulse, solve_between, tangent_step
 from .relay import recentre, refine_front, zone_offset
@@ -571,10 +571,6 @@ class Continuation:
         if self._n is not None:
             return self._n
         base, x, n = self._base, self._x, None
-        if self.strategy.guard is not None:
-            self._sign, self._n = guarded_tangent(base, x, self._orient)
-            self._jac = None
-            return self._n
         if self._lu is not None and self._lu[0].shape[0] == x.size:
             if self._jac is not None:
                 A = self._jac
@@ -680,19 +676,24 @@ class Continuation:
 
     def _guard(self, new, msg):
         """The strategy's :class:`~.strategy.SignGuard` on a converged step: (accepted, message).
-        The sign of det [J; c] at ``new`` (c: the current tangent's (β, q) part, the matrix of
-        the next tangent) against the current pulse's, where both lie on one discretisation (the
-        same N, and the same grid or its deformation); kept with the tangent for acceptance."""
+        The sign of det of the corrector's bordered matrix [J; r] at ``new`` (r the arclength
+        row, from the current tangent; :func:`bordered_sign`, on the corrector's LU where
+        refinement converges) against the current pulse's, where both lie on one discretisation
+        (the same N, and the same grid or its deformation). The first step from a pulse whose
+        sign is not known (the start, a replaced or refined pulse) only takes it."""
         g = self.strategy.guard
         self._next = None
         if g is None:
             return True, msg
-        self._next = guarded_tangent(new.problem, new.x, self._orient)
+        lu, jac, arc = self._candidate
+        if jac is None:
+            jac = arc.residual_and_jacobian(new.x)[1]
+        self._next = bordered_sign(jac, lu)
         base = self._base
         same = new.problem.n == base.n and (self.strategy.stretch or new.problem.xi is base.xi)
-        if self._sign is None or not same or self._next[0] == self._sign:
+        if self._sign is None or not same or self._next == self._sign:
             return True, msg
-        change = f"sign det [J; t] {self._sign:+d} -> {self._next[0]:+d}"
+        change = f"sign det [J; t] {self._sign:+d} -> {self._next:+d}"
         if 0.5 * self.ds >= g.floor:
             self._next = None
             return False, (f"{msg}; refused by the sign guard: {change} (the step left the "
@@ -752,9 +753,8 @@ class Continuation:
         self._lu, self._jac, self._arc = (self._candidate if S.corrector.reuse_lu
                                           else (None, None, None))
         self._n = None
-        if self._next is not None:         # the guard's sign and tangent at the new pulse
-            self._sign, self._n = self._next
-            self._next = None
+        if self._next is not None:         # the guard's sign at the new pulse
+            self._sign, self._next = self._next, None
         # the history: a nodal secant only across a step that kept the front on its nodes
         lineage = (S.stretch and new.problem.n == self._base.n
                    and self.last_predictor in ("length", "secant"))

@@ -413,15 +413,16 @@ class NestedCheck:
 @dataclass(frozen=True)
 class SignGuard:
     """Refuse a step that leaves the branch it marches on: one across which the sign of
-    det [J; c] changes (J the extended Jacobian at the new pulse, c the last tangent's (β, q)
-    part, the matrix that gives the next tangent). Along one branch that sign is constant, folds
+    det [J; r] changes (J the extended Jacobian at the new pulse, r the arclength row of the
+    step, from the last tangent). Along one branch that sign is constant, folds
     included, where the bordered matrix is regular (docs/branches.md §1); it changes where a step
     lands on the far side of a fold's tip or on another branch (a jump), and where the branch
     crosses a branch point. A changed step is re-taken at half ds while ds/2 ≥ ``floor``; a
     change that persists below is a branch point crossed: accepted, and counted
-    (``Continuation.sign_changes``). Costs one LU of the bordered matrix per converged step (the
-    next tangent comes from it). Signs compare on one discretisation only: on a new grid (a
-    re-lay, a refined or replaced pulse) the reference is taken afresh.
+    (``Continuation.sign_changes``). The matrix is the corrector's own [J; r] (r its arclength
+    row, the current tangent's); its sign is read off the corrector's LU where refinement on it
+    converges, else costs one LU. Signs compare on one discretisation only: on a new grid (a
+    re-lay, a refined or replaced pulse) the reference is taken afresh, by the next step.
     """
 
     floor: float = 0.002
