@@ -39,12 +39,20 @@ def lu_det(M):
     """(sign, ln|det M|) from an LU factorisation: the product of U's diagonal signs and the
     permutation's parity. Returns (sign, logdet, lu); sign 0 for an exactly singular M."""
     lu, piv = sla.lu_factor(M, check_finite=False)
-    d = np.diag(lu)
-    if np.any(d == 0.0):
+    sign = lu_sign((lu, piv))
+    if sign == 0:
         return 0, -math.inf, (lu, piv)
-    parity = int(np.count_nonzero(piv != np.arange(piv.size))) % 2
-    sign = (-1) ** parity * int(np.prod(np.sign(d)))
-    return int(sign), float(np.sum(np.log(np.abs(d)))), (lu, piv)
+    return sign, float(np.sum(np.log(np.abs(np.diag(lu))))), (lu, piv)
+
+
+def lu_sign(lu) -> int:
+    """The sign of det of the matrix whose scipy LU is ``lu``: the product of U's diagonal signs
+    and the pivots' parity (0 for an exactly singular U)."""
+    d = np.diag(lu[0])
+    if np.any(d == 0):
+        return 0
+    parity = int(np.count_nonzero(lu[1] != np.arange(lu[1].size))) % 2
+    return int((-1) ** parity * np.prod(np.sign(d)))
 
 
 #: Above this many equations the null vector comes from one bordered LU solve instead of a full

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import math
 import numpy as np
-import scipy.linalg as sla
 
-from ..bifurcation import lu_det
+from ..bifurcation import lu_det, lu_sign
 from ..equations import SteadyProblem
 from ..newton import gmres_on_lu, lu_solve
 
@@ -73,16 +72,6 @@ def bordered_sign(A, lu=None) -> int:
     if lu is not None and lu[0].shape[0] == A.shape[0] and refined_solution(A, lu) is not None:
         return lu_sign(lu)
     return lu_det(A)[0]
-
-
-def lu_sign(lu) -> int:
-    """The sign of det of the matrix whose scipy LU is ``lu``: the product of U's diagonal signs
-    and the pivots' parity (0 for an exactly singular U)."""
-    d = np.diag(lu[0])
-    if np.any(d == 0):
-        return 0
-    parity = int(np.count_nonzero(lu[1] != np.arange(lu[1].size))) % 2
-    return int((-1) ** parity * np.prod(np.sign(d)))
 
 
 def tangent_matrix(prob, x, orient):

@@ -159,8 +159,8 @@ class Continuation:
         # of the pulse before the current one, kept while the current grid is its deformed one
         self._rate = None
         self._prev = None
-        # the sign guard: sign det [J; c] at the current pulse (None: not yet on this grid), the
-        # candidate's sign and tangent, and the τ_d where a change persisted (branch points)
+        # the sign guard: sign det of the corrector's [J; r] at the current pulse (None: not yet
+        # on this grid), the candidate's, and the τ_d where a change persisted (branch points)
         self.sign_changes = []
         self._next = None
         self._forget()
@@ -693,7 +693,7 @@ class Continuation:
         same = new.problem.n == base.n and (self.strategy.stretch or new.problem.xi is base.xi)
         if self._sign is None or not same or self._next == self._sign:
             return True, msg
-        change = f"sign det [J; t] {self._sign:+d} -> {self._next:+d}"
+        change = f"sign det [J; r] {self._sign:+d} -> {self._next:+d}"
         if 0.5 * self.ds >= g.floor:
             self._next = None
             return False, (f"{msg}; refused by the sign guard: {change} (the step left the "
@@ -703,6 +703,15 @@ class Continuation:
             self.log(f"sign guard: {change} persists at ds={self.ds:.3g} < 2 x floor: a branch "
                      f"point crossed near tau_d/tau_min={float(new.x[-1]):.6f}")
         return True, f"{msg}; {change} at ds < 2 x floor: a branch point crossed"
+
+    def _step_failed(self, st, pred_ds_max):
+        """What a corrector's failure teaches the step control: a tangent step above the
+        predictor's ds_max failed; with held steps, a failure at or near the cap lowers it."""
+        if self.last_predictor == "tangent" and self.ds > pred_ds_max:
+            self._tangent_failed = True
+        if self.held and st.cap_shrink < 1.0 and self.ds >= st.cap_shrink * self.cap:
+            self.cap = max(st.cap_shrink * min(self.ds, self.cap), st.ds_min)
+            self._at_cap = 0
 
     def _toward_stop(self, ds, t_Q):
         """``ds``, shortened where the predicted τ_d would pass ``stop`` by more than the step
@@ -734,14 +743,8 @@ class Continuation:
             if ok:
                 break
             self.n_failed += 1
-            if jumped:
-                pass                       # a step that left the branch: only ds halves
-            elif self.last_predictor == "tangent" and self.ds > pred_ds_max:
-                self._tangent_failed = True
-            if self.held and st.cap_shrink < 1.0 and self.ds >= st.cap_shrink * self.cap:
-                # a failure at or near the cap: the cap below it
-                self.cap = max(st.cap_shrink * min(self.ds, self.cap), st.ds_min)
-                self._at_cap = 0
+            if not jumped:                 # a step that left the branch only halves ds
+                self._step_failed(st, pred_ds_max)
             self.ds *= 0.5
             if self.ds < st.ds_min:
                 self.status = "failed"
