@@ -224,6 +224,12 @@ def test_a_killed_branch_trace_is_resumed_by_the_same_command(tmp_path, params, 
     r = cli_inproc.run([*args, "--max-steps", "6", "--arc-state", "1"])
     assert r.returncode == 2 and "another trace" in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and len(list_pulses(out)) == 6
+    # a pulse of this trace stripped of its step: refused in one line, the file left as it was
+    del last.extra["trace_step"]
+    write_pulse(out, last, params)
+    r = cli_inproc.run([*args, "--max-steps", "7"])
+    assert r.returncode == 2 and "lacks its trace attributes" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and len(list_pulses(out)) == 6
 
 
 def test_a_trace_its_branch_ended_is_not_retraced(tmp_path, params, pulse12):

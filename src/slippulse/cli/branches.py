@@ -313,7 +313,18 @@ def _trace_ends(out, args) -> dict:
                              f"metric {have['trace_arc_metric']!r}), not this one "
                              f"({args.source!r}, metric {want['trace_arc_metric']!r}); "
                              "--overwrite replaces it")
-        name = p.extra["trace_direction"]
+        try:
+            name = str(p.extra["trace_direction"])
+            for key in ("trace_step", "trace_grid"):
+                p.extra[key] = int(p.extra[key])
+            p.extra["trace_t_q"] = float(p.extra["trace_t_q"])
+        except (KeyError, TypeError, ValueError):
+            raise UsageError(f"out={out!r}: pulse {lab!r} lacks its trace attributes (trace_"
+                             "direction, _step, _grid, _t_q), so the trace cannot be resumed; "
+                             "--overwrite replaces it") from None
+        if name not in ("down", "up"):
+            raise UsageError(f"out={out!r}: pulse {lab!r} has trace_direction={name!r}, not "
+                             "'down' or 'up'; --overwrite replaces it")
         if name not in ends or p.extra["trace_step"] > ends[name].extra["trace_step"]:
             ends[name] = p
     return ends
