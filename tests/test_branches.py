@@ -425,8 +425,10 @@ def test_the_sign_guard_sees_the_march_that_jumped_past_a_fold():
 
 def test_a_guarded_march_passes_steps_on_its_branch_and_refuses_a_bad_guard():
     """BRANCH (the march of another branch) carries the guard: from td1.0199, two steps toward
-    the fold are taken with no refusal and no sign change, τ_d falling and β rising; a guard
-    whose floor is below ds_min, or on natural steps, is refused when built."""
+    the fold are taken with no refusal and no sign change, τ_d falling and β rising. Its verdict:
+    keep a step with no sign to compare or the same sign, retake a changed one while ds/2 is at
+    least the floor (0.002), take a change below it as a branch point crossed. A guard whose
+    floor is below ds_min, or on natural steps, is refused when built."""
     from slippulse.steady.continuation import (BRANCH, NATURAL, Continuation, SignGuard,
                                                StrategyError)
     (a, _, _), prm = _jump_pulses()
@@ -437,6 +439,10 @@ def test_a_guarded_march_passes_steps_on_its_branch_and_refuses_a_bad_guard():
     assert m.n_failed == 0 and m.sign_changes == []
     assert m.state_attrs()["march_sign_changes"] == 0
     assert m.q < a.x[-1] and m.beta > a.x[-2]
+    g = BRANCH.guard
+    assert [g.judge(None, -1, 0.1), g.judge(1, 1, 0.1), g.judge(1, -1, 0.1),
+            g.judge(1, -1, 0.004), g.judge(1, -1, 0.0039)] == [
+        "keep", "keep", "retake", "retake", "branch point"]
     with pytest.raises(StrategyError, match="ds_min"):
         BRANCH.replace(guard=SignGuard(floor=1e-4))
     with pytest.raises(StrategyError, match="arclength"):

@@ -691,10 +691,11 @@ class Continuation:
         self._next = bordered_sign(jac, lu)
         base = self._base
         same = new.problem.n == base.n and (self.strategy.stretch or new.problem.xi is base.xi)
-        if self._sign is None or not same or self._next == self._sign:
+        verdict = g.judge(self._sign if same else None, self._next, self.ds)
+        if verdict == "keep":
             return True, msg
         change = f"sign det [J; r] {self._sign:+d} -> {self._next:+d}"
-        if 0.5 * self.ds >= g.floor:
+        if verdict == "retake":
             self._next = None
             return False, (f"{msg}; refused by the sign guard: {change} (the step left the "
                            "branch: past a fold's tip or onto another branch)")

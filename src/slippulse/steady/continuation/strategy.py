@@ -433,6 +433,14 @@ class SignGuard:
             raise StrategyError(f"sign-guard: floor={self.floor!r} is invalid: must be a finite "
                                 "number > 0")
 
+    def judge(self, before, after, ds) -> str:
+        """The verdict on a converged step of ``ds`` whose sign went from ``before`` (None: no
+        sign to compare on this discretisation) to ``after``: "keep", "retake" (changed, and
+        ds/2 ≥ floor) or "branch point" (changed below)."""
+        if before is None or after == before:
+            return "keep"
+        return "retake" if 0.5 * ds >= self.floor else "branch point"
+
 
 # ------------------------------------------------------------------------------ combination
 @dataclass(frozen=True)
