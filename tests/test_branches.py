@@ -381,6 +381,22 @@ def test_a_relaid_trace_stays_on_the_branch(params, pulse12):
     assert st.converged and x[-1] == pytest.approx(last.beta, rel=1e-9)
 
 
+def test_a_trace_relays_its_start_on_the_normal_hyperplane(params, pulse12):
+    """``relay_start`` re-solves the start pulse on a grid adapted to it with ``n_points`` nodes,
+    on the hyperplane normal to its branch: the first point lies on the new grid, at the start's
+    τ_d and β to the change of grid (the branch is not near a fold here), and the trace goes on
+    down the family."""
+    from slippulse.steady.branch_trace import ArcMetric, TraceSettings, trace
+    tr = trace(params, pulse12.to_pulse(), TraceSettings(direction=-1, max_steps=1, n_points=900,
+                                                         relay_start=True,
+                                                         metric=ArcMetric(1.0)))
+    first = tr.points[0]
+    assert first.n_points == 900 and tr.pulses[0].n_points == 900
+    assert first.q == pytest.approx(1.2, abs=1e-5)
+    assert first.beta == pytest.approx(pulse12.to_pulse().beta, rel=1e-3)
+    assert len(tr.points) == 2 and tr.points[1].q < first.q
+
+
 JUMP_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data",
                          "two_hump_fold_jump.h5")
 

@@ -284,12 +284,20 @@ def _stop(pt, s: TraceSettings, q_hi):
     return ""
 
 
-def _relay_start(params, pulse, n_points):
-    """The start pulse re-solved at its τ_d on a grid adapted to it: (xi, ln v, Pulse)."""
-    xi = np.asarray(pulse.xi, float)
-    y = np.log(np.asarray(pulse.v, float))
+def _relay_start(params, pulse, n_points, metric):
+    """The start pulse re-solved on a grid adapted to it (``n_points``), as the trace re-lays
+    its grids (:func:`_relay`): on the hyperplane normal to its branch in ``metric``'s
+    coordinates (where the shape moves at nearly fixed τ_d a fixed-τ_d re-solve fails: 60
+    iterations past the upper two-hump fold at N = 8000), else at its τ_d: (xi, ln v, Pulse)."""
+    from .bifurcation import pulse_system
+    prob, x, _ = pulse_system(pulse, params)
+    xi, y = prob.xi, x[:-2]
     xi_new = adapted_grid(xi, y, np.asarray(pulse.phi, float), pulse.beta, params,
                           pulse.v_stick, n_points)
+    _, t = _tangent(prob.residual_and_jacobian(x)[1], x, metric)
+    new, xn = _onto_normal(params, prob, x, t, xi_new, metric)
+    if new is not None:
+        return xi_new, xn[:-2], _pulse(new, xn, params)
     p2, x2, st = solve_on_grid(params, pulse.tau_d_ratio, xi_new,
                                interpolate(xi, y, xi_new, pulse.v_stick), pulse.beta)
     if not st.converged:
@@ -314,7 +322,7 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
     xi = np.asarray(pulse.xi, float)
     y = np.log(np.asarray(pulse.v, float))
     if s.relay_start:
-        xi, y, pulse = _relay_start(params, pulse, n_points)
+        xi, y, pulse = _relay_start(params, pulse, n_points, s.metric)
     if not s.relay_start and "pin_index" in pulse.extra:
         # the pulse's own phase condition: a stored trace point goes on in the discrete system
         # it was solved in (a resumed trace), not one pinned at another node
