@@ -289,8 +289,8 @@ def cmd_branch_trace(args) -> int:
     written = []
     dirs = {"down": ["down"], "up": ["up"], "both": ["down", "up"]}[args.direction]
     for n_dir, name in enumerate(dirs):
-        skip = n_dir > 0 or "down" in ends or "up" in ends
-        rc = _trace_one(args, params, pulse, name, out, taken, written, skip_start=skip,
+        rc = _trace_one(args, params, pulse, name, out, taken, written,
+                        skip_start=n_dir > 0 or bool(ends),
                         resume=ends.get(name))
         if rc:
             return rc
@@ -343,7 +343,7 @@ def _trace_one(args, params, pulse, name, out, taken, written, skip_start, resum
     metric = ArcMetric(args.arc_state)
     k0 = grid0 = 0
     if resume is not None:
-        k0, grid0 = int(resume.extra["trace_step"]), int(resume.extra["trace_grid"])
+        k0, grid0 = resume.extra["trace_step"], resume.extra["trace_grid"]   # ints (_trace_ends)
         if resume.extra.get("trace_stop_reason"):
             print(f"trace {name}: already ended at step {k0} ({resume.label}): "
                   f"{resume.extra['trace_stop_reason']}")

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from .bifurcation import indicators
+from .bifurcation import indicators, pulse_system
 from .equations import SteadyProblem
 from .measures import pulse_length
 from .solver import (adapted_grid, count_humps, front_pin, interpolate, nested_grid,
@@ -289,7 +289,6 @@ def _relay_start(params, pulse, n_points, metric):
     its grids (:func:`_relay`): on the hyperplane normal to its branch in ``metric``'s
     coordinates (where the shape moves at nearly fixed τ_d a fixed-τ_d re-solve fails: 60
     iterations past the upper two-hump fold at N = 8000), else at its τ_d: (xi, ln v, Pulse)."""
-    from .bifurcation import pulse_system
     prob, x, _ = pulse_system(pulse, params)
     xi, y = prob.xi, x[:-2]
     xi_new = adapted_grid(xi, y, np.asarray(pulse.phi, float), pulse.beta, params,
@@ -319,19 +318,16 @@ def trace(params, pulse, settings: TraceSettings | None = None, progress=None,
     s = settings if settings is not None else TraceSettings()
     t0 = time.perf_counter()
     n_points = s.n_points or int(pulse.n_points)
-    xi = np.asarray(pulse.xi, float)
-    y = np.log(np.asarray(pulse.v, float))
     if s.relay_start:
         xi, y, pulse = _relay_start(params, pulse, n_points, s.metric)
-    if not s.relay_start and "pin_index" in pulse.extra:
-        # the pulse's own phase condition: a stored trace point goes on in the discrete system
-        # it was solved in (a resumed trace), not one pinned at another node
-        k, y_pin = int(pulse.extra["pin_index"]), float(pulse.extra["y_pin"])
-    else:
         k, _ = front_pin(xi, y, math.log(pulse.v_stick))
-        y_pin = float(y[k])
-    prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, y_pin, free="both")
-    x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
+        prob = SteadyProblem(params, pulse.tau_d_ratio, xi, k, float(y[k]), free="both")
+        x = np.concatenate([y, [pulse.beta, pulse.tau_d_ratio]])
+    else:
+        # the pulse's own discrete system, its stored pin included: a stored trace point goes on
+        # in the system it was solved in (a resumed trace), not one pinned at another node
+        prob, x, _ = pulse_system(pulse, params)
+        xi, y = prob.xi, x[:-2]
     r, J = prob.residual_and_jacobian(x)
     m = s.metric
     tz, t = _tangent(J, x, m)
@@ -398,7 +394,6 @@ def check_on_normal(params, pulse, metric: ArcMetric = ArcMetric(), max_iter=20,
     through the pulse's τ_d at all, and the fixed-τ_d re-solve fails (60 iterations at the
     trailing hump's unbinding). Returns {'passed' (converged), 'n_fine', 'dbeta', 'dq',
     'dL_rel', 'wall'} or {'passed': False, 'message', 'wall'}."""
-    from .bifurcation import pulse_system
     t0 = time.perf_counter()
     prob, x, _ = pulse_system(pulse, params)
     _, t = _tangent(prob.residual_and_jacobian(x)[1], x, metric)

@@ -159,10 +159,9 @@ class Continuation:
         # of the pulse before the current one, kept while the current grid is its deformed one
         self._rate = None
         self._prev = None
-        # the sign guard: sign det of the corrector's [J; r] at the current pulse (None: not yet
-        # on this grid), the candidate's, and the τ_d where a change persisted (branch points)
+        # the sign guard: the τ_d where a change of sign persisted (branch points); the sign at
+        # the current pulse is _sign (None: not yet on this grid)
         self.sign_changes = []
-        self._next = None
         self._forget()
         self._candidate = (None, None, None)
         # held steps: a tangent step above the predictor's ds_max failed since the last
@@ -675,35 +674,34 @@ class Continuation:
         return ok, new, msg, (t_a, t_Q), qp
 
     def _guard(self, new, msg):
-        """The strategy's :class:`~.strategy.SignGuard` on a converged step: (accepted, message).
+        """The strategy's :class:`~.strategy.SignGuard` on a converged step: (accepted, message,
+        the sign at ``new``, None without a guard).
         The sign of det of the corrector's bordered matrix [J; r] at ``new`` (r the arclength
         row, from the current tangent; :func:`bordered_sign`, on the corrector's LU where
         refinement converges) against the current pulse's, where both lie on one discretisation
         (the same N, and the same grid or its deformation). The first step from a pulse whose
         sign is not known (the start, a replaced or refined pulse) only takes it."""
         g = self.strategy.guard
-        self._next = None
         if g is None:
-            return True, msg
+            return True, msg, None
         lu, jac, arc = self._candidate
         if jac is None:
             jac = arc.residual_and_jacobian(new.x)[1]
-        self._next = bordered_sign(jac, lu)
+        sign = bordered_sign(jac, lu)
         base = self._base
         same = new.problem.n == base.n and (self.strategy.stretch or new.problem.xi is base.xi)
-        verdict = g.judge(self._sign if same else None, self._next, self.ds)
+        verdict = g.judge(self._sign if same else None, sign, self.ds)
         if verdict == "keep":
-            return True, msg
-        change = f"sign det [J; r] {self._sign:+d} -> {self._next:+d}"
+            return True, msg, sign
+        change = f"sign det [J; r] {self._sign:+d} -> {sign:+d}"
         if verdict == "retake":
-            self._next = None
             return False, (f"{msg}; refused by the sign guard: {change} (the step left the "
-                           "branch: past a fold's tip or onto another branch)")
+                           "branch: past a fold's tip or onto another branch)"), None
         self.sign_changes.append(float(new.x[-1]))
         if self.log:
             self.log(f"sign guard: {change} persists at ds={self.ds:.3g} < 2 x floor: a branch "
                      f"point crossed near tau_d/tau_min={float(new.x[-1]):.6f}")
-        return True, f"{msg}; {change} at ds < 2 x floor: a branch point crossed"
+        return True, f"{msg}; {change} at ds < 2 x floor: a branch point crossed", sign
 
     def _step_failed(self, st, pred_ds_max):
         """What a corrector's failure teaches the step control: a tangent step above the
@@ -733,9 +731,9 @@ class Continuation:
         while True:
             ok, new, msg, tangent, qp = self._attempt()
             self.n_attempts += 1
-            jumped = False
+            jumped, sign = False, None
             if ok:
-                ok, msg = self._guard(new, msg)
+                ok, msg, sign = self._guard(new, msg)
                 jumped = not ok
             self.message = msg
             if self.on_attempt:
@@ -756,9 +754,7 @@ class Continuation:
             self._L_grid = new.to_pulse().L
         self._lu, self._jac, self._arc = (self._candidate if S.corrector.reuse_lu
                                           else (None, None, None))
-        self._n = None
-        if self._next is not None:         # the guard's sign at the new pulse
-            self._sign, self._next = self._next, None
+        self._n, self._sign = None, sign   # the guard's sign at the new pulse
         # the history: a nodal secant only across a step that kept the front on its nodes
         lineage = (S.stretch and new.problem.n == self._base.n
                    and self.last_predictor in ("length", "secant"))
